@@ -1,0 +1,28 @@
+//! Core of the dem-* tools for virtual depth sensors on tracked robots.
+//!
+//! - [`format`]: the DEM record of `spec/dem-format.md` (shape, cells,
+//!   terrains) and the NaN rule.
+//! - [`npy`]: NPY stream reader and writer (concatenated arrays, stdin/stdout,
+//!   atomic files, numpy-identical bytes).
+//! - [`table`]: labels, pairs and index CSVs.
+//! - [`metric`]: the thesis's equation 7.1 error and the pair error.
+//! - [`synth`]: the world we test on: terrains, trajectories, exact sim DEMs
+//!   and a physical depth-sensor + elevation-mapping emulator.
+//! - [`render`]: PNG pictures of DEMs (jet, colour bar, grids, comparisons).
+//! - [`output`]: atomic output files.
+//! - [`cli`]: exit codes, error printing, logs and progress for the binaries.
+//! - [`error`]: the typed errors everything returns.
+#![deny(missing_docs)]
+
+pub mod cli;
+pub mod error;
+pub mod format;
+pub mod metric;
+pub mod npy;
+pub mod output;
+pub mod render;
+pub mod synth;
+pub mod table;
+
+pub use error::{DemError, Result};
+pub use format::{Dem, DemCells, Terrain};

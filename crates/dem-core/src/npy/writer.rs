@@ -1,0 +1,153 @@
+//! Write an NPY stream to a file or stdout.
+//!
+//! - A named file is written to a temp file in the same folder and renamed
+//!   on [`NpyWriter::finish`]: readers never see a partial file, and an error
+//!   (or a panic) leaves none behind.
+//! - A file (named, or stdout redirected to one) holds one array, as
+//!   `numpy.save` writes it, byte for byte: the header is reserved and the
+//!   record count patched in when the stream ends, so `numpy.load` reads all
+//!   of it.
+//! - A pipe gets one complete array per chunk of [`CHUNK_RECORDS`] records,
+//!   which is what the contract calls a stream; memory stays one chunk.
+
+use std::fs::File;
+use std::io::{self, BufWriter, Seek, SeekFrom, Write};
+use std::os::fd::AsFd;
+
+use super::header::{f32_header, HEADER_LEN};
+use super::reader::CHUNK_RECORDS;
+use crate::error::{DemError, Result};
+use crate::output::temp_beside;
+use crate::format::{Dem, RECORD_LEN};
+
+enum Sink {
+    /// One array with a patched header; `temp` is set for a named file.
+    Seekable { out: BufWriter<File>, start: u64, temp: Option<tempfile::TempPath> },
+    /// One array per chunk, for pipes.
+    Chunked { out: BufWriter<Box<dyn Write + Send>>, pending: Vec<Dem> },
+}
+
+/// A writer of DEM records; call [`NpyWriter::finish`] to complete it.
+pub struct NpyWriter {
+    sink: Sink,
+    path: String,
+    records: u64,
+}
+
+/// Create `path` (`-` for stdout) as an NPY stream.
+pub fn create(path: &str) -> Result<NpyWriter> {
+    let io_err = |e| DemError::io(path, e);
+    let sink = if path == "-" {
+        match stdout_file() {
+            Some(file) => {
+                let mut out = BufWriter::with_capacity(1 << 20, file);
+                let start = out.stream_position().map_err(io_err)?;
+                out.write_all(&f32_header(0)).map_err(io_err)?;
+                Sink::Seekable { out, start, temp: None }
+            }
+            None => Sink::Chunked {
+                out: BufWriter::with_capacity(1 << 20, Box::new(io::stdout())),
+                pending: Vec::new(),
+            },
+        }
+    } else {
+        let (file, temp) = temp_beside(path)?.into_parts();
+        let mut out = BufWriter::with_capacity(1 << 20, file);
+        out.write_all(&f32_header(0)).map_err(io_err)?;
+        Sink::Seekable { out, start: 0, temp: Some(temp) }
+    };
+    Ok(NpyWriter { sink, path: path.into(), records: 0 })
+}
+
+/// Write `records` to `path` (`-` for stdout) in one go.
+pub fn write_all(path: &str, records: &[Dem]) -> Result<()> {
+    let mut w = create(path)?;
+    w.write(records)?;
+    w.finish()
+}
+
+/// Stdout as a file when it is redirected to a regular file.
+fn stdout_file() -> Option<File> {
+    let file = File::from(io::stdout().as_fd().try_clone_to_owned().ok()?);
+    file.metadata().ok()?.is_file().then_some(file)
+}
+
+fn as_le_bytes(records: &[Dem]) -> std::borrow::Cow<'_, [u8]> {
+    if cfg!(target_endian = "little") {
+        std::borrow::Cow::Borrowed(bytemuck::cast_slice(records))
+    } else {
+        records.iter().flatten().flat_map(|v| v.to_le_bytes()).collect::<Vec<u8>>().into()
+    }
+}
+
+impl NpyWriter {
+    /// Records written so far.
+    pub fn records_written(&self) -> u64 {
+        self.records
+    }
+
+    /// Append records.
+    pub fn write(&mut self, records: &[Dem]) -> Result<()> {
+        let io_err = |e| DemError::io(self.path.as_str(), e);
+        match &mut self.sink {
+            Sink::Seekable { out, .. } => out.write_all(&as_le_bytes(records)).map_err(io_err)?,
+            Sink::Chunked { out, pending } => {
+                let mut rest = records;
+                while !rest.is_empty() {
+                    let take = (CHUNK_RECORDS - pending.len()).min(rest.len());
+                    pending.extend_from_slice(&rest[..take]);
+                    rest = &rest[take..];
+                    if pending.len() == CHUNK_RECORDS {
+                        write_array(out, pending).map_err(io_err)?;
+                        pending.clear();
+                    }
+                }
+            }
+        }
+        self.records += records.len() as u64;
+        Ok(())
+    }
+
+    /// Complete the stream: patch the header or write the last chunk, flush,
+    /// and move a named file into place.
+    pub fn finish(self) -> Result<()> {
+        let path = self.path;
+        let io_err = |e| DemError::io(path.as_str(), e);
+        match self.sink {
+            Sink::Chunked { mut out, pending } => {
+                // An empty stream still gets one empty array, so `numpy.load`
+                // of the captured output works.
+                if !pending.is_empty() || self.records == 0 {
+                    write_array(&mut out, &pending).map_err(io_err)?;
+                }
+                out.flush().map_err(io_err)?;
+            }
+            Sink::Seekable { mut out, start, temp } => {
+                let end = start + HEADER_LEN as u64 + self.records * (RECORD_LEN * 4) as u64;
+                out.seek(SeekFrom::Start(start)).map_err(io_err)?;
+                out.write_all(&f32_header(self.records)).map_err(io_err)?;
+                out.seek(SeekFrom::Start(end)).map_err(io_err)?;
+                out.flush().map_err(io_err)?;
+                let file = out.into_inner().map_err(|e| io_err(e.into_error()))?;
+                // An append-mode stdout (`>>`) ignores the seek: catch it
+                // rather than leave a broken file.
+                let len = file.metadata().map_err(io_err)?.len();
+                if len != end {
+                    return Err(DemError::io(
+                        path.as_str(),
+                        io::Error::other("output file changed size while writing (append mode?)"),
+                    ));
+                }
+                if let Some(temp) = temp {
+                    temp.persist(&path).map_err(|e| io_err(e.error))?;
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+fn write_array(out: &mut impl Write, records: &[Dem]) -> io::Result<()> {
+    out.write_all(&f32_header(records.len() as u64))?;
+    out.write_all(&as_le_bytes(records))
+}

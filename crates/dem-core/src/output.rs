@@ -1,0 +1,98 @@
+//! Output files that appear whole or not at all: data goes to a temp file in
+//! the target's folder (same filesystem, so the rename is atomic) and is
+//! renamed over the target on commit. Dropping without commit removes it.
+//! `-` is stdout, which cannot be made atomic and is written through.
+
+use std::io::{self, BufWriter, Write};
+use std::path::Path;
+
+use crate::error::{DemError, Result};
+
+/// A temp file beside `path`, named `.NAME.XXXX.tmp`.
+pub fn temp_beside(path: &str) -> Result<tempfile::NamedTempFile> {
+    let target = Path::new(path);
+    let dir = match target.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    let name = target.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    tempfile::Builder::new()
+        .prefix(&format!(".{name}."))
+        .suffix(".tmp")
+        .tempfile_in(dir)
+        .map_err(|source| DemError::Open { path: path.into(), source })
+}
+
+enum Target {
+    Temp(BufWriter<tempfile::NamedTempFile>),
+    Stdout(BufWriter<io::StdoutLock<'static>>),
+}
+
+/// A buffered writer to `path` (or stdout for `-`) that is atomic for files.
+pub struct AtomicOutput {
+    target: Target,
+    path: String,
+}
+
+impl AtomicOutput {
+    /// Start writing `path`.
+    pub fn create(path: &str) -> Result<Self> {
+        let target = if path == "-" {
+            Target::Stdout(BufWriter::new(io::stdout().lock()))
+        } else {
+            Target::Temp(BufWriter::new(temp_beside(path)?))
+        };
+        Ok(AtomicOutput { target, path: path.into() })
+    }
+
+    /// The path being written.
+    pub fn path(&self) -> &str {
+        &self.path
+    }
+
+    /// Flush and move the file into place.
+    pub fn commit(self) -> Result<()> {
+        let path = self.path;
+        match self.target {
+            Target::Stdout(mut w) => w.flush().map_err(|e| DemError::io(path, e)),
+            Target::Temp(w) => {
+                let temp = w.into_inner().map_err(|e| DemError::io(path.as_str(), e.into_error()))?;
+                temp.persist(&path).map_err(|e| DemError::io(path.as_str(), e.error))?;
+                Ok(())
+            }
+        }
+    }
+}
+
+impl Write for AtomicOutput {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        match &mut self.target {
+            Target::Temp(w) => w.write(buf),
+            Target::Stdout(w) => w.write(buf),
+        }
+    }
+    fn write_all(&mut self, buf: &[u8]) -> io::Result<()> {
+        match &mut self.target {
+            Target::Temp(w) => w.write_all(buf),
+            Target::Stdout(w) => w.write_all(buf),
+        }
+    }
+    fn flush(&mut self) -> io::Result<()> {
+        match &mut self.target {
+            Target::Temp(w) => w.flush(),
+            Target::Stdout(w) => w.flush(),
+        }
+    }
+}
+
+/// Write a whole file atomically from a closure.
+pub fn write_atomic(path: &str, body: impl FnOnce(&mut AtomicOutput) -> io::Result<()>) -> Result<()> {
+    let mut out = AtomicOutput::create(path)?;
+    body(&mut out).map_err(|e| DemError::io(path, e))?;
+    out.commit()
+}
+
+/// True when `path` names an existing file (used to refuse clobbering inputs).
+pub fn exists(path: &str) -> bool {
+    path != "-" && Path::new(path).exists()
+}

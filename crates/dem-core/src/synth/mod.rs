@@ -1,0 +1,1 @@
+//! The synthetic world: terrains, trajectories, sim DEMs and the sensor emulator.

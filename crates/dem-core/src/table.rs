@@ -1,0 +1,185 @@
+//! The CSV tables of the contract: labels (per-record metadata), pairs (sim
+//! to real records) and index lists. Readers check the header and every row
+//! and name the line that breaks; writers are atomic for files.
+
+use serde::{de::DeserializeOwned, Deserialize, Serialize};
+
+use crate::error::{DemError, Result};
+use crate::format::Terrain;
+use crate::output::AtomicOutput;
+
+/// One row of a labels CSV: `index,terrain[,x,y,yaw,sequence,time]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Label {
+    /// Zero-based record index in the NPY file the labels belong to.
+    pub index: u64,
+    /// Terrain class.
+    #[serde(with = "terrain_serde")]
+    pub terrain: Terrain,
+    /// Robot position in the world, metres.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub x: Option<f64>,
+    /// Robot position in the world, metres.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub y: Option<f64>,
+    /// Robot heading in the world, radians.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub yaw: Option<f64>,
+    /// Run (trajectory) the record belongs to.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sequence: Option<u64>,
+    /// Time since the start of the run, seconds.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub time: Option<f64>,
+}
+
+/// Train or validation half of a pairs CSV.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Split {
+    /// Used for training.
+    Train,
+    /// Held out for validation.
+    Val,
+}
+
+/// One row of a pairs CSV: `sim_index,real_index[,split][,distance]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Pair {
+    /// Record index in the sim NPY file.
+    pub sim_index: u64,
+    /// Record index in the real NPY file.
+    pub real_index: u64,
+    /// Train or val.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub split: Option<Split>,
+    /// How the pair was found (pose distance or content error).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub distance: Option<f64>,
+}
+
+/// One row of an index CSV: `index[,other columns]`; extra columns are ignored.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct IndexRow {
+    /// Zero-based record index.
+    pub index: u64,
+}
+
+mod terrain_serde {
+    use crate::format::Terrain;
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(t: &Terrain, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(t.as_str())
+    }
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Terrain, D::Error> {
+        let s = <std::borrow::Cow<'de, str>>::deserialize(d)?;
+        s.parse().map_err(serde::de::Error::custom)
+    }
+}
+
+/// Read every row of a CSV at `path` (`-` for stdin), checking that the
+/// header starts with `required` columns.
+pub fn read_rows<T: DeserializeOwned>(path: &str, required: &[&str]) -> Result<Vec<T>> {
+    let src: Box<dyn std::io::Read> = if path == "-" {
+        Box::new(std::io::stdin().lock())
+    } else {
+        Box::new(std::fs::File::open(path).map_err(|source| DemError::Open { path: path.into(), source })?)
+    };
+    let mut rdr = csv::ReaderBuilder::new().trim(csv::Trim::All).from_reader(src);
+    let bad = |line: u64, reason: String| DemError::Table { path: path.into(), line, reason };
+    let headers = rdr.headers().map_err(|e| bad(1, e.to_string()))?.clone();
+    for (i, want) in required.iter().enumerate() {
+        if headers.get(i) != Some(*want) {
+            return Err(bad(
+                1,
+                format!("header must start with {}, found {}", required.join(","), headers.iter().collect::<Vec<_>>().join(",")),
+            ));
+        }
+    }
+    let mut out = Vec::new();
+    for row in rdr.deserialize() {
+        let row: T = row.map_err(|e| {
+            let line = e.position().map_or(0, |p| p.line());
+            let reason = match e.kind() {
+                csv::ErrorKind::Deserialize { err, .. } => err.to_string(),
+                _ => e.to_string(),
+            };
+            bad(line, reason)
+        })?;
+        out.push(row);
+    }
+    Ok(out)
+}
+
+/// Write rows as CSV to `path` (`-` for stdout), atomically for files.
+pub fn write_rows<T: Serialize>(path: &str, rows: &[T]) -> Result<()> {
+    let out = AtomicOutput::create(path)?;
+    let mut w = csv::Writer::from_writer(out);
+    for row in rows {
+        w.serialize(row).map_err(|e| DemError::io(path, std::io::Error::other(e)))?;
+    }
+    let out = w.into_inner().map_err(|e| DemError::io(path, e.into_error()))?;
+    out.commit()
+}
+
+/// Read a labels CSV; rows must be indexed 0, 1, 2, ... in order.
+pub fn read_labels(path: &str) -> Result<Vec<Label>> {
+    let rows: Vec<Label> = read_rows(path, &["index", "terrain"])?;
+    for (i, row) in rows.iter().enumerate() {
+        if row.index != i as u64 {
+            return Err(DemError::Table {
+                path: path.into(),
+                line: i as u64 + 2,
+                reason: format!("index {} out of order (expected {i})", row.index),
+            });
+        }
+    }
+    Ok(rows)
+}
+
+/// Read a pairs CSV.
+pub fn read_pairs(path: &str) -> Result<Vec<Pair>> {
+    read_rows(path, &["sim_index", "real_index"])
+}
+
+/// Read an index CSV.
+pub fn read_index(path: &str) -> Result<Vec<u64>> {
+    Ok(read_rows::<IndexRow>(path, &["index"])?.into_iter().map(|r| r.index).collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn labels_round_trip_and_bad_rows_name_the_line() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("l.csv").to_string_lossy().into_owned();
+        let rows = vec![
+            Label { index: 0, terrain: Terrain::Pallet, x: Some(1.5), y: Some(0.0), yaw: Some(0.1), sequence: Some(3), time: Some(0.2) },
+            Label { index: 1, terrain: Terrain::StairsDown, x: Some(1.6), y: Some(0.0), yaw: Some(0.1), sequence: Some(3), time: Some(0.4) },
+        ];
+        write_rows(&p, &rows).unwrap();
+        assert_eq!(read_labels(&p).unwrap(), rows);
+
+        std::fs::write(&p, "index,terrain\n0,flat\n1,lava\n").unwrap();
+        let e = read_labels(&p).unwrap_err().to_string();
+        assert!(e.contains("line 3") && e.contains("lava"), "{e}");
+        std::fs::write(&p, "idx,terrain\n0,flat\n").unwrap();
+        assert!(read_labels(&p).unwrap_err().to_string().contains("line 1"));
+    }
+
+    #[test]
+    fn pairs_accept_optional_columns() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("p.csv").to_string_lossy().into_owned();
+        std::fs::write(&p, "sim_index,real_index,split,distance\n3,0,val,0.1\n4,1,train,0.2\n").unwrap();
+        let pairs = read_pairs(&p).unwrap();
+        assert_eq!(pairs[0].split, Some(Split::Val));
+        std::fs::write(&p, "sim_index,real_index\n3,0\n").unwrap();
+        assert_eq!(read_pairs(&p).unwrap()[0].split, None);
+        std::fs::write(&p, "sim_index,real_index\n3,-1\n").unwrap();
+        assert!(read_pairs(&p).unwrap_err().to_string().contains("line 2"));
+    }
+}
