@@ -1,1 +1,99 @@
+//! Helpers for the tests of the dem-* tools: run the real binaries the way a
+//! user does (arguments, stdin, files), find the bundled test data, and run
+//! the numpy peer from the venv the Makefile makes.
+#![deny(missing_docs)]
 
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+
+/// Root of the workspace.
+pub fn workspace_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..").canonicalize().expect("workspace root")
+}
+
+/// A file under `testdata/`.
+pub fn testdata(name: &str) -> PathBuf {
+    workspace_root().join("testdata").join(name)
+}
+
+/// Path of a built binary of the workspace (same profile as the test).
+pub fn bin(name: &str) -> PathBuf {
+    let exe = std::env::current_exe().expect("test exe");
+    // target/<profile>/deps/test-xxxx -> target/<profile>/<name>
+    let dir = exe.parent().and_then(Path::parent).expect("target dir");
+    let path = dir.join(name);
+    assert!(path.exists(), "{} is not built; run `cargo test --workspace` (or `make test`)", path.display());
+    path
+}
+
+/// Run binary `name` with `args`, feeding `stdin` from a thread (so large
+/// inputs cannot deadlock against a full stdout pipe).
+pub fn run(name: &str, args: &[&str], stdin: Option<Vec<u8>>) -> Output {
+    run_cmd(Command::new(bin(name)).args(args), stdin)
+}
+
+/// Run a prepared command with optional stdin bytes.
+pub fn run_cmd(cmd: &mut Command, stdin: Option<Vec<u8>>) -> Output {
+    cmd.stdin(if stdin.is_some() { Stdio::piped() } else { Stdio::null() })
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
+    let mut child = cmd.spawn().expect("spawn");
+    let feeder = stdin.map(|bytes| {
+        let mut pipe = child.stdin.take().expect("stdin");
+        std::thread::spawn(move || {
+            // The child may stop reading early (that is what some tests check).
+            let _ = pipe.write_all(&bytes);
+        })
+    });
+    let out = child.wait_with_output().expect("wait");
+    if let Some(f) = feeder {
+        f.join().expect("stdin feeder");
+    }
+    out
+}
+
+/// Assert success and return stdout.
+pub fn ok(out: &Output) -> &[u8] {
+    assert!(
+        out.status.success(),
+        "exit {:?}\nstderr:\n{}",
+        out.status.code(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    &out.stdout
+}
+
+/// Stderr as text.
+pub fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+/// The Python with numpy (and later onnxruntime) that the Makefile installs
+/// into `.venv`; `DEM_PYTHON` overrides. Panics with the fix when missing:
+/// peer checks are part of the suite, not optional.
+pub fn python() -> PathBuf {
+    if let Some(p) = std::env::var_os("DEM_PYTHON") {
+        return PathBuf::from(p);
+    }
+    let p = workspace_root().join(".venv/bin/python");
+    assert!(p.exists(), "no {}: run `make venv` (make test does it) for the numpy peer", p.display());
+    p
+}
+
+/// Run a Python snippet with the venv's Python in `dir`; returns stdout.
+pub fn py(dir: &Path, code: &str) -> String {
+    let out = Command::new(python()).arg("-c").arg(code).current_dir(dir).output().expect("python");
+    assert!(out.status.success(), "python failed:\n{code}\n{}", String::from_utf8_lossy(&out.stderr));
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// A fresh temp dir for one test.
+pub fn tempdir() -> tempfile::TempDir {
+    tempfile::tempdir().expect("tempdir")
+}
+
+/// Path inside `dir` as a `String` argument.
+pub fn arg(dir: &Path, name: &str) -> String {
+    dir.join(name).to_string_lossy().into_owned()
+}

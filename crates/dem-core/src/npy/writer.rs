@@ -28,10 +28,22 @@ enum Sink {
 }
 
 /// A writer of DEM records; call [`NpyWriter::finish`] to complete it.
+/// Dropped unfinished (an error on the way), a named file is removed and a
+/// stdout redirected to a file is cut back to where it started.
 pub struct NpyWriter {
-    sink: Sink,
+    sink: Option<Sink>,
     path: String,
     records: u64,
+}
+
+impl Drop for NpyWriter {
+    fn drop(&mut self) {
+        if let Some(Sink::Seekable { out, start, temp: None }) = self.sink.take() {
+            // into_parts drops the buffer unflushed, so nothing lands after the cut.
+            let (file, _) = out.into_parts();
+            let _ = file.set_len(start);
+        }
+    }
 }
 
 /// Create `path` (`-` for stdout) as an NPY stream.
@@ -56,7 +68,7 @@ pub fn create(path: &str) -> Result<NpyWriter> {
         out.write_all(&f32_header(0)).map_err(io_err)?;
         Sink::Seekable { out, start: 0, temp: Some(temp) }
     };
-    Ok(NpyWriter { sink, path: path.into(), records: 0 })
+    Ok(NpyWriter { sink: Some(sink), path: path.into(), records: 0 })
 }
 
 /// Write `records` to `path` (`-` for stdout) in one go.
@@ -89,7 +101,7 @@ impl NpyWriter {
     /// Append records.
     pub fn write(&mut self, records: &[Dem]) -> Result<()> {
         let io_err = |e| DemError::io(self.path.as_str(), e);
-        match &mut self.sink {
+        match self.sink.as_mut().expect("not finished") {
             Sink::Seekable { out, .. } => out.write_all(&as_le_bytes(records)).map_err(io_err)?,
             Sink::Chunked { out, pending } => {
                 let mut rest = records;
@@ -110,10 +122,11 @@ impl NpyWriter {
 
     /// Complete the stream: patch the header or write the last chunk, flush,
     /// and move a named file into place.
-    pub fn finish(self) -> Result<()> {
-        let path = self.path;
+    pub fn finish(mut self) -> Result<()> {
+        let path = std::mem::take(&mut self.path);
         let io_err = |e| DemError::io(path.as_str(), e);
-        match self.sink {
+        let Some(sink) = self.sink.take() else { return Ok(()) };
+        match sink {
             Sink::Chunked { mut out, pending } => {
                 // An empty stream still gets one empty array, so `numpy.load`
                 // of the captured output works.
