@@ -1,0 +1,347 @@
+//! A RealSense-like depth camera on the robot, ray-cast into the height field.
+//!
+//! Each frame casts one ray per depth pixel (the pixel position jittered
+//! inside the pixel, so successive frames sample between each other) and
+//! returns the points it measured with their height variance. The stages of
+//! [`Stages`] switch the physical effects on and off one by one:
+//!
+//! - `fov`: only pixel rays within the field of view and the depth cutoffs
+//!   (0.35 to 3.0 m) measure; off, the camera sees every cell of the DEM
+//!   footprint from where it is, at any range.
+//! - `occlusion`: a ray stops at the first surface it meets; off, it passes
+//!   through and measures every surface it crosses downward, so terrain
+//!   behind a pallet or below a stair edge is seen too.
+//! - `noise`: range noise sigma_r = a + b (z - c)^2 along the ray (z the depth
+//!   along the optical axis; ZR300 defaults of elevation_mapping) and lateral
+//!   noise sigma_l = l z across it.
+//! - `smoothing`: stereo matching averages depth over a correlation window:
+//!   the range is the mean over the pixel ray and two rays half a window
+//!   above and below it, which turns step edges and kinks into ramps; where
+//!   the window straddles a depth jump the matcher's consistency check
+//!   rejects the pixel, which widens shadows and blind bands.
+//! - `dropout`: dark or reflective patches of the world return nothing.
+//!
+//! The height variance handed to the map is the vertical part of the point's
+//! covariance: var_z = sigma_r^2 d_z^2 + sigma_l^2 (1 - d_z^2), d the unit ray.
+
+use rand::Rng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
+
+use super::pose::Pose;
+use super::terrain::World;
+use crate::format::{col_center_y, row_center_x, COLS, GRID_ROWS};
+
+/// Camera mounting, optics and noise model.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CameraConfig {
+    /// Height of the optical centre above C along the body's up axis (m).
+    pub height: f64,
+    /// Offset of the optical centre ahead of C along the body's x axis (m).
+    pub forward: f64,
+    /// Tilt of the optical axis below the body's x axis (degrees).
+    pub tilt_deg: f64,
+    /// Horizontal field of view (degrees).
+    pub hfov_deg: f64,
+    /// Vertical field of view (degrees).
+    pub vfov_deg: f64,
+    /// Depth pixels across.
+    pub pixels_x: usize,
+    /// Depth pixels down.
+    pub pixels_y: usize,
+    /// Nearest depth measured (m).
+    pub range_min: f64,
+    /// Farthest depth measured (m).
+    pub range_max: f64,
+    /// Range noise sigma = a + b (z - c)^2: a (m).
+    pub noise_a: f64,
+    /// Range noise: b (1/m).
+    pub noise_b: f64,
+    /// Range noise: c (m).
+    pub noise_c: f64,
+    /// Lateral noise sigma = l z: l.
+    pub noise_lateral: f64,
+    /// Stereo correlation window (degrees) for the smoothing stage.
+    pub window_deg: f64,
+}
+
+impl Default for CameraConfig {
+    fn default() -> Self {
+        CameraConfig {
+            height: 0.45,
+            forward: 0.15,
+            tilt_deg: 35.0,
+            hfov_deg: 58.0,
+            vfov_deg: 45.0,
+            pixels_x: 48,
+            pixels_y: 36,
+            range_min: 0.35,
+            range_max: 3.0,
+            noise_a: 0.00242,
+            noise_b: 0.00663,
+            noise_c: 0.772,
+            noise_lateral: 0.00221,
+            window_deg: 3.0,
+        }
+    }
+}
+
+/// Which physical effects the emulator applies (all on by default).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Stages {
+    /// Field of view and depth cutoffs.
+    pub fov: bool,
+    /// First surface hides what lies behind it.
+    pub occlusion: bool,
+    /// Range and lateral noise.
+    pub noise: bool,
+    /// Stereo window averaging (edges to ramps, flying pixels).
+    pub smoothing: bool,
+    /// Dark patches return nothing.
+    pub dropout: bool,
+    /// Map cells whose variance stays above the maximum become holes.
+    pub holes: bool,
+}
+
+impl Default for Stages {
+    fn default() -> Self {
+        Stages { fov: true, occlusion: true, noise: true, smoothing: true, dropout: true, holes: true }
+    }
+}
+
+/// A measured point with the variance of its height.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Hit {
+    /// World x.
+    pub x: f64,
+    /// World y.
+    pub y: f64,
+    /// World z.
+    pub z: f64,
+    /// Variance of z (m^2).
+    pub var: f64,
+}
+
+/// March step along a ray (m): below the narrowest pallet gap.
+const STEP: f64 = 0.012;
+
+/// Ray parameters t where the ray `o + t d` crosses the terrain downward
+/// (from above to below), up to `t_max`; only the first when `first_only`.
+pub fn crossings(world: &World, o: [f64; 3], d: [f64; 3], t_max: f64, first_only: bool, out: &mut Vec<f64>) {
+    out.clear();
+    let above = |t: f64| o[2] + t * d[2] - world.height(o[0] + t * d[0], o[1] + t * d[1]);
+    let mut t0 = 0.0;
+    let mut f0 = above(0.0);
+    while t0 < t_max {
+        let t1 = (t0 + STEP).min(t_max);
+        let f1 = above(t1);
+        if f0 > 0.0 && f1 <= 0.0 {
+            // Bisect to well below a millimetre.
+            let (mut lo, mut hi) = (t0, t1);
+            for _ in 0..8 {
+                let mid = 0.5 * (lo + hi);
+                if above(mid) > 0.0 {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+            out.push(hi);
+            if first_only {
+                return;
+            }
+        }
+        t0 = t1;
+        f0 = f1;
+    }
+}
+
+/// The camera of one frame: where it is and where it looks.
+struct Frame {
+    origin: [f64; 3],
+    /// Optical axis pitch (rad, up positive) and yaw.
+    pitch: f64,
+    yaw: f64,
+}
+
+impl Frame {
+    fn new(pose: &Pose, cfg: &CameraConfig) -> Frame {
+        let (sp, cp) = pose.pitch.sin_cos();
+        let fx = cfg.forward * cp - cfg.height * sp;
+        let fz = cfg.forward * sp + cfg.height * cp;
+        let (wx, wy) = pose.to_world(fx, 0.0);
+        Frame { origin: [wx, wy, pose.z + fz], pitch: pose.pitch - cfg.tilt_deg.to_radians(), yaw: pose.yaw }
+    }
+
+    /// Unit world direction of a camera-frame direction (1, ty, tz), and
+    /// the depth per unit range along it (cosine to the optical axis).
+    fn ray(&self, ty: f64, tz: f64) -> ([f64; 3], f64) {
+        let n = (1.0 + ty * ty + tz * tz).sqrt();
+        let (x, y, z) = (1.0 / n, ty / n, tz / n);
+        let (sp, cp) = self.pitch.sin_cos();
+        let (x1, z1) = (x * cp - z * sp, x * sp + z * cp);
+        let (sy, cy) = self.yaw.sin_cos();
+        ([x1 * cy - y * sy, x1 * sy + y * cy, z1], 1.0 / n)
+    }
+}
+
+/// One frame of the camera at `pose`: the points it measured.
+pub fn observe(world: &World, pose: &Pose, cfg: &CameraConfig, stages: Stages, rng: &mut ChaCha8Rng) -> Vec<Hit> {
+    let frame = Frame::new(pose, cfg);
+    let mut hits = Vec::new();
+    let mut ts = Vec::new();
+    let mut sub = Vec::new();
+    if stages.fov {
+        let (hx, hy) = ((cfg.hfov_deg.to_radians() / 2.0).tan(), (cfg.vfov_deg.to_radians() / 2.0).tan());
+        let half_window = cfg.window_deg.to_radians() / 2.0;
+        for j in 0..cfg.pixels_y {
+            for i in 0..cfg.pixels_x {
+                let ty = hx * (1.0 - 2.0 * (i as f64 + rng.gen::<f64>()) / cfg.pixels_x as f64);
+                let tz = hy * (1.0 - 2.0 * (j as f64 + rng.gen::<f64>()) / cfg.pixels_y as f64);
+                let (d, depth_per_t) = frame.ray(ty, tz);
+                let t_max = cfg.range_max / depth_per_t;
+                crossings(world, frame.origin, d, t_max, stages.occlusion, &mut ts);
+                for (k, &t) in ts.iter().enumerate() {
+                    let mut t = t;
+                    if stages.smoothing && k == 0 {
+                        match stereo_window(world, &frame, ty, tz, half_window, t, t_max, &mut sub) {
+                            Some(mean) => t = mean,
+                            None => continue,
+                        }
+                    }
+                    let depth = t * depth_per_t;
+                    if depth < cfg.range_min || depth > cfg.range_max {
+                        continue;
+                    }
+                    push_hit(world, frame.origin, d, t, depth, cfg, stages, rng, &mut hits);
+                }
+            }
+        }
+    } else {
+        // No field of view: look at every map cell of the DEM footprint
+        // (5 cm, jittered) from the camera, at any range.
+        for r in 0..GRID_ROWS * 2 + 2 {
+            for c in 0..COLS * 2 + 2 {
+                let fx = row_center_x(0) - 0.075 + 0.05 * (r as f64 + rng.gen::<f64>());
+                let fy = col_center_y(0) + 0.075 - 0.05 * (c as f64 + rng.gen::<f64>());
+                let (px, py) = pose.to_world(fx, fy);
+                let p = [px, py, world.height(px, py)];
+                let v = [p[0] - frame.origin[0], p[1] - frame.origin[1], p[2] - frame.origin[2]];
+                let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+                let d = [v[0] / len, v[1] / len, v[2] / len];
+                crossings(world, frame.origin, d, len + 0.02, stages.occlusion, &mut ts);
+                for &t in &ts {
+                    push_hit(world, frame.origin, d, t, t, cfg, stages, rng, &mut hits);
+                }
+            }
+        }
+    }
+    hits
+}
+
+/// Stereo block matching over a window: the pixel ray and two rays half a
+/// window below and above it. On a locally planar surface inverse range is
+/// linear across the window and the matcher returns the mean range, which
+/// rounds edges and kinks (steps become ramps). Where the window straddles a
+/// depth jump (the far edge of a pallet, a stair edge going down) its
+/// consistency check fails and the pixel returns nothing: None.
+#[allow(clippy::too_many_arguments)]
+fn stereo_window(world: &World, frame: &Frame, ty: f64, tz: f64, half: f64, t: f64, t_max: f64, sub: &mut Vec<f64>) -> Option<f64> {
+    let mut outer = [0.0; 2];
+    for (k, dz) in [-half, half].into_iter().enumerate() {
+        let (d, _) = frame.ray(ty, tz + dz);
+        crossings(world, frame.origin, d, t_max, true, sub);
+        outer[k] = *sub.first()?;
+    }
+    let (a, b) = (1.0 / outer[0], 1.0 / outer[1]);
+    if (2.0 / t - a - b).abs() > JUMP * (2.0 / t) {
+        return None;
+    }
+    Some((outer[0] + t + outer[1]) / 3.0)
+}
+
+/// Relative departure of inverse range from a plane across the stereo
+/// window beyond which the matcher rejects the pixel.
+pub const JUMP: f64 = 0.03;
+
+#[allow(clippy::too_many_arguments)]
+fn push_hit(
+    world: &World,
+    o: [f64; 3],
+    d: [f64; 3],
+    t: f64,
+    depth: f64,
+    cfg: &CameraConfig,
+    stages: Stages,
+    rng: &mut ChaCha8Rng,
+    hits: &mut Vec<Hit>,
+) {
+    let sigma_r = cfg.noise_a + cfg.noise_b * (depth - cfg.noise_c).powi(2);
+    let sigma_l = cfg.noise_lateral * depth;
+    let mut p = [o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]];
+    if stages.dropout && world.is_dark(p[0], p[1]) {
+        return;
+    }
+    if stages.noise {
+        let nr: f64 = StandardNormal.sample(rng);
+        let (n1, n2): (f64, f64) = (StandardNormal.sample(rng), StandardNormal.sample(rng));
+        // e1: horizontal, across the ray; e2 = d x e1.
+        let h = (d[0] * d[0] + d[1] * d[1]).sqrt().max(1e-9);
+        let e1 = [-d[1] / h, d[0] / h, 0.0];
+        let e2 = [d[1] * e1[2] - d[2] * e1[1], d[2] * e1[0] - d[0] * e1[2], d[0] * e1[1] - d[1] * e1[0]];
+        for k in 0..3 {
+            p[k] += d[k] * sigma_r * nr + sigma_l * (e1[k] * n1 + e2[k] * n2);
+        }
+    }
+    let var = sigma_r.powi(2) * d[2] * d[2] + sigma_l.powi(2) * (1.0 - d[2] * d[2]);
+    hits.push(Hit { x: p[0], y: p[1], z: p[2], var });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::terrain::Shape;
+    use super::*;
+    use crate::format::Terrain;
+
+    fn world(shape: Shape) -> World {
+        World { terrain: Terrain::Other, shape, dark_patches: vec![] }
+    }
+
+    #[test]
+    fn a_ray_down_onto_flat_ground_crosses_once_at_its_height() {
+        let w = world(Shape::Flat);
+        let mut ts = vec![];
+        crossings(&w, [0.0, 0.0, 0.5], [0.6, 0.0, -0.8], 3.0, false, &mut ts);
+        assert_eq!(ts.len(), 1);
+        assert!((ts[0] - 0.625).abs() < 1e-3, "{ts:?}");
+    }
+
+    #[test]
+    fn without_occlusion_a_ray_sees_the_ground_behind_a_pallet() {
+        let w = world(Shape::Pallet { x0: 1.0, y0: 0.0, length: 0.3, width: 2.0, board: 0.3, gap: 0.05 });
+        // Grazing ray that hits the pallet's front face, then the ground behind.
+        let (o, d) = ([0.0, 0.0, 0.5], {
+            let v = [1.0, 0.0, -0.40];
+            let n = (v[0] * v[0] + v[2] * v[2] as f64).sqrt();
+            [v[0] / n, 0.0, v[2] / n]
+        });
+        let mut first = vec![];
+        crossings(&w, o, d, 3.0, true, &mut first);
+        let mut all = vec![];
+        crossings(&w, o, d, 3.0, false, &mut all);
+        assert_eq!(first.len(), 1);
+        assert_eq!(all.len(), 2);
+        let x_far = o[0] + all[1] * d[0];
+        assert!(x_far > 1.3, "{x_far}");
+    }
+
+    #[test]
+    fn camera_looks_ahead_and_down_from_its_mount() {
+        let pose = Pose { x: 0.0, y: 0.0, z: 0.07, yaw: 0.0, pitch: 0.0, flippers: [0.0; 4] };
+        let cfg = CameraConfig::default();
+        let f = Frame::new(&pose, &cfg);
+        assert!((f.origin[2] - 0.52).abs() < 1e-12 && (f.origin[0] - 0.15).abs() < 1e-12);
+        let (d, cos) = f.ray(0.0, 0.0);
+        assert!((d[2] + cfg.tilt_deg.to_radians().sin()).abs() < 1e-12 && cos == 1.0);
+    }
+}
