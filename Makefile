@@ -8,7 +8,7 @@ PY := $(VENV)/bin/python
 BIN := target/release
 OUT := out
 
-.PHONY: all build venv test demo bench clean
+.PHONY: all build venv test demo bench clean testdata
 
 all: build
 
@@ -28,3 +28,7 @@ test: venv
 
 clean:
 	rm -rf $(OUT) .bench
+
+# The committed test data set (see testdata/README.md).
+testdata: build
+	$(BIN)/dem-synth --out testdata --runs 60 --real-runs 20 --seed 1

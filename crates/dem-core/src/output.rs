@@ -16,7 +16,10 @@ pub fn temp_beside(path: &str) -> Result<tempfile::NamedTempFile> {
         _ => Path::new("."),
     };
     let name = target.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    // 0o666 minus the umask, like any file a tool creates; tempfile's
+    // default 0o600 would hide outputs from the rest of a team.
     tempfile::Builder::new()
+        .permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666))
         .prefix(&format!(".{name}."))
         .suffix(".tmp")
         .tempfile_in(dir)
