@@ -8,6 +8,7 @@
 //! - [`metric`]: the thesis's equation 7.1 error and the pair error.
 //! - [`synth`]: the world we test on: terrains, trajectories, exact sim DEMs
 //!   and a physical depth-sensor + elevation-mapping emulator.
+//! - [`prep`]: data preparation (filter, pair, clean pallets, fill holes).
 //! - [`render`]: PNG pictures of DEMs (jet, colour bar, grids, comparisons).
 //! - [`output`]: atomic output files.
 //! - [`cli`]: exit codes, error printing, logs and progress for the binaries.
@@ -20,6 +21,7 @@ pub mod format;
 pub mod metric;
 pub mod npy;
 pub mod output;
+pub mod prep;
 pub mod render;
 pub mod synth;
 pub mod table;

@@ -1,0 +1,148 @@
+//! Keep records by terrain, index, valid cells, valid rows in a region, and
+//! uniqueness (the thesis's chapter 5: unique sim keys, no `other` terrain).
+
+use std::collections::HashSet;
+use std::hash::{Hash, Hasher};
+use std::ops::Range;
+
+use crate::error::{DemError, Result};
+use crate::format::{Dem, DemCells, Terrain, COLS, GRID_CELLS};
+use crate::table::Label;
+
+/// Rows that must be valid: keep a record when at least `min_rows` rows of
+/// `rows` have every cell valid.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RowRule {
+    /// Grid rows looked at (0 is 0.6 m behind C; 6.. is ahead of C).
+    pub rows: Range<usize>,
+    /// How many of them must be fully valid.
+    pub min_rows: usize,
+}
+
+/// What to keep; every rule given must hold.
+#[derive(Debug, Clone, Default)]
+pub struct FilterRules {
+    /// Per-record labels (needed by the terrain rules).
+    pub labels: Option<(String, Vec<Label>)>,
+    /// Keep only these terrains.
+    pub terrains: Option<Vec<Terrain>>,
+    /// Drop records labelled `other`.
+    pub drop_other: bool,
+    /// Keep only these indices (or all but these, with `invert_index`).
+    pub index: Option<HashSet<u64>>,
+    /// Invert the index rule.
+    pub invert_index: bool,
+    /// Keep records with at least this fraction of the 100 grid cells valid.
+    pub min_valid: Option<f64>,
+    /// Keep records with enough fully valid rows in a region.
+    pub rows: Option<RowRule>,
+    /// Drop records identical (bit for bit) to an earlier one.
+    pub unique: bool,
+}
+
+/// Why records were dropped, counted per rule (the first failing rule).
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct FilterCounts {
+    /// Records read.
+    pub read: u64,
+    /// Records kept.
+    pub kept: u64,
+    /// Dropped by terrain (including `other`).
+    pub terrain: u64,
+    /// Dropped by the index rule.
+    pub index: u64,
+    /// Dropped for too few valid cells.
+    pub valid: u64,
+    /// Dropped for too few valid rows in the region.
+    pub rows: u64,
+    /// Dropped as duplicates.
+    pub duplicate: u64,
+}
+
+/// A running filter: rules plus what it has seen.
+pub struct Filter {
+    rules: FilterRules,
+    seen: HashSet<u128>,
+    /// Counts so far.
+    pub counts: FilterCounts,
+}
+
+impl Filter {
+    /// A filter over `rules`.
+    pub fn new(rules: FilterRules) -> Self {
+        Filter { rules, seen: HashSet::new(), counts: FilterCounts::default() }
+    }
+
+    /// Decide on record `index` of the stream named `input`.
+    pub fn keep(&mut self, input: &str, index: u64, d: &Dem) -> Result<bool> {
+        self.counts.read += 1;
+        let r = &self.rules;
+        if r.terrains.is_some() || r.drop_other {
+            let (path, labels) = r.labels.as_ref().ok_or_else(|| DemError::Usage("terrain rules need --labels".into()))?;
+            let label = labels.get(index as usize).ok_or_else(|| {
+                DemError::input(
+                    path.as_str(),
+                    format!("has {} rows but {input} has more records (record {index})", labels.len()),
+                )
+            })?;
+            let wanted = r.terrains.as_ref().is_none_or(|ts| ts.contains(&label.terrain));
+            if !wanted || (r.drop_other && label.terrain == Terrain::Other) {
+                self.counts.terrain += 1;
+                return Ok(false);
+            }
+        }
+        if let Some(set) = &r.index {
+            if set.contains(&index) == r.invert_index {
+                self.counts.index += 1;
+                return Ok(false);
+            }
+        }
+        if let Some(min) = r.min_valid {
+            if (d.valid_cells() as f64) < min * GRID_CELLS as f64 - 1e-9 {
+                self.counts.valid += 1;
+                return Ok(false);
+            }
+        }
+        if let Some(rule) = &r.rows {
+            let full = rule.rows.clone().filter(|&row| (0..COLS).all(|c| d.is_valid(row, c))).count();
+            if full < rule.min_rows {
+                self.counts.rows += 1;
+                return Ok(false);
+            }
+        }
+        if r.unique && !self.seen.insert(record_hash(d)) {
+            self.counts.duplicate += 1;
+            return Ok(false);
+        }
+        self.counts.kept += 1;
+        Ok(true)
+    }
+
+    /// Check at the end of the stream that labels covered it exactly.
+    pub fn finish(&self, input: &str) -> Result<()> {
+        if let Some((path, labels)) = &self.rules.labels {
+            if labels.len() as u64 != self.counts.read {
+                return Err(DemError::input(
+                    path.as_str(),
+                    format!("has {} rows but {input} has {} records", labels.len(), self.counts.read),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// 128-bit hash of a record's bits: two independent SipHash passes, so a
+/// false duplicate among a billion records has odds of about 1e-20.
+fn record_hash(d: &Dem) -> u128 {
+    let bits: &[u32] = bytemuck::cast_slice(d.as_slice());
+    let mut a = std::hash::DefaultHasher::new();
+    bits.hash(&mut a);
+    let mut b = std::hash::DefaultHasher::new();
+    SALT.hash(&mut b);
+    bits.hash(&mut b);
+    (u128::from(a.finish()) << 64) | u128::from(b.finish())
+}
+
+/// Salt of the second hash pass (the golden ratio's bits).
+const SALT: u64 = 0x9e37_79b9_7f4a_7c15;

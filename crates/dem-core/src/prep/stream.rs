@@ -1,0 +1,32 @@
+//! The loop every streaming tool shares: read a chunk, work on it, write
+//! what is kept, so memory stays one chunk whatever the stream's length.
+
+use crate::error::Result;
+use crate::format::Dem;
+use crate::npy;
+
+/// Stream `input` to `output` (`-` for stdin/stdout) a chunk at a time.
+/// `work` gets the index of the chunk's first record in the whole stream and
+/// the chunk; it may change, drop or keep records in place. Returns the
+/// number of records read and written.
+pub fn transform(
+    input: &str,
+    output: &str,
+    mut work: impl FnMut(u64, &mut Vec<Dem>) -> Result<()>,
+) -> Result<(u64, u64)> {
+    let mut reader = npy::open(input)?;
+    let mut writer = npy::create(output)?;
+    let mut chunk = Vec::with_capacity(npy::CHUNK_RECORDS);
+    loop {
+        chunk.clear();
+        let first = reader.records_read();
+        if reader.read_chunk(&mut chunk, npy::CHUNK_RECORDS)? == 0 {
+            break;
+        }
+        work(first, &mut chunk)?;
+        writer.write(&chunk)?;
+    }
+    let written = writer.records_written();
+    writer.finish()?;
+    Ok((reader.records_read(), written))
+}

@@ -1,0 +1,109 @@
+//! dem-fill-nans: fill the large missing areas of startup frames.
+
+use std::collections::HashSet;
+use std::process::ExitCode;
+
+use clap::Parser;
+use dem_core::prep::fill::{fill_from_own_heights, missing_fraction, record_uniform};
+use dem_core::prep::stream::transform;
+use dem_core::{cli, npy};
+
+/// Fill the missing cells of records with a large missing area (the thesis's
+/// section 6.4): such records (a run's first frames, before the map has seen
+/// the rows behind the robot) are kept as they are for --keep of them, and
+/// in the others every missing cell gets a height drawn at random from the
+/// same record's valid cells and is marked valid. Records with a smaller
+/// missing area pass bit-identical.
+///
+/// Which records are kept and which heights are drawn depend only on --seed
+/// and the record index.
+#[derive(Parser)]
+#[command(version, after_long_help = "Examples:
+  dem-fill-nans --min-missing 0.3 --keep-fraction 0.2 --seed 1 real.npy -o real_filled.npy
+  dem-fill-nans --keep 50 real.npy -o real_filled.npy       # exactly 50 kept (needs a file)
+  dem-synth --out run/ && dem-fill-nans run/real.npy | dem-render - -o filled.png")]
+struct Args {
+    /// Input NPY stream (`-` for stdin; a file for --keep).
+    #[arg(default_value = "-")]
+    input: String,
+    /// Output NPY stream (`-` for stdout).
+    #[arg(short, long, default_value = "-")]
+    output: String,
+    /// A record has a large missing area when at least this fraction of its
+    /// 100 grid cells is missing.
+    #[arg(long, default_value_t = 0.3)]
+    min_missing: f64,
+    /// Keep this fraction of the large-missing records unfilled (chosen at random).
+    #[arg(long, default_value_t = 0.2, conflicts_with = "keep")]
+    keep_fraction: f64,
+    /// Keep exactly this many large-missing records unfilled (chosen at
+    /// random; reads the input twice, so it must be a file).
+    #[arg(long)]
+    keep: Option<u64>,
+    /// Seed of the choices and draws.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+}
+
+fn main() -> ExitCode {
+    cli::run(|| {
+        let a = Args::parse();
+        if !(0.0..=1.0).contains(&a.min_missing) || !(0.0..=1.0).contains(&a.keep_fraction) {
+            return Err(cli::usage("--min-missing and --keep-fraction are fractions in 0..1"));
+        }
+        let large = |d: &dem_core::Dem| missing_fraction(d) >= a.min_missing - 1e-9;
+        // --keep N: rank the large-missing records by their random key and keep the N lowest.
+        let kept_set: Option<HashSet<u64>> = match a.keep {
+            None => None,
+            Some(n) => {
+                if a.input == "-" {
+                    return Err(cli::usage("--keep N reads the input twice: give a file, or use --keep-fraction"));
+                }
+                let mut keys = Vec::new();
+                let mut rdr = npy::open(&a.input)?;
+                let mut chunk = Vec::new();
+                loop {
+                    chunk.clear();
+                    let first = rdr.records_read();
+                    if rdr.read_chunk(&mut chunk, npy::CHUNK_RECORDS)? == 0 {
+                        break;
+                    }
+                    for (k, _) in chunk.iter().enumerate().filter(|(_, d)| large(d)) {
+                        let i = first + k as u64;
+                        keys.push((record_uniform(a.seed, i), i));
+                    }
+                }
+                keys.sort_by(|x, y| x.0.total_cmp(&y.0));
+                Some(keys.into_iter().take(n as usize).map(|(_, i)| i).collect())
+            }
+        };
+        let (mut found, mut kept, mut filled, mut cells, mut empty) = (0u64, 0u64, 0u64, 0u64, 0u64);
+        let (read, _) = transform(&a.input, &a.output, |first, chunk| {
+            for (k, d) in chunk.iter_mut().enumerate().filter(|(_, d)| large(d)) {
+                let i = first + k as u64;
+                found += 1;
+                let keep = match &kept_set {
+                    Some(set) => set.contains(&i),
+                    None => record_uniform(a.seed, i) < a.keep_fraction,
+                };
+                if keep {
+                    kept += 1;
+                    continue;
+                }
+                let missing = 100 - dem_core::DemCells::valid_cells(d) as u64;
+                if fill_from_own_heights(d, a.seed, i) {
+                    filled += 1;
+                    cells += missing;
+                } else {
+                    empty += 1;
+                }
+            }
+            Ok(())
+        })?;
+        cli::log(format_args!(
+            "{found} of {read} records have >= {:.0}% missing: kept {kept}, filled {filled} ({cells} cells), {empty} without any valid cell left as they are",
+            a.min_missing * 100.0
+        ));
+        Ok(())
+    })
+}

@@ -1,0 +1,133 @@
+//! dem-filter: keep DEM records by terrain, index, valid cells and uniqueness.
+
+use std::process::ExitCode;
+
+use clap::Parser;
+use dem_core::prep::filter::{Filter, FilterRules, RowRule};
+use dem_core::prep::stream::transform;
+use dem_core::table::{self, IndexRow, Label};
+use dem_core::{cli, Terrain};
+
+/// Keep the records of an NPY stream that pass every rule given, in order.
+///
+/// Rules: terrain (from a labels CSV), an index CSV (or its complement),
+/// a minimum fraction of valid cells, fully valid rows in a region (e.g.
+/// ahead of the robot), and uniqueness. --emit-index and --emit-labels write
+/// what was kept, so labels and other files can follow the records.
+#[derive(Parser)]
+#[command(version, after_long_help = "Examples:
+  dem-filter --labels l.csv --terrain stairs-up,pallet < sim.npy | dem-render - -o stairs.png
+  dem-filter --labels sim_labels.csv --drop-other --unique --emit-index keep.csv sim.npy -o sim_clean.npy
+  dem-filter --index keep.csv --invert sim.npy -o rest.npy     # the complement
+  dem-filter --rows 6..20 --min-valid 0.5 real.npy -o seen_ahead.npy")]
+struct Args {
+    /// Input NPY stream (`-` for stdin).
+    #[arg(default_value = "-")]
+    input: String,
+    /// Output NPY stream (`-` for stdout).
+    #[arg(short, long, default_value = "-")]
+    output: String,
+    /// Labels CSV of the input (index,terrain,...), for the terrain rules.
+    #[arg(long)]
+    labels: Option<String>,
+    /// Keep only these terrains (comma-separated).
+    #[arg(long, value_delimiter = ',')]
+    terrain: Option<Vec<Terrain>>,
+    /// Drop records labelled `other` (section 5.1).
+    #[arg(long)]
+    drop_other: bool,
+    /// Keep only the records listed in this index CSV (header `index`).
+    #[arg(long)]
+    index: Option<String>,
+    /// With --index: keep the records NOT listed.
+    #[arg(long, requires = "index")]
+    invert: bool,
+    /// Keep records with at least this fraction (0..1) of grid cells valid.
+    #[arg(long)]
+    min_valid: Option<f64>,
+    /// Region of grid rows A..B (0-based, B excluded) for --min-rows.
+    #[arg(long, value_parser = parse_rows)]
+    rows: Option<std::ops::Range<usize>>,
+    /// Fully valid rows needed in --rows (default: all of them).
+    #[arg(long, requires = "rows")]
+    min_rows: Option<usize>,
+    /// Drop records identical to an earlier one.
+    #[arg(long)]
+    unique: bool,
+    /// Write the input indices of kept records to this CSV.
+    #[arg(long)]
+    emit_index: Option<String>,
+    /// Write the labels of kept records (re-indexed from 0) to this CSV.
+    #[arg(long, requires = "labels")]
+    emit_labels: Option<String>,
+}
+
+fn parse_rows(s: &str) -> Result<std::ops::Range<usize>, String> {
+    let (a, b) = s.split_once("..").ok_or("expected A..B, e.g. 6..20")?;
+    let (a, b): (usize, usize) = (a.parse().map_err(|_| "bad start")?, b.parse().map_err(|_| "bad end")?);
+    if a >= b || b > 20 {
+        return Err(format!("{s}: need 0 <= A < B <= 20"));
+    }
+    Ok(a..b)
+}
+
+fn main() -> ExitCode {
+    cli::run(|| {
+        let a = Args::parse();
+        if a.min_valid.is_some_and(|f| !(0.0..=1.0).contains(&f)) {
+            return Err(cli::usage("--min-valid must be a fraction in 0..1"));
+        }
+        if (a.terrain.is_some() || a.drop_other) && a.labels.is_none() {
+            return Err(cli::usage("--terrain and --drop-other need --labels"));
+        }
+        let labels = a.labels.as_deref().map(|p| table::read_labels(p).map(|l| (p.to_string(), l))).transpose()?;
+        let rows = a.rows.map(|rows| RowRule { min_rows: a.min_rows.unwrap_or(rows.len()), rows });
+        if rows.as_ref().is_some_and(|r| r.min_rows > r.rows.len()) {
+            return Err(cli::usage("--min-rows is larger than the --rows region"));
+        }
+        let index = a.index.as_deref().map(table::read_index).transpose()?.map(|v| v.into_iter().collect());
+        let mut filter = Filter::new(FilterRules {
+            labels,
+            terrains: a.terrain,
+            drop_other: a.drop_other,
+            index,
+            invert_index: a.invert,
+            min_valid: a.min_valid,
+            rows,
+            unique: a.unique,
+        });
+        let mut kept = Vec::new();
+        transform(&a.input, &a.output, |first, chunk| {
+            let mut i = first;
+            let mut err = None;
+            chunk.retain(|d| {
+                let keep = err.is_none() && filter.keep(&a.input, i, d).unwrap_or_else(|e| {
+                    err = Some(e);
+                    false
+                });
+                if keep {
+                    kept.push(i);
+                }
+                i += 1;
+                keep
+            });
+            err.map_or(Ok(()), Err)
+        })?;
+        filter.finish(&a.input)?;
+        if let Some(path) = &a.emit_index {
+            table::write_rows(path, &kept.iter().map(|&index| IndexRow { index }).collect::<Vec<_>>())?;
+        }
+        if let (Some(path), Some(labels)) = (&a.emit_labels, a.labels.as_deref()) {
+            let all = table::read_labels(labels)?;
+            let out: Vec<Label> =
+                kept.iter().enumerate().map(|(n, &i)| Label { index: n as u64, ..all[i as usize].clone() }).collect();
+            table::write_rows(path, &out)?;
+        }
+        let c = &filter.counts;
+        cli::log(format_args!(
+            "kept {} of {} records (dropped: {} terrain, {} index, {} valid cells, {} rows, {} duplicates)",
+            c.kept, c.read, c.terrain, c.index, c.valid, c.rows, c.duplicate
+        ));
+        Ok(())
+    })
+}
