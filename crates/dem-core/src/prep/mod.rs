@@ -3,5 +3,6 @@
 
 pub mod fill;
 pub mod filter;
+pub mod pair;
 pub mod pallet;
 pub mod stream;

@@ -1,0 +1,140 @@
+//! dem-pair: pair sim keys with real records, by pose or by content.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::process::ExitCode;
+
+use clap::{Parser, ValueEnum};
+use dem_core::prep::pair::{by_content, by_pose, first_occurrence, split_of, PoseRule};
+use dem_core::table::{self, Pair, Split};
+use dem_core::{cli, npy, DemError};
+
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum Method {
+    /// Same terrain and pose (from the labels CSVs) within tolerances.
+    Pose,
+    /// The k nearest sim DEMs by the height error over the real record's valid cells.
+    Content,
+}
+
+/// Build the pairs CSV of sim keys to real records (the thesis's section 5.2):
+/// one sim key to one or many real records, deduplicated (identical sim
+/// records are one key: the first), split into train and val by key.
+///
+/// Writes `sim_index,real_index,split,distance`; counts per split (and per
+/// terrain, with labels) go to stderr.
+#[derive(Parser)]
+#[command(version, after_long_help = "Examples:
+  dem-pair --by pose --sim-labels sim_labels.csv --real-labels real_labels.csv --same-sequence -o pairs.csv
+  dem-pair --by content --sim sim.npy --real real.npy --k 3 --val-fraction 0.5 --seed 1 -o pairs.csv
+  dem-filter --labels l.csv --drop-other sim.npy -o s.npy && dem-pair --by content --sim s.npy --real real.npy")]
+struct Args {
+    /// How to pair.
+    #[arg(long, value_enum)]
+    by: Method,
+    /// Sim NPY (needed by content; used to deduplicate keys by pose too).
+    #[arg(long)]
+    sim: Option<String>,
+    /// Real NPY (needed by content).
+    #[arg(long)]
+    real: Option<String>,
+    /// Labels CSV of the sim records (needed by pose).
+    #[arg(long)]
+    sim_labels: Option<String>,
+    /// Labels CSV of the real records (needed by pose).
+    #[arg(long)]
+    real_labels: Option<String>,
+    /// Pose: largest position distance (m).
+    #[arg(long, default_value_t = 0.05)]
+    max_dist: f64,
+    /// Pose: largest heading difference (rad).
+    #[arg(long, default_value_t = 0.1)]
+    max_yaw: f64,
+    /// Pose: pair only within the same sequence (run).
+    #[arg(long)]
+    same_sequence: bool,
+    /// Content: sim keys per real record.
+    #[arg(long, default_value_t = 1)]
+    k: usize,
+    /// Content: largest distance (equation 7.1 height part).
+    #[arg(long, default_value_t = f64::INFINITY)]
+    max_distance: f64,
+    /// Fraction of sim keys in the val split.
+    #[arg(long, default_value_t = 0.5)]
+    val_fraction: f64,
+    /// Seed of the split.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Output pairs CSV (`-` for stdout).
+    #[arg(short, long, default_value = "-")]
+    output: String,
+}
+
+fn need<'a>(v: &'a Option<String>, flag: &str, by: &str) -> anyhow::Result<&'a str> {
+    v.as_deref().ok_or_else(|| cli::usage(format!("--by {by} needs {flag}")))
+}
+
+fn main() -> ExitCode {
+    cli::run(|| {
+        let a = Args::parse();
+        if !(0.0..=1.0).contains(&a.val_fraction) || a.k == 0 {
+            return Err(cli::usage("--val-fraction must be in 0..1 and --k at least 1"));
+        }
+        let sim = a.sim.as_deref().map(npy::read_all).transpose()?;
+        let sim_labels = a.sim_labels.as_deref().map(table::read_labels).transpose()?;
+        let real_labels = a.real_labels.as_deref().map(table::read_labels).transpose()?;
+        for (records, labels, file, lfile) in [(&sim, &sim_labels, &a.sim, &a.sim_labels)] {
+            if let (Some(r), Some(l), Some(f), Some(lf)) = (records, labels, file, lfile) {
+                if r.len() != l.len() {
+                    return Err(DemError::input(lf.as_str(), format!("has {} rows but {f} has {} records", l.len(), r.len())).into());
+                }
+            }
+        }
+        let keys = sim.as_deref().map(first_occurrence);
+        let found = match a.by {
+            Method::Pose => {
+                let (s, r) = (need(&a.sim_labels, "--sim-labels", "pose")?, need(&a.real_labels, "--real-labels", "pose")?);
+                let rule = PoseRule { max_dist: a.max_dist, max_yaw: a.max_yaw, same_sequence: a.same_sequence };
+                let (sl, rl) = (sim_labels.as_deref().unwrap_or_default(), real_labels.as_deref().unwrap_or_default());
+                by_pose(sl, rl, rule).map_err(|e| DemError::input(format!("{s}, {r}"), e))?
+            }
+            Method::Content => {
+                let (sim, keys) = (sim.as_deref().ok_or_else(|| cli::usage("--by content needs --sim"))?, keys.as_deref().unwrap_or_default());
+                let real = npy::read_all(need(&a.real, "--real", "content")?)?;
+                if sim.is_empty() || real.is_empty() {
+                    return Err(cli::usage("--sim and --real must hold records to pair"));
+                }
+                let unique: Vec<u64> = keys.iter().enumerate().filter(|&(i, &k)| i as u64 == k).map(|(_, &k)| k).collect();
+                by_content(sim, &unique, &real, a.k, a.max_distance)
+            }
+        };
+        // Map every sim index to its key and drop repeated (key, real) pairs.
+        let mut pairs: BTreeMap<(u64, u64), f64> = BTreeMap::new();
+        for (s, r, d) in found {
+            let key = keys.as_ref().and_then(|k| k.get(s as usize).copied()).unwrap_or(s);
+            pairs.entry((key, r)).and_modify(|e| *e = e.min(d)).or_insert(d);
+        }
+        let rows: Vec<Pair> = pairs
+            .iter()
+            .map(|(&(s, r), &d)| Pair { sim_index: s, real_index: r, split: Some(split_of(a.seed, s, a.val_fraction)), distance: Some(d) })
+            .collect();
+        table::write_rows(&a.output, &rows)?;
+        report(&rows, sim_labels.as_deref());
+        Ok(())
+    })
+}
+
+fn report(rows: &[Pair], labels: Option<&[table::Label]>) {
+    let mut per: BTreeMap<(String, &str), (BTreeSet<u64>, u64)> = BTreeMap::new();
+    for p in rows {
+        let terrain = labels.and_then(|l| l.get(p.sim_index as usize)).map_or("all".into(), |l| l.terrain.to_string());
+        let split = if p.split == Some(Split::Val) { "val" } else { "train" };
+        let e = per.entry((terrain, split)).or_default();
+        e.0.insert(p.sim_index);
+        e.1 += 1;
+    }
+    for ((terrain, split), (keys, n)) in &per {
+        cli::log(format_args!("{terrain:>11} {split:>5}: {} sim keys, {n} pairs", keys.len()));
+    }
+    let reals: BTreeSet<u64> = rows.iter().map(|p| p.real_index).collect();
+    cli::log(format_args!("{} pairs of {} real records", rows.len(), reals.len()));
+}
