@@ -1,0 +1,94 @@
+//! dem-filter on the bundled test data, the way users run it.
+
+use dem_core::format::{DemCells, Terrain};
+use dem_core::{npy, table};
+use dem_testkit::{arg, ok, run, stderr, tempdir, testdata};
+
+fn td(name: &str) -> String {
+    testdata(name).to_string_lossy().into_owned()
+}
+
+#[test]
+fn an_index_and_its_complement_join_back_to_the_input() {
+    let dir = tempdir();
+    let idx = arg(dir.path(), "idx.csv");
+    let rows: String = (0..3025).filter(|i| i % 7 == 3 || i % 11 == 0).map(|i| format!("{i}\n")).collect();
+    std::fs::write(&idx, format!("index\n{rows}")).unwrap();
+    let (a, b) = (arg(dir.path(), "a.npy"), arg(dir.path(), "b.npy"));
+    let (ia, ib) = (arg(dir.path(), "a.csv"), arg(dir.path(), "b.csv"));
+    ok(&run("dem-filter", &["--index", &idx, &td("sim.npy"), "-o", &a, "--emit-index", &ia], None));
+    ok(&run("dem-filter", &["--index", &idx, "--invert", "-o", &b, "--emit-index", &ib], Some(std::fs::read(td("sim.npy")).unwrap())));
+    let input = npy::read_all(&td("sim.npy")).unwrap();
+    let (ra, rb) = (npy::read_all(&a).unwrap(), npy::read_all(&b).unwrap());
+    let (xa, xb) = (table::read_index(&ia).unwrap(), table::read_index(&ib).unwrap());
+    assert_eq!(ra.len(), xa.len());
+    assert_eq!(rb.len(), xb.len());
+    assert!(!ra.is_empty() && !rb.is_empty());
+    let mut joined = vec![None; input.len()];
+    for (i, d) in xa.iter().zip(&ra).chain(xb.iter().zip(&rb)) {
+        assert!(joined[*i as usize].replace(*d).is_none(), "index {i} in both halves");
+    }
+    let joined: Vec<_> = joined.into_iter().map(|d| d.expect("every index in one half")).collect();
+    assert!(joined == input);
+}
+
+#[test]
+fn terrain_and_other_rules_follow_the_labels_and_labels_follow_the_records() {
+    let dir = tempdir();
+    let (out, labels) = (arg(dir.path(), "o.npy"), arg(dir.path(), "l.csv"));
+    let o = run(
+        "dem-filter",
+        &["--labels", &td("sim_labels.csv"), "--terrain", "stairs-up,pallet,other", "--drop-other", &td("sim.npy"), "-o", &out, "--emit-labels", &labels],
+        None,
+    );
+    ok(&o);
+    let kept = table::read_labels(&labels).unwrap();
+    let all = table::read_labels(&td("sim_labels.csv")).unwrap();
+    let expected = all.iter().filter(|l| matches!(l.terrain, Terrain::StairsUp | Terrain::Pallet)).count();
+    assert_eq!(kept.len(), expected);
+    assert!(kept.iter().all(|l| matches!(l.terrain, Terrain::StairsUp | Terrain::Pallet)));
+    assert_eq!(npy::read_all(&out).unwrap().len(), expected);
+    assert!(stderr(&o).contains(&format!("kept {expected} of 3025")));
+}
+
+#[test]
+fn unique_drops_exact_duplicates_and_valid_rules_hold() {
+    let dir = tempdir();
+    let out = arg(dir.path(), "u.npy");
+    ok(&run("dem-filter", &["--unique", &td("sim.npy"), "-o", &out], None));
+    let u = npy::read_all(&out).unwrap();
+    let set: std::collections::HashSet<Vec<u32>> = u.iter().map(|d| d.iter().map(|v| v.to_bits()).collect()).collect();
+    assert_eq!(set.len(), u.len(), "duplicates left");
+    assert!(u.len() < 3025, "flat sim records repeat");
+
+    let o = run("dem-filter", &["--rows", "6..20", "--min-rows", "12", "--min-valid", "0.7", &td("real.npy")], None);
+    let kept = npy::NpyReader::new(&ok(&o)[..], "stdout", None).read_to_end().unwrap();
+    assert!(!kept.is_empty());
+    for d in &kept {
+        assert!(d.valid_cells() >= 70);
+        assert!((6..20).filter(|&r| (0..5).all(|c| d.is_valid(r, c))).count() >= 12);
+    }
+}
+
+#[test]
+fn bad_inputs_exit_2_naming_the_file_and_leave_no_output() {
+    let dir = tempdir();
+    let out = arg(dir.path(), "o.npy");
+    let bad_idx = arg(dir.path(), "bad.csv");
+    std::fs::write(&bad_idx, "index\n1\nx\n").unwrap();
+    let cases: Vec<(Vec<String>, &str)> = vec![
+        (vec!["--labels".into(), td("real_labels.csv"), "--drop-other".into(), td("sim.npy")], "real_labels.csv"),
+        (vec!["--index".into(), bad_idx.clone(), td("sim.npy")], "line 3"),
+        (vec!["--terrain".into(), "flat".into(), td("sim.npy")], "--labels"),
+        (vec!["--rows".into(), "6..25".into(), td("sim.npy")], "6..25"),
+        (vec![arg(dir.path(), "missing.npy")], "missing.npy"),
+    ];
+    for (mut args, needle) in cases {
+        args.extend(["-o".into(), out.clone()]);
+        let a: Vec<&str> = args.iter().map(String::as_str).collect();
+        let o = run("dem-filter", &a, None);
+        assert_eq!(o.status.code(), Some(2), "{a:?}");
+        assert!(stderr(&o).contains(needle), "{a:?}: {}", stderr(&o));
+        assert!(!std::path::Path::new(&out).exists(), "{a:?} left an output file");
+    }
+}
