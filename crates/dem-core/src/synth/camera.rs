@@ -319,10 +319,11 @@ mod tests {
     #[test]
     fn without_occlusion_a_ray_sees_the_ground_behind_a_pallet() {
         let w = world(Shape::Pallet { x0: 1.0, y0: 0.0, length: 0.3, width: 2.0, board: 0.3, gap: 0.05 });
-        // Grazing ray that hits the pallet's front face, then the ground behind.
+        // Grazing ray: 0.13 m up at the front face (x = 1.0), 0.019 m up at
+        // the back (x = 1.3), the ground at x = 1.351.
         let (o, d) = ([0.0, 0.0, 0.5], {
-            let v = [1.0, 0.0, -0.40];
-            let n = (v[0] * v[0] + v[2] * v[2] as f64).sqrt();
+            let v: [f64; 3] = [1.0, 0.0, -0.37];
+            let n = (v[0] * v[0] + v[2] * v[2]).sqrt();
             [v[0] / n, 0.0, v[2] / n]
         });
         let mut first = vec![];
