@@ -242,7 +242,8 @@ fn bad_inputs_exit_2_naming_the_file_and_leave_no_output() {
     refused(d, &[&cut, "-o", &out], &["cut.npy", "3260 bytes"]);
     refused(d, &[&good, "--indices", "1,7", "-o", &out], &["good.npy", "record 7", "4 records"]);
     refused(d, &[&good, "--start", "4", "-o", &out], &["good.npy", "--start 4"]);
-    refused(d, &["--compare", &good, &five, "-o", &out], &["five.npy", "holds 5 records", "good.npy"]);
+    // Files of different lengths: an index past the shorter one's end is refused ...
+    refused(d, &["--compare", &five, &good, "--indices", "4", "-o", &out], &["good.npy", "4"]);
     refused(d, &["--compare", &good, &cut, "-o", &out], &["cut.npy"]);
     let csv = arg(d, "c.csv");
     std::fs::write(&csv, "index,error\n0,0.5\n").unwrap();
@@ -284,4 +285,16 @@ fn captions_from_a_csv_and_the_help_example() {
     assert!(Image::open(&with).height > Image::open(&without).height);
     let help = String::from_utf8_lossy(ok(&run("dem-render", &["--help"], None))).into_owned();
     assert!(help.contains("dem-render --compare") && help.contains("--error-rows"), "{help}");
+}
+
+#[test]
+fn compare_cuts_a_range_to_the_shortest_file() {
+    let dir = tempdir();
+    let d = dir.path();
+    let four = write(d, "four.npy", &[flat(0.0); 4]);
+    let six = write(d, "six.npy", &[flat(0.0); 6]);
+    let out = arg(d, "out.png");
+    let res = run("dem-render", &["--compare", &six, &four, "--start", "1", "--count", "5", "-o", &out], None);
+    ok(&res);
+    assert!(stderr(&res).contains("2 files x 3 records"), "{}", stderr(&res));
 }
