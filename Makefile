@@ -30,6 +30,13 @@ test: venv
 clean:
 	rm -rf $(OUT) .bench
 
+# Speed against the peers, measured in one run (not part of the tests).
+bench: build venv
+	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench_npy.sh
+	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench_synth.sh
+	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench_prep.sh
+	@echo "Reports: .bench/npy.txt .bench/synth.txt .bench/prep.txt"
+
 # Records of testdata/real.npy (and the same poses in testdata/sim.npy) that
 # show the effects: a startup frame, flat ground, stairs up (approach, on
 # them), stairs down (at the edge, on them), a pallet (approach, on it,
