@@ -1,12 +1,26 @@
 //! Output files that appear whole or not at all: data goes to a temp file in
 //! the target's folder (same filesystem, so the rename is atomic) and is
 //! renamed over the target on commit. Dropping without commit removes it.
-//! `-` is stdout, which cannot be made atomic and is written through.
+//! `-` is stdout, which cannot be made atomic and is written through; so is
+//! an existing target that is not a regular file (`/dev/null`, a FIFO), which
+//! a rename would replace with a regular file.
 
+use std::fs::{File, OpenOptions};
 use std::io::{self, BufWriter, Write};
 use std::path::Path;
 
 use crate::error::{DemError, Result};
+
+/// True when `path` exists (after symlinks) as something other than a
+/// regular file or a folder: a device or a FIFO, written in place.
+pub fn is_special(path: &str) -> bool {
+    std::fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir())
+}
+
+/// Open an existing special file (see [`is_special`]) for writing, in place.
+pub fn open_special(path: &str) -> Result<File> {
+    OpenOptions::new().write(true).open(path).map_err(|source| DemError::Open { path: path.into(), source })
+}
 
 /// A temp file beside `path`, named `.NAME.XXXX.tmp`.
 pub fn temp_beside(path: &str) -> Result<tempfile::NamedTempFile> {
@@ -28,7 +42,8 @@ pub fn temp_beside(path: &str) -> Result<tempfile::NamedTempFile> {
 
 enum Target {
     Temp(BufWriter<tempfile::NamedTempFile>),
-    Stdout(BufWriter<io::StdoutLock<'static>>),
+    /// Stdout or a special file, written through.
+    Direct(BufWriter<Box<dyn Write>>),
 }
 
 /// A buffered writer to `path` (or stdout for `-`) that is atomic for files.
@@ -41,7 +56,9 @@ impl AtomicOutput {
     /// Start writing `path`.
     pub fn create(path: &str) -> Result<Self> {
         let target = if path == "-" {
-            Target::Stdout(BufWriter::new(io::stdout().lock()))
+            Target::Direct(BufWriter::new(Box::new(io::stdout().lock())))
+        } else if is_special(path) {
+            Target::Direct(BufWriter::new(Box::new(open_special(path)?)))
         } else {
             Target::Temp(BufWriter::new(temp_beside(path)?))
         };
@@ -57,7 +74,7 @@ impl AtomicOutput {
     pub fn commit(self) -> Result<()> {
         let path = self.path;
         match self.target {
-            Target::Stdout(mut w) => w.flush().map_err(|e| DemError::io(path, e)),
+            Target::Direct(mut w) => w.flush().map_err(|e| DemError::io(path, e)),
             Target::Temp(w) => {
                 let temp = w.into_inner().map_err(|e| DemError::io(path.as_str(), e.into_error()))?;
                 temp.persist(&path).map_err(|e| DemError::io(path.as_str(), e.error))?;
@@ -71,19 +88,19 @@ impl Write for AtomicOutput {
     fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
         match &mut self.target {
             Target::Temp(w) => w.write(buf),
-            Target::Stdout(w) => w.write(buf),
+            Target::Direct(w) => w.write(buf),
         }
     }
     fn write_all(&mut self, buf: &[u8]) -> io::Result<()> {
         match &mut self.target {
             Target::Temp(w) => w.write_all(buf),
-            Target::Stdout(w) => w.write_all(buf),
+            Target::Direct(w) => w.write_all(buf),
         }
     }
     fn flush(&mut self) -> io::Result<()> {
         match &mut self.target {
             Target::Temp(w) => w.flush(),
-            Target::Stdout(w) => w.flush(),
+            Target::Direct(w) => w.flush(),
         }
     }
 }

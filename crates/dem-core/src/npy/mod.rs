@@ -7,3 +7,19 @@ pub mod writer;
 
 pub use reader::{open, read_all, NpyReader, CHUNK_RECORDS};
 pub use writer::{create, write_all, NpyWriter};
+
+/// Pipe capacity asked for on a stdin or stdout that is a pipe: 1 MiB, the
+/// most an unprivileged process may ask (`/proc/sys/fs/pipe-max-size`).
+/// With the default 64 KiB, two stream tools in a pipeline wake each other
+/// for every 64 KiB, which costs more than the copying (twice the time of
+/// `numpy.load` + `numpy.save` on a virtual machine).
+pub const PIPE_BYTES: usize = 1 << 20;
+
+/// Best effort: grow the pipe behind `fd` to [`PIPE_BYTES`]. Not a pipe, an
+/// older kernel or the per-user pipe quota spent: nothing changes.
+pub(crate) fn grow_pipe(fd: impl std::os::fd::AsFd) {
+    #[cfg(target_os = "linux")]
+    let _ = rustix::pipe::fcntl_setpipe_size(fd, PIPE_BYTES);
+    #[cfg(not(target_os = "linux"))]
+    let _ = fd;
+}

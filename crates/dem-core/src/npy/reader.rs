@@ -40,6 +40,7 @@ pub fn open(path: &str) -> Result<NpyReader<Box<dyn Read + Send>>> {
     let (src, len): (Box<dyn Read + Send>, Option<u64>) = if path == "-" {
         let stdin = io::stdin();
         let len = regular_file_len(&stdin);
+        super::grow_pipe(&stdin);
         (Box::new(BufReader::with_capacity(1 << 16, stdin)), len)
     } else {
         let file = File::open(path).map_err(|source| DemError::Open { path: path.into(), source })?;
@@ -116,7 +117,7 @@ impl<R: Read> NpyReader<R> {
             Dtype::F32 => {
                 let bytes: &mut [u8] = bytemuck::cast_slice_mut(&mut out[start..]);
                 let got = read_full(&mut self.src, bytes).map_err(|e| self.io(e))?;
-                self.check_payload(got, n, 4)?;
+                self.check_payload(got, n, left, 4)?;
                 if cfg!(target_endian = "big") {
                     for v in out[start..].iter_mut().flatten() {
                         *v = f32::from_le_bytes(v.to_ne_bytes());
@@ -126,7 +127,7 @@ impl<R: Read> NpyReader<R> {
             Dtype::F64 => {
                 self.scratch.resize(n * RECORD_LEN * 8, 0);
                 let got = read_full(&mut self.src, &mut self.scratch).map_err(|e| self.io(e))?;
-                self.check_payload(got, n, 8)?;
+                self.check_payload(got, n, left, 8)?;
                 for (v, b) in out[start..].iter_mut().flatten().zip(self.scratch.chunks_exact(8)) {
                     *v = f64::from_le_bytes(b.try_into().expect("8 bytes")) as f32;
                 }
@@ -148,14 +149,17 @@ impl<R: Read> NpyReader<R> {
         Ok(out)
     }
 
-    fn check_payload(&self, got: usize, n: usize, size: usize) -> Result<()> {
-        let want = n * RECORD_LEN * size;
-        if got < want {
-            let record = self.records + (got / (RECORD_LEN * size)) as u64;
+    /// Refuse a short read of `n` records out of the `left` the header still
+    /// declares; the shortfall is counted against the header, not the chunk.
+    fn check_payload(&self, got: usize, n: usize, left: u64, size: usize) -> Result<()> {
+        let record_bytes = (RECORD_LEN * size) as u64;
+        if got < n * RECORD_LEN * size {
+            // Cannot overflow: read_header checked records * record_bytes.
+            let missing = left * record_bytes - got as u64;
             return Err(self.bad_at(
-                record,
+                self.records + got as u64 / record_bytes,
                 self.offset + got as u64,
-                format!("truncated payload: stream ends {} bytes early", want - got),
+                format!("truncated payload: stream ends {missing} bytes early"),
             ));
         }
         Ok(())

@@ -2,7 +2,8 @@
 //!
 //! - A named file is written to a temp file in the same folder and renamed
 //!   on [`NpyWriter::finish`]: readers never see a partial file, and an error
-//!   (or a panic) leaves none behind.
+//!   (or a panic) leaves none behind. An existing device or FIFO
+//!   (`-o /dev/null`) is written in place like a pipe, never replaced.
 //! - A file (named, or stdout redirected to one) holds one array, as
 //!   `numpy.save` writes it, byte for byte: the header is reserved and the
 //!   record count patched in when the stream ends, so `numpy.load` reads all
@@ -17,7 +18,7 @@ use std::os::fd::AsFd;
 use super::header::{f32_header, HEADER_LEN};
 use super::reader::CHUNK_RECORDS;
 use crate::error::{DemError, Result};
-use crate::output::temp_beside;
+use crate::output::{is_special, open_special, temp_beside};
 use crate::format::{Dem, RECORD_LEN};
 
 enum Sink {
@@ -50,18 +51,27 @@ impl Drop for NpyWriter {
 pub fn create(path: &str) -> Result<NpyWriter> {
     let io_err = |e| DemError::io(path, e);
     let sink = if path == "-" {
-        match stdout_file() {
-            Some(file) => {
+        match stdout_fd() {
+            Some(file) if file.metadata().is_ok_and(|m| m.is_file()) => {
                 let mut out = BufWriter::with_capacity(1 << 20, file);
                 let start = out.stream_position().map_err(io_err)?;
                 out.write_all(&f32_header(0)).map_err(io_err)?;
                 Sink::Seekable { out, start, temp: None }
             }
-            None => Sink::Chunked {
-                out: BufWriter::with_capacity(1 << 20, Box::new(io::stdout())),
-                pending: Vec::new(),
-            },
+            fd => {
+                let raw: Box<dyn Write + Send> = match fd {
+                    Some(file) => {
+                        super::grow_pipe(&file);
+                        Box::new(file)
+                    }
+                    None => Box::new(io::stdout()),
+                };
+                Sink::Chunked { out: BufWriter::with_capacity(1 << 20, raw), pending: Vec::new() }
+            }
         }
+    } else if is_special(path) {
+        let raw: Box<dyn Write + Send> = Box::new(open_special(path)?);
+        Sink::Chunked { out: BufWriter::with_capacity(1 << 20, raw), pending: Vec::new() }
     } else {
         let (file, temp) = temp_beside(path)?.into_parts();
         let mut out = BufWriter::with_capacity(1 << 20, file);
@@ -78,10 +88,11 @@ pub fn write_all(path: &str, records: &[Dem]) -> Result<()> {
     w.finish()
 }
 
-/// Stdout as a file when it is redirected to a regular file.
-fn stdout_file() -> Option<File> {
-    let file = File::from(io::stdout().as_fd().try_clone_to_owned().ok()?);
-    file.metadata().ok()?.is_file().then_some(file)
+/// Stdout as a `File` on a duplicate of fd 1: seekable when redirected to
+/// a regular file, and for a pipe it bypasses `io::stdout()`'s `LineWriter`,
+/// which scans binary data for newlines and splits writes at them.
+fn stdout_fd() -> Option<File> {
+    Some(File::from(io::stdout().as_fd().try_clone_to_owned().ok()?))
 }
 
 fn as_le_bytes(records: &[Dem]) -> std::borrow::Cow<'_, [u8]> {
@@ -106,6 +117,12 @@ impl NpyWriter {
             Sink::Chunked { out, pending } => {
                 let mut rest = records;
                 while !rest.is_empty() {
+                    // A whole chunk with nothing pending goes out as is, uncopied.
+                    if pending.is_empty() && rest.len() >= CHUNK_RECORDS {
+                        write_array(out, &rest[..CHUNK_RECORDS]).map_err(io_err)?;
+                        rest = &rest[CHUNK_RECORDS..];
+                        continue;
+                    }
                     let take = (CHUNK_RECORDS - pending.len()).min(rest.len());
                     pending.extend_from_slice(&rest[..take]);
                     rest = &rest[take..];
