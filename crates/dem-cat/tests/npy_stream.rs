@@ -526,3 +526,21 @@ fn streaming_holds_a_chunk_not_the_stream() {
     eprintln!("dem-cat - : {fed_mb:.0} MB through a pipe, peak RSS {} MB", kb / 1024);
     assert!(kb < 100 * 1024, "peak RSS {kb} kB for {fed_mb:.0} MB streamed");
 }
+
+#[test]
+fn output_through_a_symlink_replaces_its_target_and_a_directory_input_is_refused() {
+    let dir = tempdir();
+    let input = arg(dir.path(), "in.npy");
+    dem_core::npy::write_all(&input, &[dem_core::format::empty_dem(); 3]).unwrap();
+    let target = arg(dir.path(), "real.npy");
+    std::fs::write(&target, b"old").unwrap();
+    let link = arg(dir.path(), "link.npy");
+    std::os::unix::fs::symlink(&target, &link).unwrap();
+    ok(&run("dem-cat", &[&input, "-o", &link], None));
+    assert!(std::fs::symlink_metadata(&link).unwrap().file_type().is_symlink(), "the link was replaced");
+    assert_eq!(std::fs::read(&target).unwrap(), std::fs::read(&input).unwrap());
+
+    let o = run("dem-cat", &[dir.path().to_str().unwrap()], None);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("is a directory"), "{}", stderr(&o));
+}

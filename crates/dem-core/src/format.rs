@@ -119,12 +119,23 @@ pub fn empty_dem() -> Dem {
 }
 
 /// Apply the contract's input rule: a NaN height (or mask) is a missing
-/// cell, stored as height 0 and mask -1. Everything else is kept bit for
-/// bit, so tools that do not touch a record pass it through unchanged.
+/// cell, stored as height 0 and mask -1. A NaN in the attitude row reads as
+/// 0 ("not recorded"), its mask channel as 1, so tools never write NaN.
+/// Everything else is kept bit for bit, so tools that do not touch a record
+/// pass it through unchanged.
 ///
 /// Returns true when the record had a NaN.
 pub fn canonicalize(d: &mut Dem) -> bool {
     let mut changed = false;
+    for c in 0..COLS {
+        for (ch, fill) in [(0, 0.0), (1, 1.0)] {
+            let v = &mut d[at(ATTITUDE_ROW, c, ch)];
+            if v.is_nan() {
+                *v = fill;
+                changed = true;
+            }
+        }
+    }
     for i in 0..GRID_CELLS {
         let (h, m) = (i * 2, i * 2 + 1);
         if d[h].is_nan() || d[m].is_nan() {
@@ -219,6 +230,15 @@ mod tests {
         canonicalize(&mut d);
         assert_eq!(d.height(3, 2), 0.0);
         assert_eq!(d.mask(3, 2), MISSING);
+    }
+
+    #[test]
+    fn nan_attitude_reads_as_not_recorded() {
+        let mut d = empty_dem();
+        d[at(ATTITUDE_ROW, 2, 0)] = f32::NAN;
+        d[at(ATTITUDE_ROW, 3, 1)] = f32::NAN;
+        assert!(canonicalize(&mut d));
+        assert_eq!(d, empty_dem());
     }
 
     #[test]

@@ -7,7 +7,7 @@
 
 use std::fs::{File, OpenOptions};
 use std::io::{self, BufWriter, Write};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use crate::error::{DemError, Result};
 
@@ -22,9 +22,21 @@ pub fn open_special(path: &str) -> Result<File> {
     OpenOptions::new().write(true).open(path).map_err(|source| DemError::Open { path: path.into(), source })
 }
 
-/// A temp file beside `path`, named `.NAME.XXXX.tmp`.
+/// Where a file written to `path` really goes: through a symlink to its
+/// target, so the rename replaces the file the link names, not the link.
+pub fn resolve(path: &str) -> PathBuf {
+    let p = Path::new(path);
+    match std::fs::symlink_metadata(p) {
+        Ok(m) if m.file_type().is_symlink() => std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf()),
+        _ => p.to_path_buf(),
+    }
+}
+
+/// A temp file beside `path` (beside its target, for a symlink), named
+/// `.NAME.XXXX.tmp`.
 pub fn temp_beside(path: &str) -> Result<tempfile::NamedTempFile> {
-    let target = Path::new(path);
+    let resolved = resolve(path);
+    let target = resolved.as_path();
     let dir = match target.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),
@@ -77,7 +89,7 @@ impl AtomicOutput {
             Target::Direct(mut w) => w.flush().map_err(|e| DemError::io(path, e)),
             Target::Temp(w) => {
                 let temp = w.into_inner().map_err(|e| DemError::io(path.as_str(), e.into_error()))?;
-                temp.persist(&path).map_err(|e| DemError::io(path.as_str(), e.error))?;
+                temp.persist(resolve(&path)).map_err(|e| DemError::io(path.as_str(), e.error))?;
                 Ok(())
             }
         }

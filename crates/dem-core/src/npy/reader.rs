@@ -44,6 +44,9 @@ pub fn open(path: &str) -> Result<NpyReader<Box<dyn Read + Send>>> {
         (Box::new(BufReader::with_capacity(1 << 16, stdin)), len)
     } else {
         let file = File::open(path).map_err(|source| DemError::Open { path: path.into(), source })?;
+        if file.metadata().is_ok_and(|m| m.is_dir()) {
+            return Err(DemError::Open { path: path.into(), source: io::Error::other("is a directory, not an NPY file") });
+        }
         let len = file.metadata().ok().filter(|m| m.is_file()).map(|m| m.len());
         (Box::new(BufReader::with_capacity(1 << 16, file)), len)
     };

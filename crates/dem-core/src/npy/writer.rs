@@ -18,7 +18,7 @@ use std::os::fd::AsFd;
 use super::header::{f32_header, HEADER_LEN};
 use super::reader::CHUNK_RECORDS;
 use crate::error::{DemError, Result};
-use crate::output::{is_special, open_special, temp_beside};
+use crate::output::{is_special, open_special, resolve, temp_beside};
 use crate::format::{Dem, RECORD_LEN};
 
 enum Sink {
@@ -169,7 +169,7 @@ impl NpyWriter {
                     ));
                 }
                 if let Some(temp) = temp {
-                    temp.persist(&path).map_err(|e| io_err(e.error))?;
+                    temp.persist(resolve(&path)).map_err(|e| io_err(e.error))?;
                 }
             }
         }
