@@ -45,7 +45,7 @@ fn cleaning_changes_only_pallets_and_leaves_no_stripe() {
 #[test]
 fn works_in_a_pipe_and_refuses_short_labels() {
     let o = run("dem-clean-pallet", &[], Some(std::fs::read(td("sim.npy")).unwrap()));
-    let out = npy::NpyReader::new(&ok(&o)[..], "stdout", None).read_to_end().unwrap();
+    let out = npy::NpyReader::new(ok(&o), "stdout", None).read_to_end().unwrap();
     assert_eq!(out.len(), 3025);
     let o = run("dem-clean-pallet", &["--labels", &td("real_labels.csv"), &td("sim.npy")], None);
     assert_eq!(o.status.code(), Some(2));

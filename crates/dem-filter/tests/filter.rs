@@ -62,7 +62,7 @@ fn unique_drops_exact_duplicates_and_valid_rules_hold() {
     assert!(u.len() < 3025, "flat sim records repeat");
 
     let o = run("dem-filter", &["--rows", "6..20", "--min-rows", "12", "--min-valid", "0.7", &td("real.npy")], None);
-    let kept = npy::NpyReader::new(&ok(&o)[..], "stdout", None).read_to_end().unwrap();
+    let kept = npy::NpyReader::new(ok(&o), "stdout", None).read_to_end().unwrap();
     assert!(!kept.is_empty());
     for d in &kept {
         assert!(d.valid_cells() >= 70);

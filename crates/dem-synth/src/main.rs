@@ -83,7 +83,7 @@ fn main() -> ExitCode {
         if a.real_runs > a.runs {
             return Err(cli::usage(format!("--real-runs {} is more than --runs {}", a.real_runs, a.runs)));
         }
-        if !(a.dt > 0.0) || a.dark_patches < 0.0 || !(a.max_variance > 0.0) {
+        if a.dt.is_nan() || a.dt <= 0.0 || a.dark_patches < 0.0 || a.max_variance.is_nan() || a.max_variance <= 0.0 {
             return Err(cli::usage("--dt and --max-variance must be > 0, --dark-patches >= 0"));
         }
         if let Some(n) = a.threads {
