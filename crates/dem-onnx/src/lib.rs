@@ -1,0 +1,1 @@
+//! ONNX for the dem-* tools (being written).
