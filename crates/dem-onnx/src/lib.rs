@@ -1,1 +1,27 @@
-//! ONNX for the dem-* tools (being written).
+//! ONNX for the dem-* tools: run any model that maps DEM batches to DEM
+//! batches, and export the generator of `spec/network.md` to such a model.
+//!
+//! - [`run`]: [`OnnxModel`], a tract plan optimised once with a symbolic
+//!   batch axis `N`: `(N, 21, 5, 2) float32 -> (N, 21, 5, 2) float32`, any
+//!   `N >= 1`, callable from many threads at once (`Send + Sync`).
+//! - [`export`]: [`generator_model`] builds the ONNX graph of a generator
+//!   from its [`GeneratorWeights`](dem_nn::weights::GeneratorWeights) with
+//!   tract's protobuf types; [`export_checked`] writes it only after tract
+//!   reproduces the trainer's forward pass within [`TOLERANCE`].
+//! - [`apply`]: stream an NPY stream through a model in parallel batches,
+//!   order preserved (the body of `dem-apply`).
+//!
+//! Both sides of a model use the file layout of `spec/dem-format.md`: input
+//! `dem`, output `dem_out`, so a saved NPY goes straight in.
+#![deny(missing_docs)]
+
+pub mod apply;
+pub mod export;
+pub mod run;
+
+pub use export::{export_checked, generator_model, ExportReport, TOLERANCE};
+pub use run::OnnxModel;
+
+/// The ONNX protobuf types (tract's generated `prost` messages), for callers
+/// that build or inspect models.
+pub use tract_onnx::pb;

@@ -1,0 +1,230 @@
+//! Run an ONNX model over batches of DEMs with tract.
+//!
+//! A conforming model has one input and one output, both `float32` of shape
+//! `(N, 21, 5, 2)` (the file layout of `spec/dem-format.md`, `N` the batch
+//! axis). The names do not matter (an export names them `dem` and
+//! `dem_out`). The plan is typed, optimised and made runnable once, with `N`
+//! left symbolic, so one [`OnnxModel`] serves every batch size; runs share the
+//! plan and each gets its own state, so threads may call [`OnnxModel::run`]
+//! at the same time.
+//!
+//! ```no_run
+//! # fn main() -> Result<(), dem_core::DemError> {
+//! let model = dem_onnx::OnnxModel::load("model.onnx")?;
+//! let input = dem_core::npy::read_all("sim.npy")?;
+//! let output = model.run(&input)?; // output[i] = G(input[i]), same layout
+//! # Ok(()) }
+//! ```
+
+use std::sync::Arc;
+
+use dem_core::format::{COLS, RECORD_LEN, ROWS, CHANNELS};
+use dem_core::{Dem, DemError};
+use anyhow::{bail, Context};
+use prost::Message;
+use tract_onnx::pb;
+use tract_onnx::pb::tensor_shape_proto::dimension::Value as DimValue;
+use tract_onnx::prelude::*;
+
+/// The record shape after the batch axis: `(21, 5, 2)`.
+pub const RECORD_SHAPE: [usize; 3] = [ROWS, COLS, CHANNELS];
+
+/// A loaded, optimised ONNX model mapping `(N, 21, 5, 2)` to `(N, 21, 5, 2)`.
+#[derive(Clone)]
+pub struct OnnxModel {
+    plan: Arc<TypedRunnableModel>,
+    name: String,
+    input: String,
+    output: String,
+}
+
+impl std::fmt::Debug for OnnxModel {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("OnnxModel")
+            .field("name", &self.name)
+            .field("input", &self.input)
+            .field("output", &self.output)
+            .finish_non_exhaustive()
+    }
+}
+
+fn bad(name: &str, reason: impl Into<String>) -> DemError {
+    DemError::input(name, reason)
+}
+
+impl OnnxModel {
+    /// Load the model file at `path`. A missing or unreadable file is
+    /// [`DemError::Open`]; a file that is not ONNX, or whose input or output
+    /// is not `float32 (N, 21, 5, 2)`, is [`DemError::Input`] naming `path`
+    /// (both exit 2 in the tools).
+    pub fn load(path: &str) -> Result<OnnxModel, DemError> {
+        let bytes = std::fs::read(path).map_err(|source| DemError::Open { path: path.into(), source })?;
+        Self::from_bytes(&bytes, path)
+    }
+
+    /// Load a model from the bytes of an ONNX file; `name` is used in errors.
+    pub fn from_bytes(bytes: &[u8], name: &str) -> Result<OnnxModel, DemError> {
+        let proto = pb::ModelProto::decode(bytes)
+            .map_err(|e| bad(name, format!("not an ONNX model (protobuf decoding failed: {e})")))?;
+        Self::from_proto(&proto, name)
+    }
+
+    /// Load a model from its protobuf message; `name` is used in errors.
+    pub fn from_proto(proto: &pb::ModelProto, name: &str) -> Result<OnnxModel, DemError> {
+        let (input, output) = check_signature(proto, name)?;
+        let model = tract_onnx::onnx()
+            .model_for_proto_model(proto)
+            .map_err(|e| bad(name, format!("tract cannot read the ONNX graph: {e:#}")))?;
+        let plan = plan(model, None).map_err(|e| bad(name, format!("{e:#}")))?;
+        Ok(OnnxModel { plan, name: name.into(), input, output })
+    }
+
+    /// The name given at load time (the path for [`OnnxModel::load`]).
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// Names of the model's input and output.
+    pub fn io_names(&self) -> (&str, &str) {
+        (&self.input, &self.output)
+    }
+
+    /// Run the model on a batch of any size (0 gives an empty result):
+    /// `out[i]` is the model's output for `batch[i]`, in the same layout.
+    pub fn run(&self, batch: &[Dem]) -> Result<Vec<Dem>, DemError> {
+        if batch.is_empty() {
+            return Ok(Vec::new());
+        }
+        let n = batch.len();
+        let flat: &[f32] = batch.as_flattened();
+        let input = Tensor::from_shape(&[n, ROWS, COLS, CHANNELS], flat)
+            .map_err(|e| bad(&self.name, format!("cannot make the input tensor: {e:#}")))?;
+        let out = self
+            .plan
+            .run(tvec![input.into_tvalue()])
+            .map_err(|e| bad(&self.name, format!("inference on a batch of {n} failed: {e:#}")))?;
+        let out = &out[0];
+        if out.shape() != [n, ROWS, COLS, CHANNELS] {
+            return Err(bad(
+                &self.name,
+                format!("the output of a batch of {n} has shape {:?}, not ({n}, 21, 5, 2)", out.shape()),
+            ));
+        }
+        let view = out.try_as_plain_ram().map_err(|e| bad(&self.name, format!("cannot read the output: {e:#}")))?;
+        let values =
+            view.as_slice::<f32>().map_err(|e| bad(&self.name, format!("the output is not float32: {e:#}")))?;
+        Ok(values.chunks_exact(RECORD_LEN).map(|c| c.try_into().expect("210 values")).collect())
+    }
+}
+
+/// Build the runnable plan: the input fact is `float32 (batch, 21, 5, 2)`,
+/// `batch` a symbol `N` when `None`; the output must come out as the same
+/// shape (checked after type inference, before optimising).
+fn plan(mut model: InferenceModel, batch: Option<usize>) -> TractResult<Arc<TypedRunnableModel>> {
+    let n: TDim = match batch {
+        Some(k) => k.to_dim(),
+        None => model.sym("N").to_dim(),
+    };
+    let shape: TVec<TDim> = std::iter::once(n.clone()).chain(RECORD_SHAPE.iter().map(|d| d.to_dim())).collect();
+    model.set_input_fact(0, InferenceFact::dt_shape(f32::datum_type(), shape.clone()))?;
+    let typed = model.into_typed().context("type and shape inference failed for input float32 (N, 21, 5, 2)")?;
+    let fact = typed.output_fact(0)?;
+    if fact.datum_type != f32::datum_type() || fact.shape.to_tvec() != shape {
+        bail!("for an input float32 (N, 21, 5, 2) the output is {:?} {:?}, not float32 (N, 21, 5, 2)",
+            fact.datum_type, fact.shape);
+    }
+    let opt = typed.into_optimized().context("optimising the graph failed")?;
+    opt.into_runnable().context("making the plan failed")
+}
+
+/// Shape of a value as declared in the file: `None` for an unknown dim.
+fn declared(v: &pb::ValueInfoProto) -> (Option<i32>, Option<Vec<Option<i64>>>) {
+    let Some(pb::type_proto::Value::TensorType(t)) = v.r#type.as_ref().and_then(|t| t.value.as_ref()) else {
+        return (None, None);
+    };
+    let dims = t.shape.as_ref().map(|s| {
+        s.dim
+            .iter()
+            .map(|d| match d.value {
+                Some(DimValue::DimValue(k)) => Some(k),
+                _ => None,
+            })
+            .collect()
+    });
+    (Some(t.elem_type), dims)
+}
+
+/// `` `x` is float32 (N, 21, 5, 2) ``: a value as the file declares it.
+fn describe(v: &pb::ValueInfoProto) -> String {
+    let Some(pb::type_proto::Value::TensorType(t)) = v.r#type.as_ref().and_then(|t| t.value.as_ref()) else {
+        return format!("`{}` is of undeclared type", v.name);
+    };
+    let dtype = match pb::tensor_proto::DataType::try_from(t.elem_type) {
+        Ok(pb::tensor_proto::DataType::Float) => "float32".to_string(),
+        Ok(pb::tensor_proto::DataType::Double) => "float64".to_string(),
+        Ok(d) => d.as_str_name().to_lowercase(),
+        Err(_) => format!("type {}", t.elem_type),
+    };
+    let shape = match &t.shape {
+        Some(s) => {
+            let dims: Vec<String> = s
+                .dim
+                .iter()
+                .map(|d| match &d.value {
+                    Some(DimValue::DimValue(k)) => k.to_string(),
+                    Some(DimValue::DimParam(p)) if !p.is_empty() => p.clone(),
+                    _ => "?".into(),
+                })
+                .collect();
+            format!("({})", dims.join(", "))
+        }
+        None => "of undeclared shape".into(),
+    };
+    format!("`{}` is {dtype} {shape}", v.name)
+}
+
+/// Refuse, before tract sees it, a model whose one input or one output is
+/// declared with another type or shape than `float32 (N, 21, 5, 2)` (a fixed
+/// batch dim is refused too: the batch axis must be dynamic). Returns the
+/// input and output names.
+fn check_signature(proto: &pb::ModelProto, name: &str) -> Result<(String, String), DemError> {
+    let graph = proto.graph.as_ref().ok_or_else(|| bad(name, "not an ONNX model (no graph)"))?;
+    // Old exporters list the initializers among the inputs too.
+    let inputs: Vec<&pb::ValueInfoProto> =
+        graph.input.iter().filter(|i| !graph.initializer.iter().any(|t| t.name == i.name)).collect();
+    let want = "float32 (N, 21, 5, 2)";
+    if inputs.len() != 1 || graph.output.len() != 1 {
+        return Err(bad(
+            name,
+            format!(
+                "the model has {} inputs and {} outputs; need one input and one output, {want}",
+                inputs.len(),
+                graph.output.len()
+            ),
+        ));
+    }
+    for (what, v) in [("input", inputs[0]), ("output", &graph.output[0])] {
+        let (elem, dims) = declared(v);
+        let float = elem.map_or(true, |e| e == pb::tensor_proto::DataType::Float as i32);
+        let shape_ok = dims.as_ref().map_or(true, |d| {
+            d.len() == 4 && d[0].is_none() && d[1..].iter().zip(RECORD_SHAPE).all(|(k, want)| k.map_or(true, |k| k == want as i64))
+        });
+        if !float || !shape_ok {
+            let fixed = dims.as_ref().is_some_and(|d| d.len() == 4 && d[0].is_some());
+            let hint = if fixed && float { " (the batch axis must be dynamic)" } else { "" };
+            return Err(bad(name, format!("the model's {what} {}, need {want}{hint}", describe(v))));
+        }
+    }
+    Ok((inputs[0].name.clone(), graph.output[0].name.clone()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_model_can_be_shared_between_threads() {
+        fn check<T: Send + Sync>() {}
+        check::<OnnxModel>();
+    }
+}
