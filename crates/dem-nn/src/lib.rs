@@ -3,7 +3,13 @@
 //!
 //! - [`weights`]: the parameters, in PyTorch's layout (checkpoints, export).
 //! - [`reference`]: a slow f64 forward pass the fast code is tested against.
+//! - [`layers`]: conv (im2col + GEMM), instance norm + activation, dense.
+//! - [`net`]: generator and discriminator on batches, forward and backward.
+//! - [`gemm`]: the one bounds-checked wrapper over the GEMM kernel.
 #![deny(missing_docs)]
 
+pub mod gemm;
+pub mod layers;
+pub mod net;
 pub mod reference;
 pub mod weights;

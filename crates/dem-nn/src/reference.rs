@@ -114,6 +114,14 @@ fn split(dem: &Dem) -> (Map, Vec<f64>) {
 
 /// G(x) for one record: the spec's generator; row 20 passes through.
 pub fn generator(g: &GeneratorWeights, dem: &Dem) -> Dem {
+    let grid = generator_grid(g, dem);
+    let mut out = *dem;
+    out[..200].iter_mut().zip(&grid).for_each(|(o, v)| *o = *v as f32);
+    out
+}
+
+/// Rows 0..19 of G(x) in f64, in record order (`(r*5 + col)*2 + c`).
+pub fn generator_grid(g: &GeneratorWeights, dem: &Dem) -> Vec<f64> {
     let (mut h, att) = split(dem);
     for (c, n) in g.enc.iter().zip(&g.enc_norm) {
         h = leaky(norm(conv3(&h, c), n));
@@ -131,12 +139,12 @@ pub fn generator(g: &GeneratorWeights, dem: &Dem) -> Dem {
     let mut feat = h.v;
     feat.extend_from_slice(&att);
     let o = linear(&feat, &g.fc);
-    let mut out = *dem;
+    let mut out = vec![0.0; 200];
     for c in 0..2 {
         for r in 0..20 {
             for col in 0..5 {
                 let v = o[(c * 20 + r) * 5 + col];
-                out[(r * 5 + col) * 2 + c] = if c == 1 { v.tanh() } else { v } as f32;
+                out[(r * 5 + col) * 2 + c] = if c == 1 { v.tanh() } else { v };
             }
         }
     }

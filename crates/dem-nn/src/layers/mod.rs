@@ -1,0 +1,7 @@
+//! The layers' forward and backward kernels on channels-last batches.
+//! Each documents its formula and shapes; the networks in [`crate::net`]
+//! chain them and keep what backward needs.
+
+pub mod conv;
+pub mod dense;
+pub mod norm;

@@ -1,0 +1,153 @@
+//! Affine instance norm fused with the activation that follows it, on
+//! channels-last maps `[n, p, c]` (p spatial positions).
+//!
+//! ```text
+//! xhat = (x - mean_p x) / sqrt(var_p x + eps)      per sample and channel, biased variance
+//! z    = act(gamma * xhat + beta)
+//! backward, with u = dz * act'(z):
+//!   dgamma += sum_{n,p} u * xhat,   dbeta += sum_{n,p} u
+//!   dx = inv_std * (gamma u - mean_p(gamma u) - xhat * mean_p(gamma u * xhat))
+//! ```
+//! The activation's derivative is read off its output: leaky ReLU and ReLU
+//! keep the sign of their input (a zero output of ReLU means "was <= 0").
+
+use rayon::prelude::*;
+
+use crate::weights::{LEAK, NORM_EPS};
+
+/// What follows the norm.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Act {
+    /// Nothing (the second norm of a residual block).
+    None,
+    /// max(x, 0).
+    Relu,
+    /// x for x > 0, 0.2 x otherwise.
+    Leaky,
+}
+
+impl Act {
+    /// Apply to one value.
+    #[inline]
+    pub fn apply(self, v: f32) -> f32 {
+        match self {
+            Act::None => v,
+            Act::Relu => v.max(0.0),
+            Act::Leaky => {
+                if v > 0.0 {
+                    v
+                } else {
+                    LEAK * v
+                }
+            }
+        }
+    }
+
+    /// Derivative, from the activation's output.
+    #[inline]
+    pub fn slope(self, out: f32) -> f32 {
+        match self {
+            Act::None => 1.0,
+            Act::Relu => {
+                if out > 0.0 {
+                    1.0
+                } else {
+                    0.0
+                }
+            }
+            Act::Leaky => {
+                if out > 0.0 {
+                    1.0
+                } else {
+                    LEAK
+                }
+            }
+        }
+    }
+}
+
+/// What backward needs: the normalized input and 1/std per sample and channel.
+#[derive(Clone, Debug, Default)]
+pub struct NormCache {
+    /// `xhat [n, p, c]`.
+    pub xhat: Vec<f32>,
+    /// `inv_std [n, c]`.
+    pub inv_std: Vec<f32>,
+}
+
+/// `z = act(gamma * xhat + beta)`; `x` is `[n, p, c]` with `c = gamma.len()`.
+pub fn forward(x: &[f32], p: usize, gamma: &[f32], beta: &[f32], act: Act, cache: &mut NormCache, z: &mut Vec<f32>) {
+    let c = gamma.len();
+    let n = x.len() / (p * c);
+    cache.xhat.resize(x.len(), 0.0);
+    cache.inv_std.resize(n * c, 0.0);
+    z.resize(x.len(), 0.0);
+    x.par_chunks(p * c)
+        .zip(cache.xhat.par_chunks_mut(p * c))
+        .zip(z.par_chunks_mut(p * c))
+        .zip(cache.inv_std.par_chunks_mut(c))
+        .for_each(|(((xs, hs), zs), inv)| {
+            let mut mean = vec![0.0f32; c];
+            for row in xs.chunks_exact(c) {
+                mean.iter_mut().zip(row).for_each(|(m, v)| *m += v);
+            }
+            mean.iter_mut().for_each(|m| *m /= p as f32);
+            let mut var = vec![0.0f32; c];
+            for row in xs.chunks_exact(c) {
+                var.iter_mut().zip(row).zip(&mean).for_each(|((s, v), m)| *s += (v - m) * (v - m));
+            }
+            inv.iter_mut().zip(&var).for_each(|(i, v)| *i = 1.0 / (v / p as f32 + NORM_EPS).sqrt());
+            for ((row, hrow), zrow) in xs.chunks_exact(c).zip(hs.chunks_exact_mut(c)).zip(zs.chunks_exact_mut(c)) {
+                for j in 0..c {
+                    let h = (row[j] - mean[j]) * inv[j];
+                    hrow[j] = h;
+                    zrow[j] = act.apply(gamma[j] * h + beta[j]);
+                }
+            }
+        });
+}
+
+/// Backward of [`forward`]: accumulates `dgamma`, `dbeta`; returns `dx` in
+/// place of `dz` (which must hold the gradient of `z`).
+pub fn backward(
+    cache: &NormCache,
+    z: &[f32],
+    p: usize,
+    gamma: &[f32],
+    act: Act,
+    dz: &mut [f32],
+    dgamma: &mut [f32],
+    dbeta: &mut [f32],
+) {
+    let c = gamma.len();
+    let partial: Vec<Vec<f32>> = dz
+        .par_chunks_mut(p * c)
+        .zip(cache.xhat.par_chunks(p * c))
+        .zip(z.par_chunks(p * c))
+        .zip(cache.inv_std.par_chunks(c))
+        .map(|(((ds, hs), zs), inv)| {
+            // sums[0..c]: sum u*xhat (dgamma), sums[c..2c]: sum u (dbeta).
+            let mut sums = vec![0.0f32; 2 * c];
+            for ((drow, hrow), zrow) in ds.chunks_exact_mut(c).zip(hs.chunks_exact(c)).zip(zs.chunks_exact(c)) {
+                for j in 0..c {
+                    let u = drow[j] * act.slope(zrow[j]);
+                    drow[j] = u;
+                    sums[j] += u * hrow[j];
+                    sums[c + j] += u;
+                }
+            }
+            // mean_p(gamma u) = gamma * sum u / p; mean_p(gamma u xhat) = gamma * sum(u xhat) / p.
+            for (drow, hrow) in ds.chunks_exact_mut(c).zip(hs.chunks_exact(c)) {
+                for j in 0..c {
+                    let g = gamma[j];
+                    drow[j] = inv[j] * g * (drow[j] - sums[c + j] / p as f32 - hrow[j] * sums[j] / p as f32);
+                }
+            }
+            sums
+        })
+        .collect();
+    for s in partial {
+        dgamma.iter_mut().zip(&s[..c]).for_each(|(d, v)| *d += v);
+        dbeta.iter_mut().zip(&s[c..]).for_each(|(d, v)| *d += v);
+    }
+}

@@ -1,0 +1,273 @@
+//! The generator of `spec/network.md` on a batch, forward and backward.
+//!
+//! Input: the grid `[n, 20, 5, 2]` (rows 0..19 of each record, which is
+//! already channels-last) and the attitude `[n, 10]` (row 20, in record
+//! order). Output: the grid `[n, 20, 5, 2]` with tanh on the mask channel;
+//! the caller copies row 20 through. Shapes inside: `[n, 100, c]`.
+
+use super::params::{channels_first, Alloc, ConvLayer, DenseLayer, NormLayer};
+use crate::layers::conv::{self, ConvGeom};
+use crate::layers::dense;
+use crate::layers::norm::{self, Act, NormCache};
+use crate::weights::{GeneratorWeights, ResBlock};
+
+/// Grid values of one record (rows 0..19).
+pub const GRID: usize = 200;
+/// Attitude values of one record (row 20).
+pub const ATT: usize = 10;
+const POS: usize = 100;
+
+/// Layer layout of a generator of width w.
+#[derive(Clone, Debug)]
+pub struct Generator {
+    /// Width w.
+    pub width: usize,
+    /// 3 encoder, 6 residual (a, b per block), 3 decoder convs, in order.
+    convs: Vec<ConvLayer>,
+    /// 3 encoder, 6 residual, 2 decoder norms, in order.
+    norms: Vec<NormLayer>,
+    fc: DenseLayer,
+    /// Total parameters.
+    pub len: usize,
+}
+
+/// What a forward pass keeps for backward. Reused between steps so its
+/// buffers keep their capacity.
+#[derive(Debug, Default)]
+pub struct GenTape {
+    n: usize,
+    /// Input of each conv, as im2col columns.
+    cols: Vec<Vec<f32>>,
+    norms: Vec<NormCache>,
+    /// Output of each norm + activation.
+    zs: Vec<Vec<f32>>,
+    /// Conv outputs before their norm (scratch, kept to reuse capacity).
+    ys: Vec<Vec<f32>>,
+    /// Head input `[n, 210]`.
+    feat: Vec<f32>,
+    /// Output grid `[n, 200]` (after tanh on the mask).
+    pub out: Vec<f32>,
+}
+
+/// Scratch buffers of a backward pass.
+#[derive(Debug, Default)]
+pub struct GenScratch {
+    dh: Vec<f32>,
+    dres: Vec<f32>,
+    dfeat: Vec<f32>,
+    dcol: Vec<f32>,
+}
+
+const ENC: usize = 0;
+const RES: usize = 3;
+const DEC: usize = 9;
+
+impl Generator {
+    /// The layout of a generator of width `w`.
+    pub fn new(w: usize) -> Self {
+        let mut a = Alloc::default();
+        let (h, wd) = (20, 5);
+        let enc = [2, w, 2 * w, 2 * w];
+        let dec = [2 * w, 2 * w, w, 2];
+        let mut convs = Vec::new();
+        let mut norms = Vec::new();
+        for i in 0..3 {
+            convs.push(ConvLayer::new(&mut a, ConvGeom::same3(h, wd, enc[i], enc[i + 1])));
+            norms.push(NormLayer::new(&mut a, enc[i + 1]));
+        }
+        for _ in 0..6 {
+            convs.push(ConvLayer::new(&mut a, ConvGeom::same3(h, wd, 2 * w, 2 * w)));
+            norms.push(NormLayer::new(&mut a, 2 * w));
+        }
+        for i in 0..3 {
+            convs.push(ConvLayer::new(&mut a, ConvGeom::same3(h, wd, dec[i], dec[i + 1])));
+            if i < 2 {
+                norms.push(NormLayer::new(&mut a, dec[i + 1]));
+            }
+        }
+        let torch_in = channels_first(POS, 2).chain(channels_first(5, 2).map(|t| GRID + t)).collect();
+        let fc = DenseLayer::new(&mut a, torch_in, channels_first(POS, 2).collect());
+        Generator { width: w, convs, norms, fc, len: a.len() }
+    }
+
+    /// Flat parameters from PyTorch-layout weights.
+    pub fn load(&self, t: &GeneratorWeights) -> Vec<f32> {
+        assert_eq!(t.width, self.width, "generator width");
+        let mut p = vec![0.0; self.len];
+        let convs = t.enc.iter().chain(t.res.iter().flat_map(|r| [&r.a, &r.b])).chain(&t.dec);
+        let norms = t.enc_norm.iter().chain(t.res.iter().flat_map(|r| [&r.na, &r.nb])).chain(&t.dec_norm);
+        self.convs.iter().zip(convs).for_each(|(l, c)| l.load(&mut p, c));
+        self.norms.iter().zip(norms).for_each(|(l, n)| l.load(&mut p, n));
+        self.fc.load(&mut p, &t.fc);
+        p
+    }
+
+    /// PyTorch-layout weights from flat parameters.
+    pub fn save(&self, p: &[f32]) -> GeneratorWeights {
+        let c: Vec<_> = self.convs.iter().map(|l| l.save(p)).collect();
+        let n: Vec<_> = self.norms.iter().map(|l| l.save(p)).collect();
+        let res = (0..3)
+            .map(|i| ResBlock {
+                a: c[RES + 2 * i].clone(),
+                na: n[RES + 2 * i].clone(),
+                b: c[RES + 2 * i + 1].clone(),
+                nb: n[RES + 2 * i + 1].clone(),
+            })
+            .collect();
+        GeneratorWeights {
+            width: self.width,
+            enc: c[ENC..RES].to_vec(),
+            enc_norm: n[ENC..RES].to_vec(),
+            res,
+            dec: c[DEC..].to_vec(),
+            dec_norm: n[DEC..].to_vec(),
+            fc: self.fc.save(p),
+        }
+    }
+
+    fn conv_fwd(&self, i: usize, p: &[f32], x: &[f32], t: &mut GenTape) {
+        let l = &self.convs[i];
+        conv::forward(&l.g, &p[l.w.clone()], &p[l.b.clone()], x, &mut t.cols[i], &mut t.ys[i]);
+    }
+
+    fn norm_fwd(&self, j: usize, conv: usize, p: &[f32], act: Act, t: &mut GenTape) {
+        let l = &self.norms[j];
+        norm::forward(&t.ys[conv], POS, &p[l.gamma.clone()], &p[l.beta.clone()], act, &mut t.norms[j], &mut t.zs[j]);
+    }
+
+    /// Forward pass of a batch: `grid [n, 200]`, `att [n, 10]`; the output
+    /// grid is `tape.out`.
+    pub fn forward(&self, p: &[f32], grid: &[f32], att: &[f32], t: &mut GenTape) {
+        let n = grid.len() / GRID;
+        assert_eq!(att.len(), n * ATT, "attitude rows");
+        t.n = n;
+        t.cols.resize_with(12, Vec::new);
+        t.ys.resize_with(12, Vec::new);
+        t.zs.resize_with(11, Vec::new);
+        t.norms.resize_with(11, NormCache::default);
+        self.conv_fwd(0, p, grid, t);
+        self.norm_fwd(0, 0, p, Act::Leaky, t);
+        for i in 1..3 {
+            let x = std::mem::take(&mut t.zs[i - 1]);
+            self.conv_fwd(i, p, &x, t);
+            t.zs[i - 1] = x;
+            self.norm_fwd(i, i, p, Act::Leaky, t);
+        }
+        // Residual blocks: h_{b+1} = h_b + nb(b(relu(na(a(h_b))))). Backward
+        // needs only the layers' caches, so the running sum lives in `h`.
+        let mut h = t.zs[2].clone();
+        for b in 0..3 {
+            let (ca, cb) = (RES + 2 * b, RES + 2 * b + 1);
+            self.conv_fwd(ca, p, &h, t);
+            self.norm_fwd(ca, ca, p, Act::Relu, t);
+            let z = std::mem::take(&mut t.zs[ca]);
+            self.conv_fwd(cb, p, &z, t);
+            t.zs[ca] = z;
+            self.norm_fwd(cb, cb, p, Act::None, t);
+            h.iter_mut().zip(&t.zs[cb]).for_each(|(a, b)| *a += b);
+        }
+        self.conv_fwd(DEC, p, &h, t);
+        self.norm_fwd(DEC, DEC, p, Act::Leaky, t);
+        let z = std::mem::take(&mut t.zs[DEC]);
+        self.conv_fwd(DEC + 1, p, &z, t);
+        t.zs[DEC] = z;
+        self.norm_fwd(DEC + 1, DEC + 1, p, Act::Leaky, t);
+        let z = std::mem::take(&mut t.zs[DEC + 1]);
+        self.conv_fwd(DEC + 2, p, &z, t);
+        t.zs[DEC + 1] = z;
+        // Head: [decoder output (200), attitude (10)] -> 200, tanh on masks.
+        t.feat.clear();
+        for (row, a) in t.ys[DEC + 2].chunks_exact(GRID).zip(att.chunks_exact(ATT)) {
+            t.feat.extend_from_slice(row);
+            t.feat.extend_from_slice(a);
+        }
+        dense::forward(&p[self.fc.w.clone()], &p[self.fc.b.clone()], &t.feat, GRID + ATT, &mut t.out);
+        t.out.iter_mut().skip(1).step_by(2).for_each(|m| *m = m.tanh());
+    }
+
+    /// Backward of the last [`forward`] on `t`: `dout [n, 200]` is the loss
+    /// gradient of the output grid. Accumulates into `grads`; returns the
+    /// gradient of the input grid when `want_input` (the attitude's is never
+    /// needed: it passes through from data).
+    pub fn backward(
+        &self,
+        p: &[f32],
+        t: &GenTape,
+        dout: &[f32],
+        grads: &mut [f32],
+        want_input: bool,
+        s: &mut GenScratch,
+    ) -> Option<Vec<f32>> {
+        let mut u = dout.to_vec();
+        u.iter_mut().zip(&t.out).skip(1).step_by(2).for_each(|(d, m)| *d *= 1.0 - m * m);
+        let (gw, gb) = split2(grads, &self.fc.w, &self.fc.b);
+        dense::backward(&p[self.fc.w.clone()], &t.feat, GRID + ATT, &u, Some((gw, gb)), Some(&mut s.dfeat));
+        s.dh.clear();
+        for row in s.dfeat.chunks_exact(GRID + ATT) {
+            s.dh.extend_from_slice(&row[..GRID]);
+        }
+        let mut dh = std::mem::take(&mut s.dh);
+        let mut next = Vec::new();
+        self.conv_bwd(DEC + 2, p, t, &dh, grads, Some(&mut next), s);
+        std::mem::swap(&mut dh, &mut next);
+        for j in [DEC + 1, DEC] {
+            self.norm_bwd(j, p, t, Act::Leaky, &mut dh, grads);
+            self.conv_bwd(j, p, t, &dh, grads, Some(&mut next), s);
+            std::mem::swap(&mut dh, &mut next);
+        }
+        for b in (0..3).rev() {
+            let (ca, cb) = (RES + 2 * b, RES + 2 * b + 1);
+            let mut branch = std::mem::take(&mut s.dres);
+            branch.clear();
+            branch.extend_from_slice(&dh);
+            self.norm_bwd(cb, p, t, Act::None, &mut branch, grads);
+            self.conv_bwd(cb, p, t, &branch, grads, Some(&mut next), s);
+            self.norm_bwd(ca, p, t, Act::Relu, &mut next, grads);
+            self.conv_bwd(ca, p, t, &next, grads, Some(&mut branch), s);
+            dh.iter_mut().zip(&branch).for_each(|(a, b)| *a += b);
+            s.dres = branch;
+        }
+        for j in (0..3).rev() {
+            self.norm_bwd(j, p, t, Act::Leaky, &mut dh, grads);
+            let wants = j > 0 || want_input;
+            self.conv_bwd(j, p, t, &dh, grads, wants.then_some(&mut next), s);
+            std::mem::swap(&mut dh, &mut next);
+        }
+        let out = want_input.then(|| dh.clone());
+        s.dh = dh;
+        out
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn conv_bwd(
+        &self,
+        i: usize,
+        p: &[f32],
+        t: &GenTape,
+        dy: &[f32],
+        grads: &mut [f32],
+        dx: Option<&mut Vec<f32>>,
+        s: &mut GenScratch,
+    ) {
+        let l = &self.convs[i];
+        let (gw, gb) = split2(grads, &l.w, &l.b);
+        conv::backward(&l.g, &p[l.w.clone()], &t.cols[i], dy, Some((gw, gb)), dx, &mut s.dcol);
+    }
+
+    fn norm_bwd(&self, j: usize, p: &[f32], t: &GenTape, act: Act, dz: &mut [f32], grads: &mut [f32]) {
+        let l = &self.norms[j];
+        let (gg, gb) = split2(grads, &l.gamma, &l.beta);
+        norm::backward(&t.norms[j], &t.zs[j], POS, &p[l.gamma.clone()], act, dz, gg, gb);
+    }
+}
+
+/// Two disjoint ranges of one slice, mutably (`a` before `b`).
+pub(crate) fn split2<'a>(
+    v: &'a mut [f32],
+    a: &std::ops::Range<usize>,
+    b: &std::ops::Range<usize>,
+) -> (&'a mut [f32], &'a mut [f32]) {
+    assert!(a.end <= b.start, "ranges in order");
+    let (lo, hi) = v.split_at_mut(b.start);
+    (&mut lo[a.clone()], &mut hi[..b.len()])
+}

@@ -1,0 +1,9 @@
+//! The two networks on batches: layouts of their flat parameter vectors,
+//! forward passes that keep a tape, and backward passes over it.
+
+pub mod discriminator;
+pub mod generator;
+pub mod params;
+
+pub use discriminator::{DiscScratch, DiscTape, Discriminator};
+pub use generator::{GenScratch, GenTape, Generator};
