@@ -6,6 +6,8 @@
 //!   atomic files, numpy-identical bytes).
 //! - [`table`]: labels, pairs and index CSVs.
 //! - [`metric`]: the thesis's equation 7.1 error and the pair error.
+//! - [`eval`]: validation tables of the pair error (count, lowest, highest,
+//!   mean, median; by terrain) and their comparison against a baseline.
 //! - [`synth`]: the world we test on: terrains, trajectories, exact sim DEMs
 //!   and a physical depth-sensor + elevation-mapping emulator.
 //! - [`prep`]: data preparation (filter, pair, clean pallets, fill holes).
@@ -17,6 +19,7 @@
 
 pub mod cli;
 pub mod error;
+pub mod eval;
 pub mod format;
 pub mod metric;
 pub mod npy;
