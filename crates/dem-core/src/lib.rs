@@ -11,6 +11,8 @@
 //! - [`synth`]: the world we test on: terrains, trajectories, exact sim DEMs
 //!   and a physical depth-sensor + elevation-mapping emulator.
 //! - [`prep`]: data preparation (filter, pair, clean pallets, fill holes).
+//! - [`sensor`]: sensor models of named measurement effects (JSON, apply).
+//! - [`gap`]: measure, name and close the sim-to-real gap with a sensor model.
 //! - [`render`]: PNG pictures of DEMs (jet, colour bar, grids, comparisons).
 //! - [`output`]: atomic output files.
 //! - [`cli`]: exit codes, error printing, logs and progress for the binaries.
@@ -25,6 +27,8 @@ pub mod metric;
 pub mod npy;
 pub mod output;
 pub mod prep;
+pub mod sensor;
+pub mod gap;
 pub mod render;
 pub mod synth;
 pub mod table;

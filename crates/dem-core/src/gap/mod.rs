@@ -1,0 +1,360 @@
+//! Find where sim and real disagree, name the missing effect, add it to a
+//! sensor model and show the gap shrink.
+//!
+//! The loop ([`run`]):
+//! 1. **measure** model(sim) against real with [`stats`]: missing-cell
+//!    rates, shadows, residual or height means and spreads, edge profiles,
+//!    height steps, per row; one gap number ([`stats::gap`]) that compares
+//!    distributions and is 0 when they match. With pairs, heights are
+//!    residuals against the paired sim record; without, the records'
+//!    own distributions are compared.
+//! 2. **name**: fit every effect not yet in the model ([`fit`]) on a
+//!    subsample and rank them by how much of the gap each removes; the
+//!    evidence ([`evidence`]) says why in numbers.
+//! 3. **add** the best one when it removes more than `min_gain` of the gap
+//!    and more than the sampling floor, re-measure on all data,
+//!    repeat. The floor is the gap a perfect model would still show: the
+//!    model against itself with other random draws ([`draw_floor`]) and,
+//!    unpaired, two halves of real scaled to the set sizes ([`noise_floor`]).
+//! 4. **show**: [`report`] writes `report.json`, `sensor.json`, `report.md`
+//!    and its pictures.
+
+pub mod evidence;
+pub mod fit;
+pub mod report;
+pub mod stats;
+
+use rand::seq::index::sample;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+use crate::error::{DemError, Result};
+use crate::format::{Dem, Terrain};
+use crate::sensor::effects::NAMES;
+use crate::sensor::{Effect, SensorModel};
+use crate::{metric, npy, table};
+
+pub use stats::{gap, gap_terms, Stats};
+
+/// Everything one run needs.
+#[derive(Debug, Clone)]
+pub struct GapConfig {
+    /// Sim NPY file.
+    pub sim: String,
+    /// Real NPY file.
+    pub real: String,
+    /// Pairs CSV (sim_index,real_index): compare per position.
+    pub pairs: Option<String>,
+    /// Labels CSV of the sim file.
+    pub labels_sim: Option<String>,
+    /// Labels CSV of the real file.
+    pub labels_real: Option<String>,
+    /// The model to start from.
+    pub start: SensorModel,
+    /// Output folder.
+    pub out: String,
+    /// Most effects added.
+    pub max_steps: usize,
+    /// Seed of the model's random effects and of the subsample.
+    pub seed: u64,
+    /// Records (pairs, or sim records) the candidates are fitted on.
+    pub fit_records: usize,
+    /// Smallest fraction of the gap an added effect must remove.
+    pub min_gain: f64,
+}
+
+/// One added effect.
+#[derive(Debug, Clone)]
+pub struct Step {
+    /// The effect with its fitted parameters.
+    pub effect: Effect,
+    /// Gap before adding it (all data).
+    pub gap_before: f64,
+    /// Gap after (all data).
+    pub gap_after: f64,
+    /// Why, in words and numbers.
+    pub evidence: String,
+    /// Every candidate of this step with the fraction of the gap it removed
+    /// on the fitting subsample, best first.
+    pub ranking: Vec<(Effect, f64)>,
+}
+
+/// Per-terrain comparison (when labels are given).
+#[derive(Debug, Clone)]
+pub struct TerrainRow {
+    /// The terrain.
+    pub terrain: Terrain,
+    /// Records of the compared set with this terrain (real side).
+    pub records: usize,
+    /// Missing-cell rate: sim, final model(sim), real.
+    pub missing: [f64; 3],
+    /// Gap of the start and of the final model on this terrain.
+    pub gap: [f64; 2],
+}
+
+/// What a run found.
+#[derive(Debug, Clone)]
+pub struct Outcome {
+    /// Effects added, in order.
+    pub steps: Vec<Step>,
+    /// Gap of the start model.
+    pub gap_initial: f64,
+    /// Gap of the final model.
+    pub gap_final: f64,
+    /// The final model.
+    pub model: SensorModel,
+    /// Expected gap from sampling alone.
+    pub floor: f64,
+    /// Why the loop stopped.
+    pub stop: String,
+    /// True when compared per position (pairs).
+    pub paired: bool,
+    /// Records compared: model side, real side.
+    pub sizes: (usize, usize),
+    /// Statistics: sim as is, start model(sim), final model(sim), real.
+    pub stats: [Stats; 4],
+    /// Mean paired equation 7.1 error of sim, start and final model(sim)
+    /// against real (pairs only), reported beside the gap.
+    pub eq71: Option<[f64; 3]>,
+    /// Per terrain, when labels are given.
+    pub terrains: Vec<TerrainRow>,
+}
+
+/// The compared sets: model side (sim) and real side, aligned when paired.
+pub struct Sets {
+    /// Sim records (one per pair when paired).
+    pub sim: Vec<Dem>,
+    /// Real records (one per pair when paired).
+    pub real: Vec<Dem>,
+    /// Compared per position.
+    pub paired: bool,
+    /// Terrain of each sim-side record, when known.
+    pub sim_terrain: Option<Vec<Terrain>>,
+    /// Terrain of each real-side record, when known.
+    pub real_terrain: Option<Vec<Terrain>>,
+}
+
+fn terrains(path: &Option<String>, n: usize) -> Result<Option<Vec<Terrain>>> {
+    let Some(p) = path else { return Ok(None) };
+    let l = table::read_labels(p)?;
+    if l.len() != n {
+        return Err(DemError::input(p, format!("{} labels for {n} records", l.len())));
+    }
+    Ok(Some(l.into_iter().map(|l| l.terrain).collect()))
+}
+
+/// Read the inputs of `cfg` into the compared sets.
+pub fn load(cfg: &GapConfig) -> Result<Sets> {
+    let sim = npy::read_all(&cfg.sim)?;
+    let real = npy::read_all(&cfg.real)?;
+    for (p, v) in [(&cfg.sim, &sim), (&cfg.real, &real)] {
+        if v.is_empty() {
+            return Err(DemError::input(p.as_str(), "no records"));
+        }
+    }
+    let ts = terrains(&cfg.labels_sim, sim.len())?;
+    let tr = terrains(&cfg.labels_real, real.len())?;
+    let Some(pp) = &cfg.pairs else {
+        return Ok(Sets { sim, real, paired: false, sim_terrain: ts, real_terrain: tr });
+    };
+    let pairs = table::read_pairs(pp)?;
+    if pairs.is_empty() {
+        return Err(DemError::input(pp, "no pairs"));
+    }
+    let mut s = Vec::with_capacity(pairs.len());
+    let mut r = Vec::with_capacity(pairs.len());
+    let (mut st, mut rt) = (Vec::new(), Vec::new());
+    for (line, p) in pairs.iter().enumerate() {
+        let (si, ri) = (p.sim_index as usize, p.real_index as usize);
+        if si >= sim.len() || ri >= real.len() {
+            return Err(DemError::Table {
+                path: pp.clone(),
+                line: line as u64 + 2,
+                reason: format!("pair ({si}, {ri}) past the data ({} sim, {} real records)", sim.len(), real.len()),
+            });
+        }
+        s.push(sim[si]);
+        r.push(real[ri]);
+        if let Some(t) = &ts {
+            st.push(t[si]);
+        }
+        if let Some(t) = &tr {
+            rt.push(t[ri]);
+        }
+    }
+    // Paired: both sides share the pair's terrain; prefer the real label.
+    let t = if tr.is_some() { Some(rt) } else if ts.is_some() { Some(st) } else { None };
+    Ok(Sets { sim: s, real: r, paired: true, sim_terrain: t.clone(), real_terrain: t })
+}
+
+fn pick<T: Copy>(v: &[T], idx: &[usize]) -> Vec<T> {
+    idx.iter().map(|&i| v[i]).collect()
+}
+
+/// Apply `model` to `sim` and summarise (residuals against `sim` when paired).
+pub fn measure(model: &SensorModel, sim: &[Dem], paired: bool, seed: u64) -> (Vec<Dem>, Stats) {
+    let mut out = sim.to_vec();
+    model.apply_all(&mut out, seed, 0);
+    let s = stats::stats(&out, paired.then_some(sim));
+    (out, s)
+}
+
+/// Run the measure-name-add loop on loaded sets; `log` gets progress lines.
+pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String)) -> Outcome {
+    let paired = sets.paired;
+    let real_stats = stats::stats(&sets.real, paired.then_some(&sets.sim[..]));
+    let split_floor = if paired { 0.0 } else { noise_floor(sets) };
+    let floor_of = |m: &SensorModel| split_floor.max(draw_floor(m, &sets.sim, paired, cfg.seed));
+    // The fitting subsample (all records when few).
+    let mut rng = ChaCha8Rng::seed_from_u64(crate::sensor::mix(cfg.seed ^ 0x5eed));
+    let n = sets.sim.len();
+    let mut idx: Vec<usize> =
+        if n > cfg.fit_records { sample(&mut rng, n, cfg.fit_records).into_vec() } else { (0..n).collect() };
+    idx.sort_unstable();
+    let fit_sim = pick(&sets.sim, &idx);
+    let fit_real = if paired { stats::stats(&pick(&sets.real, &idx), Some(&fit_sim)) } else { real_stats.clone() };
+    let target = fit::Target { sim: &fit_sim, paired, real: &fit_real, seed: cfg.seed };
+
+    let mut model = cfg.start.clone();
+    let (_, start_stats) = measure(&model, &sets.sim, paired, cfg.seed);
+    let gap_initial = gap(&start_stats, &real_stats);
+    let mut floor = floor_of(&model);
+    log(format!(
+        "{} mode, {} vs {} records; start model: {}; gap {gap_initial:.3} (sampling floor {floor:.3})",
+        if paired { "paired" } else { "unpaired" },
+        sets.sim.len(),
+        sets.real.len(),
+        model.summary()
+    ));
+    let mut current = (gap_initial, start_stats.clone());
+    let mut steps = Vec::new();
+    let mut stop = format!("stopped after --max-steps {}", cfg.max_steps);
+    for step in 0..cfg.max_steps {
+        let candidates: Vec<&str> = NAMES.iter().copied().filter(|n| !model.effects.iter().any(|e| e.name() == *n)).collect();
+        if candidates.is_empty() {
+            stop = "every effect of the vocabulary is in the model".into();
+            break;
+        }
+        let base_fit = target.gap(&model);
+        let mut ranking: Vec<(Effect, f64, f64)> = Vec::new();
+        for name in &candidates {
+            if let Some(f) = fit::fit(name, &model, &target) {
+                let removed = if base_fit > 0.0 { 1.0 - f.gap / base_fit } else { 0.0 };
+                log(format!("step {}: candidate {} removes {:.1}% of the gap on the fitting subsample", step + 1, f.effect, 100.0 * removed));
+                ranking.push((f.effect, removed, f.gap));
+            }
+        }
+        ranking.sort_by(|a, b| a.2.total_cmp(&b.2));
+        let (gap_before, before_stats) = current.clone();
+        let mut threshold = 0.0;
+        let mut added = None;
+        // The best candidate on the subsample, confirmed on all data; the
+        // runner-up gets a chance when the best does not hold up.
+        for (e, _, _) in ranking.iter().take(2) {
+            let trial = model.with(*e);
+            let (_, s) = measure(&trial, &sets.sim, paired, cfg.seed);
+            let g = gap(&s, &real_stats);
+            floor = floor_of(&trial);
+            threshold = (cfg.min_gain * gap_before).max(floor);
+            if gap_before - g > threshold {
+                added = Some((*e, trial, g, s));
+                break;
+            }
+        }
+        let Some((effect, trial, gap_after, after_stats)) = added else {
+            stop = match ranking.first() {
+                Some((e, r, _)) => format!(
+                    "nothing explains the rest: the best candidate, {e}, removes {:.1}% of the gap {gap_before:.3} (needed: more than {:.3}, the larger of {:.0}% of the gap and the sampling floor {floor:.3})",
+                    100.0 * r, threshold, 100.0 * cfg.min_gain
+                ),
+                None => "no candidate could be fitted".into(),
+            };
+            log(stop.clone());
+            break;
+        };
+        let ev = evidence::evidence(&effect, &before_stats, &after_stats, &real_stats, gap_before, gap_after);
+        log(format!("step {}: added {effect}: gap {gap_before:.3} -> {gap_after:.3}; {ev}", step + 1));
+        steps.push(Step { effect, gap_before, gap_after, evidence: ev, ranking: ranking.iter().map(|(e, r, _)| (*e, *r)).collect() });
+        model = trial;
+        current = (gap_after, after_stats);
+    }
+    let (gap_final, final_stats) = current;
+    let sim_stats = measure(&SensorModel::default(), &sets.sim, paired, cfg.seed).1;
+    let eq71 = paired.then(|| {
+        let mean = |m: &SensorModel| {
+            let (out, _) = measure(m, &sets.sim, true, cfg.seed);
+            out.iter().zip(&sets.real).map(|(p, y)| metric::dem_error(y, p)).sum::<f64>() / out.len() as f64
+        };
+        [mean(&SensorModel::default()), mean(&cfg.start), mean(&model)]
+    });
+    let terrains = per_terrain(sets, &cfg.start, &model, cfg.seed);
+    Outcome {
+        steps,
+        gap_initial,
+        gap_final,
+        model,
+        floor,
+        stop,
+        paired,
+        sizes: (sets.sim.len(), sets.real.len()),
+        stats: [sim_stats, start_stats, final_stats, real_stats],
+        eq71,
+        terrains,
+    }
+}
+
+/// The gap a perfect model would still show from its own random draws:
+/// model(sim) with the run's seed against model(sim) with another seed.
+pub fn draw_floor(model: &SensorModel, sim: &[Dem], paired: bool, seed: u64) -> f64 {
+    let (_, a) = measure(model, sim, paired, seed);
+    let (_, b) = measure(model, sim, paired, crate::sensor::mix(seed ^ 0xf100_f100));
+    gap(&a, &b)
+}
+
+/// The gap two halves of real show from sampling alone (blocks of 50
+/// records alternate, so neighbouring frames of a run stay together),
+/// scaled to the sizes compared: var of a difference of means goes as
+/// 1/n_a + 1/n_b, so floor = split gap x (1/n_sim + 1/n_real) / (4/n_real).
+pub fn noise_floor(sets: &Sets) -> f64 {
+    let n = sets.real.len();
+    if n < 100 {
+        return 0.0;
+    }
+    let (a, b): (Vec<usize>, Vec<usize>) = (0..n).partition(|i| (i / 50) % 2 == 0);
+    let side = |idx: &[usize]| {
+        let r = pick(&sets.real, idx);
+        if sets.paired {
+            stats::stats(&r, Some(&pick(&sets.sim, idx)))
+        } else {
+            stats::stats(&r, None)
+        }
+    };
+    let split = gap(&side(&a), &side(&b));
+    split * (1.0 / sets.sim.len() as f64 + 1.0 / n as f64) / (4.0 / n as f64)
+}
+
+fn per_terrain(sets: &Sets, start: &SensorModel, model: &SensorModel, seed: u64) -> Vec<TerrainRow> {
+    let (Some(ts), Some(tr)) = (&sets.sim_terrain, &sets.real_terrain) else { return vec![] };
+    let mut rows = Vec::new();
+    for t in Terrain::ALL {
+        let si: Vec<usize> = (0..ts.len()).filter(|&i| ts[i] == t).collect();
+        let ri: Vec<usize> = (0..tr.len()).filter(|&i| tr[i] == t).collect();
+        if si.len() < 10 || ri.len() < 10 {
+            continue;
+        }
+        let sim = pick(&sets.sim, &si);
+        let real = pick(&sets.real, &ri);
+        let rs = stats::stats(&real, sets.paired.then_some(&sim[..]));
+        let (_, s0) = measure(start, &sim, sets.paired, seed);
+        let (_, s1) = measure(model, &sim, sets.paired, seed);
+        let (_, sr) = measure(&SensorModel::default(), &sim, sets.paired, seed);
+        let miss = |s: &Stats| s.mean_over("missing", 0..20);
+        rows.push(TerrainRow {
+            terrain: t,
+            records: ri.len(),
+            missing: [miss(&sr), miss(&s1), miss(&rs)],
+            gap: [gap(&s0, &rs), gap(&s1, &rs)],
+        });
+    }
+    rows
+}

@@ -1,0 +1,283 @@
+//! What a gap run leaves in its folder: `report.json` (the steps, exact
+//! schema below), `sensor.json` (the final model), `report.md` with the
+//! pictures `compare.png` (sim, model(sim) before and after, real) and the
+//! per-row plots `rows-missing.png` and `rows-height.png`.
+//!
+//! ```text
+//! {"steps": [{"effect": NAME, "params": {...}, "gap_before": x, "gap_after": y, "evidence": "..."}],
+//!  "gap_initial": x, "gap_final": y}
+//! ```
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use serde_json::{json, Map, Value};
+
+use crate::error::{DemError, Result};
+use crate::format::{row_center_x, Dem, GRID_ROWS};
+use crate::render::canvas::{Canvas, Rgb, BLACK, GRID, TEXT, WHITE};
+use crate::render::font::{draw_text, draw_text_centered, text_height, text_width};
+use crate::render::{self, Captions, Pick, RenderConfig, Selection, TileStyle};
+use crate::{npy, output};
+
+use super::{stats::gap_terms, Outcome, Sets};
+
+/// `report.json` of an outcome, in the exact schema of the module doc.
+pub fn report_json(o: &Outcome) -> Value {
+    let steps: Vec<Value> = o
+        .steps
+        .iter()
+        .map(|s| {
+            let params: Map<String, Value> = s.effect.params().into_iter().map(|(k, v)| (k.to_string(), json!(v))).collect();
+            json!({"effect": s.effect.name(), "params": params, "gap_before": s.gap_before, "gap_after": s.gap_after, "evidence": s.evidence})
+        })
+        .collect();
+    json!({"steps": steps, "gap_initial": o.gap_initial, "gap_final": o.gap_final})
+}
+
+fn path(dir: &str, name: &str) -> String {
+    Path::new(dir).join(name).to_string_lossy().into_owned()
+}
+
+/// Write `report.json`, `sensor.json`, the pictures and `report.md` into
+/// `dir` (created when missing). Each file appears whole or not at all.
+pub fn write(dir: &str, o: &Outcome, sets: &Sets, start: &crate::sensor::SensorModel, seed: u64) -> Result<()> {
+    std::fs::create_dir_all(dir).map_err(|e| DemError::io(dir, e))?;
+    let text = serde_json::to_string_pretty(&report_json(o)).expect("json");
+    output::write_atomic(&path(dir, "report.json"), |w| writeln!(w, "{text}"))?;
+    o.model.write(&path(dir, "sensor.json"))?;
+    pictures(dir, o, sets, start, seed)?;
+    plots(dir, o)?;
+    let md = markdown(o);
+    output::write_atomic(&path(dir, "report.md"), |w| w.write_all(md.as_bytes()))
+}
+
+use std::io::Write as _;
+
+fn pictures(dir: &str, o: &Outcome, sets: &Sets, start: &crate::sensor::SensorModel, seed: u64) -> Result<()> {
+    // Twelve records spread over the set, preferring ones where real has
+    // something to show (some but not all cells missing).
+    let n = sets.sim.len();
+    let interesting: Vec<usize> = (0..n.min(sets.real.len()))
+        .filter(|&i| {
+            let v = crate::format::DemCells::valid_cells(&sets.real[i]);
+            (40..100).contains(&v)
+        })
+        .collect();
+    let pool: Vec<usize> = if interesting.len() >= 12 { interesting } else { (0..n.min(sets.real.len())).collect() };
+    let idx: Vec<usize> = (0..12.min(pool.len())).map(|k| pool[k * pool.len() / 12.min(pool.len())]).collect();
+    let apply = |m: &crate::sensor::SensorModel| -> Vec<Dem> {
+        let mut all = sets.sim.clone();
+        // The same draws as the measurement: apply with the record's index.
+        idx.iter()
+            .map(|&i| {
+                let mut d = all[i];
+                m.apply(&mut d, seed, i as u64);
+                all[i] = d;
+                d
+            })
+            .collect()
+    };
+    let mut rows: Vec<(String, Vec<Dem>)> = vec![("sim".into(), idx.iter().map(|&i| sets.sim[i]).collect())];
+    if !start.effects.is_empty() {
+        rows.push(("start model".into(), apply(start)));
+    }
+    rows.push(("model(sim)".into(), apply(&o.model)));
+    rows.push((if sets.paired { "real" } else { "real (other)" }.into(), idx.iter().map(|&i| sets.real[i]).collect()));
+    let mut files = Vec::new();
+    for (k, (_, recs)) in rows.iter().enumerate() {
+        let p = path(dir, &format!(".compare-{k}.npy"));
+        npy::write_all(&p, recs)?;
+        files.push(p);
+    }
+    let cfg = RenderConfig {
+        inputs: files.clone(),
+        compare: true,
+        row_labels: rows.iter().map(|r| r.0.clone()).collect(),
+        pick: Pick::Direct(Selection::Range { start: 0, count: idx.len() as u64 }),
+        columns: None,
+        title: Some(format!("sim, model(sim) with {} effect(s) and real", o.model.effects.len())),
+        vmin: None,
+        vmax: None,
+        captions: Captions::None,
+        style: TileStyle::default(),
+        output: path(dir, "compare.png"),
+    };
+    let res = render::render(&cfg);
+    for f in files {
+        let _ = std::fs::remove_file(f);
+    }
+    res.map(|_| ())
+}
+
+const COLORS: [Rgb; 4] = [[150, 150, 150], [230, 150, 40], [30, 90, 200], [200, 30, 30]];
+const SERIES: [&str; 4] = ["sim", "start model(sim)", "model(sim)", "real"];
+
+fn plots(dir: &str, o: &Outcome) -> Result<()> {
+    let series = |name: &str| -> Vec<(String, Rgb, Vec<f64>)> {
+        o.stats
+            .iter()
+            .enumerate()
+            .filter(|(k, _)| *k != 1 || !o.steps.is_empty() && o.stats[1] != o.stats[0])
+            .map(|(k, s)| (SERIES[k].to_string(), COLORS[k], s.term(name).map_or(vec![], |t| t.values.clone())))
+            .collect()
+    };
+    let xs: Vec<f64> = (0..GRID_ROWS).map(row_center_x).collect();
+    let c = line_plot("missing-cell rate per row", "x of the row (m)", &xs, &series("missing"), false);
+    output::write_atomic(&path(dir, "rows-missing.png"), |w| c.write_png(w))?;
+    let (h, s) = if o.paired {
+        ("mean residual (model or real) - sim per row (m)", "residual sd per row (m)")
+    } else {
+        ("mean height per row (m)", "across-robot roughness per row (m)")
+    };
+    let a = line_plot(h, "x of the row (m)", &xs, &series("height"), true);
+    let b = line_plot(s, "x of the row (m)", &xs, &series("spread-sd"), false);
+    let mut both = Canvas::new(a.width(), a.height() + b.height(), WHITE);
+    blit(&mut both, &a, 0);
+    blit(&mut both, &b, a.height());
+    output::write_atomic(&path(dir, "rows-height.png"), |w| both.write_png(w))
+}
+
+fn blit(dst: &mut Canvas, src: &Canvas, y0: u32) {
+    for y in 0..src.height() {
+        for x in 0..src.width() {
+            dst.set(x as i64, (y + y0) as i64, src.get(x, y));
+        }
+    }
+}
+
+/// A line plot of several series over `xs`, with axes, ticks and a legend.
+/// `zero_line` draws y = 0.
+pub fn line_plot(title: &str, xlabel: &str, xs: &[f64], series: &[(String, Rgb, Vec<f64>)], zero_line: bool) -> Canvas {
+    let (w, h) = (900i64, 420i64);
+    let (l, r, t, b) = (110i64, 220i64, 40i64, 60i64);
+    let mut c = Canvas::new(w as u32, h as u32, WHITE);
+    let ys: Vec<f64> = series.iter().flat_map(|s| s.2.iter().copied()).filter(|v| v.is_finite()).collect();
+    let (mut lo, mut hi) = ys.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
+    if zero_line || !lo.is_finite() {
+        lo = lo.min(0.0);
+        hi = hi.max(0.0);
+    }
+    if !lo.is_finite() || hi - lo < 1e-9 {
+        (lo, hi) = (lo.min(0.0) - 0.5e-3, hi.max(0.0) + 0.5e-3);
+    }
+    let pad = 0.05 * (hi - lo);
+    let (lo, hi) = (lo - pad, hi + pad);
+    let (x0, x1) = (xs[0] - 0.05, xs[xs.len() - 1] + 0.05);
+    let px = |x: f64| l + ((x - x0) / (x1 - x0) * (w - l - r) as f64).round() as i64;
+    let py = |y: f64| h - b - ((y - lo) / (hi - lo) * (h - t - b) as f64).round() as i64;
+    draw_text(&mut c, l, 10, title, 2, TEXT);
+    // Axes and ticks.
+    for k in 0..=5 {
+        let y = lo + (hi - lo) * k as f64 / 5.0;
+        let yy = py(y);
+        c.hline(l, yy, w - l - r, GRID);
+        let label = if hi - lo < 0.05 { format!("{:.4}", y) } else { format!("{:.3}", y) };
+        draw_text(&mut c, l - 8 - text_width(&label, 1) as i64, yy - 4, &label, 1, TEXT);
+    }
+    let mut x = (x0 * 5.0).ceil() / 5.0;
+    while x <= x1 {
+        let xx = px(x);
+        c.vline(xx, t, h - t - b, GRID);
+        draw_text_centered(&mut c, xx, h - b + 8, &format!("{x:.1}"), 1, TEXT);
+        x += 0.2;
+    }
+    if zero_line {
+        c.hline(l, py(0.0), w - l - r, BLACK);
+    }
+    c.hline(l, h - b, w - l - r, BLACK);
+    c.vline(l, t, h - t - b, BLACK);
+    draw_text_centered(&mut c, l + (w - l - r) / 2, h - b + 28, xlabel, 1, TEXT);
+    c.vline(px(0.0), t, h - t - b, [120, 120, 120]);
+    draw_text(&mut c, px(0.0) + 3, t + 2, "C", 1, TEXT);
+    for (k, (name, color, v)) in series.iter().enumerate() {
+        let pts: Vec<(i64, i64)> = xs.iter().zip(v).filter(|(_, y)| y.is_finite()).map(|(&x, &y)| (px(x), py(y))).collect();
+        for p in pts.windows(2) {
+            line(&mut c, p[0], p[1], *color);
+        }
+        for &(x, y) in &pts {
+            c.fill_rect(x - 3, y - 3, 7, 7, *color);
+        }
+        let ly = t + 10 + k as i64 * (text_height(2) as i64 + 8);
+        c.fill_rect(w - r + 15, ly + 2, 20, 10, *color);
+        draw_text(&mut c, w - r + 42, ly, name, 1, TEXT);
+    }
+    c
+}
+
+/// A 3-pixel-wide line (Bresenham, thickened).
+fn line(c: &mut Canvas, (x0, y0): (i64, i64), (x1, y1): (i64, i64), color: Rgb) {
+    let (dx, dy) = ((x1 - x0).abs(), -(y1 - y0).abs());
+    let (sx, sy) = (if x0 < x1 { 1 } else { -1 }, if y0 < y1 { 1 } else { -1 });
+    let (mut x, mut y, mut err) = (x0, y0, dx + dy);
+    loop {
+        c.fill_rect(x - 1, y - 1, 3, 3, color);
+        if x == x1 && y == y1 {
+            break;
+        }
+        let e2 = 2 * err;
+        if e2 >= dy {
+            err += dy;
+            x += sx;
+        }
+        if e2 <= dx {
+            err += dx;
+            y += sy;
+        }
+    }
+}
+
+/// The Markdown report.
+pub fn markdown(o: &Outcome) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "# dem-gap report\n");
+    let _ = writeln!(
+        s,
+        "{} comparison of model(sim) ({} records) against real ({} records). Gap {:.3} -> {:.3} ({:.0}% removed); sampling floor {:.3}.\n",
+        if o.paired { "Paired (per position)" } else { "Unpaired (distributions of records)" },
+        o.sizes.0,
+        o.sizes.1,
+        o.gap_initial,
+        o.gap_final,
+        if o.gap_initial > 0.0 { 100.0 * (1.0 - o.gap_final / o.gap_initial) } else { 0.0 },
+        o.floor
+    );
+    let _ = writeln!(s, "Final sensor model (`sensor.json`): {}\n", o.model.summary());
+    let _ = writeln!(s, "## Steps\n\n| step | effect | parameters | gap before | gap after | evidence |\n|---|---|---|---|---|---|");
+    for (k, st) in o.steps.iter().enumerate() {
+        let p: Vec<String> = st.effect.params().iter().map(|(n, v)| format!("{n} = {v:.4}")).collect();
+        let _ = writeln!(s, "| {} | `{}` | {} | {:.3} | {:.3} | {} |", k + 1, st.effect.name(), p.join(", "), st.gap_before, st.gap_after, st.evidence);
+    }
+    let _ = writeln!(s, "\nStopped: {}.\n", o.stop);
+    if !o.steps.is_empty() {
+        let _ = writeln!(s, "### Candidates at each step (share of the gap each removes on the fitting subsample)\n");
+        for (k, st) in o.steps.iter().enumerate() {
+            let r: Vec<String> = st.ranking.iter().map(|(e, f)| format!("{} {:.0}%", e.name(), 100.0 * f)).collect();
+            let _ = writeln!(s, "{}. {}", k + 1, r.join(", "));
+        }
+        let _ = writeln!(s);
+    }
+    let _ = writeln!(s, "## Where the gap is (per term, start model -> final model)\n\n| term | start | final |\n|---|---|---|");
+    let (a, b) = (gap_terms(&o.stats[1], &o.stats[3]), gap_terms(&o.stats[2], &o.stats[3]));
+    for ((n, x), (_, y)) in a.iter().zip(&b) {
+        let _ = writeln!(s, "| {n} | {x:.3} | {y:.3} |");
+    }
+    if let Some([e0, e1, e2]) = o.eq71 {
+        let _ = writeln!(
+            s,
+            "\nPaired equation 7.1 error (mean), reported beside the gap, not part of it (it grows when correct noise is added): sim as is {e0:.4}, start model {e1:.4}, final model {e2:.4}."
+        );
+    }
+    if !o.terrains.is_empty() {
+        let _ = writeln!(s, "\n## Per terrain\n\n| terrain | real records | missing: sim | model(sim) | real | gap start | gap final |\n|---|---|---|---|---|---|---|");
+        for t in &o.terrains {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {:.1}% | {:.1}% | {:.1}% | {:.3} | {:.3} |",
+                t.terrain, t.records, 100.0 * t.missing[0], 100.0 * t.missing[1], 100.0 * t.missing[2], t.gap[0], t.gap[1]
+            );
+        }
+    }
+    let _ = writeln!(s, "\n## Pictures\n\n![sim, model(sim), real](compare.png)\n\n![missing rate per row](rows-missing.png)\n\n![heights per row](rows-height.png)");
+    s
+}

@@ -1,0 +1,348 @@
+//! Statistics of a set of DEMs and the gap number between two such sets.
+//!
+//! Every statistic describes a *distribution* over records (rates,
+//! means, spreads, quantiles), never one random draw against another, so a
+//! model that adds the right noise to sim scores 0 against real, where the
+//! paired equation 7.1 error would grow.
+//!
+//! Terms (per grid row r = 0..19 unless said otherwise):
+//!
+//! | term | what | scale |
+//! |---|---|---|
+//! | `missing` | fraction of cells missing | 0.02 |
+//! | `row-missing` | fraction of records with the whole row missing | 0.02 |
+//! | `shadow` | fraction of cells missing behind a drop: the nearest valid cell toward the sensor side (x = 0.1 m) is >= [`SHADOW_DROP`] taller than the nearest valid cell beyond | 0.01 |
+//! | `height` | paired: mean residual D = h - h_sim on cells valid in both; unpaired: mean height | 0.005 m |
+//! | `spread-sd`, `spread-q50`, `spread-q90` | paired: sd and quantiles of abs(D); unpaired: of abs(h[r,c] - h[r,c+1]) / sqrt 2 (the across-robot roughness) | 0.002 m |
+//! | `level-pairs` | fraction of across-robot neighbours with equal heights (within 0.1 mm) | 0.02 |
+//! | `edge-2cm`, `edge-steep`, `edge-10cm` | fraction of steps abs(h[r+1,c] - h[r,c]) (row pairs 0..18) above 0.02, 0.05, 0.1 m: sharp edges against ramps | 0.01 |
+//! | `steps` | fraction of all neighbour pairs whose difference falls in each bin of [`STEP_BINS`] (0.1-1-3-10-30-100 mm; 5 numbers) | 0.01 |
+//!
+//! The gap between sets A (model(sim)) and B (real) is the sum over terms
+//! of the mean over their components of ((a - b) / scale)^2; a component is
+//! left out when either side has fewer than [`MIN_SUPPORT`] samples. Each
+//! term is 0 when the distributions match; the scale is the difference that
+//! matters physically (2 % of cells, 5 mm of height, 2 mm of spread).
+
+use rayon::prelude::*;
+
+use crate::format::{row_center_x, Dem, DemCells, COLS, GRID_ROWS};
+
+/// Height drop (m) behind which a missing cell counts as in a shadow.
+pub const SHADOW_DROP: f64 = 0.08;
+/// Fewest samples a component needs on both sides to count.
+pub const MIN_SUPPORT: usize = 30;
+/// x (m) that separates "toward the sensor" from "beyond" for shadows.
+const SHADOW_REF_X: f64 = 0.1;
+
+/// Edges (m) of the bins of non-zero neighbour differences (`steps`).
+pub const STEP_BINS: [f64; 6] = [1e-4, 0.001, 0.003, 0.01, 0.03, 0.1];
+
+/// One statistic: a value per component (row, row pair, or quantile) with
+/// the number of samples behind it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Term {
+    /// Name (see [`TERMS`]).
+    pub name: &'static str,
+    /// Value per component.
+    pub values: Vec<f64>,
+    /// Samples behind each value.
+    pub support: Vec<usize>,
+    /// The difference that counts as 1.
+    pub scale: f64,
+}
+
+/// The statistics of one set of records.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Stats {
+    /// Records summarised.
+    pub records: usize,
+    /// True when heights are residuals against paired sim records.
+    pub paired: bool,
+    /// The terms.
+    pub terms: Vec<Term>,
+}
+
+#[derive(Default, Clone)]
+struct Acc {
+    n: usize,
+    miss: [usize; GRID_ROWS],
+    full_row: [usize; GRID_ROWS],
+    shadow: [usize; GRID_ROWS],
+    level: [(usize, usize); GRID_ROWS],
+    /// Paired: residuals D; unpaired: heights (for the mean).
+    loc: Vec<Vec<f32>>,
+    /// Paired: abs(D); unpaired: abs(across-robot differences) / sqrt 2.
+    spread: Vec<Vec<f32>>,
+    edge: Vec<Vec<f32>>,
+    steps: Vec<f32>,
+}
+
+impl Acc {
+    fn new() -> Self {
+        Acc {
+            loc: vec![Vec::new(); GRID_ROWS],
+            spread: vec![Vec::new(); GRID_ROWS],
+            edge: vec![Vec::new(); GRID_ROWS - 1],
+            ..Default::default()
+        }
+    }
+
+    fn add(&mut self, d: &Dem, sim: Option<&Dem>) {
+        self.n += 1;
+        for r in 0..GRID_ROWS {
+            let missing = (0..COLS).filter(|&c| !d.is_valid(r, c)).count();
+            self.miss[r] += missing;
+            self.full_row[r] += usize::from(missing == COLS);
+            for c in 0..COLS {
+                if !d.is_valid(r, c) {
+                    self.shadow[r] += usize::from(in_shadow(d, r, c));
+                    continue;
+                }
+                let h = d.height(r, c);
+                match sim {
+                    Some(s) if s.is_valid(r, c) => {
+                        let res = h - s.height(r, c);
+                        self.loc[r].push(res);
+                        self.spread[r].push(res.abs());
+                    }
+                    Some(_) => {}
+                    None => self.loc[r].push(h),
+                }
+                if c + 1 < COLS && d.is_valid(r, c + 1) {
+                    let dy = (h - d.height(r, c + 1)).abs();
+                    self.level[r].1 += 1;
+                    self.level[r].0 += usize::from(dy < 1e-4);
+                    if sim.is_none() {
+                        self.spread[r].push(dy * std::f32::consts::FRAC_1_SQRT_2);
+                    }
+                    if dy >= 1e-4 {
+                        self.steps.push(dy);
+                    }
+                }
+                if r + 1 < GRID_ROWS && d.is_valid(r + 1, c) {
+                    let dx = (d.height(r + 1, c) - h).abs();
+                    self.edge[r].push(dx);
+                    if dx >= 1e-4 {
+                        self.steps.push(dx);
+                    }
+                }
+            }
+        }
+    }
+
+    fn merge(mut self, o: Acc) -> Acc {
+        self.n += o.n;
+        for r in 0..GRID_ROWS {
+            self.miss[r] += o.miss[r];
+            self.full_row[r] += o.full_row[r];
+            self.shadow[r] += o.shadow[r];
+            self.level[r].0 += o.level[r].0;
+            self.level[r].1 += o.level[r].1;
+        }
+        for (a, b) in self.loc.iter_mut().zip(o.loc) {
+            a.extend(b);
+        }
+        for (a, b) in self.spread.iter_mut().zip(o.spread) {
+            a.extend(b);
+        }
+        for (a, b) in self.edge.iter_mut().zip(o.edge) {
+            a.extend(b);
+        }
+        self.steps.extend(o.steps);
+        self
+    }
+}
+
+/// True when missing cell `(r, c)` lies behind a drop of at least
+/// [`SHADOW_DROP`] as seen from the sensor side (x = 0.1 m): the nearest
+/// valid cell toward it is that much taller than the nearest valid beyond.
+pub fn in_shadow(d: &Dem, r: usize, c: usize) -> bool {
+    let ahead = row_center_x(r) > SHADOW_REF_X;
+    let near = if ahead { (0..r).rev().find(|&k| d.is_valid(k, c)) } else { (r + 1..GRID_ROWS).find(|&k| d.is_valid(k, c)) };
+    let far = if ahead { (r + 1..GRID_ROWS).find(|&k| d.is_valid(k, c)) } else { (0..r).rev().find(|&k| d.is_valid(k, c)) };
+    match (near, far) {
+        (Some(n), Some(f)) => (d.height(n, c) - d.height(f, c)) as f64 >= SHADOW_DROP,
+        _ => false,
+    }
+}
+
+/// Quantile `q` (0..1, nearest rank) of `v`, reordering it; None when empty.
+pub fn quantile(v: &mut [f32], q: f64) -> Option<f64> {
+    if v.is_empty() {
+        return None;
+    }
+    let k = ((v.len() - 1) as f64 * q).round() as usize;
+    let (_, x, _) = v.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
+    Some(*x as f64)
+}
+
+fn mean_sd(v: &[f32]) -> (f64, f64) {
+    let n = v.len().max(1) as f64;
+    let m = v.iter().map(|&x| x as f64).sum::<f64>() / n;
+    let var = v.iter().map(|&x| (x as f64 - m).powi(2)).sum::<f64>() / n;
+    (m, var.sqrt())
+}
+
+/// Summarise `out`; with `sim` (same length, record i paired with record
+/// i), heights are taken as residuals against the sim records.
+pub fn stats(out: &[Dem], sim: Option<&[Dem]>) -> Stats {
+    if let Some(s) = sim {
+        assert_eq!(s.len(), out.len(), "paired sets have one sim record per record");
+    }
+    let acc = out
+        .par_chunks(256)
+        .enumerate()
+        .map(|(k, chunk)| {
+            let mut a = Acc::new();
+            for (i, d) in chunk.iter().enumerate() {
+                a.add(d, sim.map(|s| &s[k * 256 + i]));
+            }
+            a
+        })
+        .reduce(Acc::new, Acc::merge);
+    summarise(acc, sim.is_some())
+}
+
+fn summarise(mut a: Acc, paired: bool) -> Stats {
+    let n = a.n;
+    let rate = |v: &[usize; GRID_ROWS], per: usize| v.iter().map(|&x| x as f64 / (n * per).max(1) as f64).collect();
+    let mut terms = vec![
+        Term { name: "missing", values: rate(&a.miss, COLS), support: vec![n * COLS; GRID_ROWS], scale: 0.02 },
+        Term { name: "row-missing", values: rate(&a.full_row, 1), support: vec![n; GRID_ROWS], scale: 0.02 },
+        Term { name: "shadow", values: rate(&a.shadow, COLS), support: vec![n * COLS; GRID_ROWS], scale: 0.01 },
+    ];
+    let sup = |v: &[Vec<f32>]| v.iter().map(Vec::len).collect::<Vec<_>>();
+    terms.push(Term { name: "height", values: a.loc.iter().map(|v| mean_sd(v).0).collect(), support: sup(&a.loc), scale: 0.005 });
+    let spread_sd = a
+        .spread
+        .iter()
+        .zip(&a.loc)
+        .map(|(s, l)| if paired { mean_sd(l).1 } else { (s.iter().map(|&x| (x as f64).powi(2)).sum::<f64>() / s.len().max(1) as f64).sqrt() })
+        .collect();
+    let spread_support = sup(&a.spread);
+    terms.push(Term { name: "spread-sd", values: spread_sd, support: spread_support.clone(), scale: 0.002 });
+    for (name, q) in [("spread-q50", 0.5), ("spread-q90", 0.9)] {
+        let values = a.spread.iter_mut().map(|v| quantile(v, q).unwrap_or(0.0)).collect();
+        terms.push(Term { name, values, support: spread_support.clone(), scale: 0.002 });
+    }
+    if paired {
+        let values = a.spread.iter_mut().map(|v| quantile(v, 0.99).unwrap_or(0.0)).collect();
+        terms.push(Term { name: "spread-q99", values, support: spread_support, scale: 0.004 });
+    }
+    terms.push(Term {
+        name: "level-pairs",
+        values: a.level.iter().map(|&(z, t)| z as f64 / t.max(1) as f64).collect(),
+        support: a.level.iter().map(|&(_, t)| t).collect(),
+        scale: 0.02,
+    });
+    let edge_support = sup(&a.edge);
+    for (name, above) in [("edge-2cm", 0.02), ("edge-steep", 0.05), ("edge-10cm", 0.1)] {
+        terms.push(Term {
+            name,
+            values: a.edge.iter().map(|v| v.iter().filter(|&&x| x as f64 > above).count() as f64 / v.len().max(1) as f64).collect(),
+            support: edge_support.clone(),
+            scale: 0.01,
+        });
+    }
+    // Non-zero neighbour differences by size: rates over all pairs.
+    let pairs: usize = a.level.iter().map(|l| l.1).sum::<usize>() + edge_support.iter().sum::<usize>();
+    terms.push(Term {
+        name: "steps",
+        values: STEP_BINS
+            .windows(2)
+            .map(|w| a.steps.iter().filter(|&&x| (w[0]..w[1]).contains(&(x as f64))).count() as f64 / pairs.max(1) as f64)
+            .collect(),
+        support: vec![pairs; STEP_BINS.len() - 1],
+        scale: 0.01,
+    });
+    Stats { records: n, paired, terms }
+}
+
+impl Stats {
+    /// The term called `name`.
+    pub fn term(&self, name: &str) -> Option<&Term> {
+        self.terms.iter().find(|t| t.name == name)
+    }
+
+    /// Mean of term `name` over components `range` that have support,
+    /// weighted by support.
+    pub fn mean_over(&self, name: &str, range: std::ops::Range<usize>) -> f64 {
+        let Some(t) = self.term(name) else { return 0.0 };
+        let (mut s, mut w) = (0.0, 0.0);
+        for i in range.filter(|&i| i < t.values.len()) {
+            s += t.values[i] * t.support[i] as f64;
+            w += t.support[i] as f64;
+        }
+        if w > 0.0 {
+            s / w
+        } else {
+            0.0
+        }
+    }
+}
+
+/// Per-term contributions to the gap between `a` (model) and `b` (real):
+/// mean over supported components of ((a - b) / scale)^2.
+pub fn gap_terms(a: &Stats, b: &Stats) -> Vec<(&'static str, f64)> {
+    a.terms
+        .iter()
+        .filter_map(|ta| {
+            let tb = b.term(ta.name)?;
+            let (mut s, mut n) = (0.0, 0usize);
+            for i in 0..ta.values.len().min(tb.values.len()) {
+                if ta.support[i] >= MIN_SUPPORT && tb.support[i] >= MIN_SUPPORT {
+                    s += ((ta.values[i] - tb.values[i]) / ta.scale).powi(2);
+                    n += 1;
+                }
+            }
+            Some((ta.name, if n > 0 { s / n as f64 } else { 0.0 }))
+        })
+        .collect()
+}
+
+/// The gap number: the sum of [`gap_terms`].
+pub fn gap(a: &Stats, b: &Stats) -> f64 {
+    gap_terms(a, b).iter().map(|(_, v)| v).sum()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::format::empty_dem;
+
+    #[test]
+    fn identical_sets_have_no_gap_and_missing_rows_show() {
+        let mut d = empty_dem();
+        for r in 0..GRID_ROWS {
+            for c in 0..COLS {
+                d.set_valid(r, c, -0.07 + 0.001 * (r * c) as f32);
+            }
+        }
+        let a = vec![d; 100];
+        assert_eq!(gap(&stats(&a, None), &stats(&a, None)), 0.0);
+        let mut b = a.clone();
+        for x in &mut b {
+            (0..COLS).for_each(|c| x.set_missing(3, c));
+        }
+        let (sa, sb) = (stats(&a, None), stats(&b, None));
+        assert_eq!(sb.term("row-missing").unwrap().values[3], 1.0);
+        assert!(gap(&sa, &sb) > 1.0);
+        let sp = stats(&b, Some(&a));
+        assert!(sp.paired && sp.term("height").unwrap().values[0].abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_missing_cell_behind_a_drop_is_a_shadow() {
+        let mut d = empty_dem();
+        for r in 0..GRID_ROWS {
+            for c in 0..COLS {
+                d.set_valid(r, c, if r == 10 { 0.1 } else { -0.07 });
+            }
+        }
+        d.set_missing(11, 0);
+        d.set_missing(5, 0);
+        assert!(in_shadow(&d, 11, 0));
+        assert!(!in_shadow(&d, 5, 0));
+    }
+}

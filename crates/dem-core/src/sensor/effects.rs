@@ -1,0 +1,390 @@
+//! The measurement effects of `spec/dem-format.md`, each on one DEM.
+//!
+//! Coordinates: row `r` of the grid is centred at x = -0.55 + 0.1 r m from
+//! the robot centre C (forward), column `c` at y = (2 - c) 0.1 m; heights
+//! are relative to C. A missing cell is stored as mask -1, height 0; an
+//! effect that removes a cell writes exactly that. Effects act on the valid
+//! cells only (a missing cell stays missing) and never touch row 20.
+//!
+//! | effect | formula |
+//! |---|---|
+//! | `noise` | h += N(0, sigma^2), sigma = sigma0 + k d^2, d = distance from the nominal sensor mount [`NOISE_ORIGIN`] to the cell's centre at its height |
+//! | `dropout` | each valid cell missing with probability p |
+//! | `row-dropout` | each grid row wholly missing with probability p |
+//! | `occlusion` | in each column, a sensor at (x0, h) looks at the far edge of each cell's top; the cell is missing when the line of sight passes more than [`OCCLUSION_TOLERANCE`] below the top of a valid cell between |
+//! | `fov` | cells whose centre x is outside [x_min, x_max] missing |
+//! | `smoothing` | h = (w h + (1-w)/8 sum of valid 3x3 neighbours) / (w + (1-w)/8 n_valid) |
+//! | `bias` | h += b + t x |
+//! | `quantization` | h = q floor(h / q + 1/2) |
+
+use rand::Rng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::StandardNormal;
+use serde::{Deserialize, Serialize};
+
+use crate::format::{col_center_y, row_center_x, Dem, DemCells, COLS, GRID_ROWS};
+
+/// Where `noise` measures its range from: the nominal depth camera mount,
+/// 0.15 m ahead of C and 0.45 m above it (x, z in metres).
+pub const NOISE_ORIGIN: (f64, f64) = (0.15, 0.45);
+/// How far (m) the line of sight may pass below a cell's top before that
+/// cell hides what lies behind it: terrain within a centimetre of the ray
+/// grazes it rather than blocks it.
+pub const OCCLUSION_TOLERANCE: f64 = 0.01;
+/// Half the edge of a grid cell (m).
+const HALF: f64 = 0.05;
+
+/// One effect with its parameters. JSON: `{"effect": NAME, "params": {...}}`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "effect", content = "params", rename_all = "kebab-case")]
+pub enum Effect {
+    /// Height noise growing with range: sigma = sigma0 + k d^2 (m).
+    Noise {
+        /// Noise at the sensor (m).
+        sigma0: f64,
+        /// Growth with squared range (1/m).
+        k: f64,
+    },
+    /// Single valid cells missing at random.
+    Dropout {
+        /// Probability per valid cell.
+        p: f64,
+    },
+    /// Whole grid rows missing at random.
+    RowDropout {
+        /// Probability per row.
+        p: f64,
+    },
+    /// Cells hidden from the sensor by taller terrain.
+    Occlusion {
+        /// Sensor height above C (m).
+        h: f64,
+        /// Sensor position along x (m).
+        x0: f64,
+    },
+    /// Cells outside the field of view along x never observed.
+    Fov {
+        /// Nearest x observed (m).
+        x_min: f64,
+        /// Farthest x observed (m).
+        x_max: f64,
+    },
+    /// Fusion blurs edges: 3x3 kernel with centre weight w.
+    Smoothing {
+        /// Centre weight in (0, 1]; 1 is no smoothing.
+        w: f64,
+    },
+    /// Calibration offset and tilt: h += b + t x.
+    Bias {
+        /// Offset (m).
+        b: f64,
+        /// Tilt (m per m along x).
+        t: f64,
+    },
+    /// Heights rounded to multiples of q.
+    Quantization {
+        /// Step (m).
+        q: f64,
+    },
+}
+
+/// Every effect name, in the vocabulary's order.
+pub const NAMES: [&str; 8] = ["noise", "dropout", "row-dropout", "occlusion", "fov", "smoothing", "bias", "quantization"];
+
+impl Effect {
+    /// The vocabulary name (`noise`, `row-dropout`, ...).
+    pub fn name(&self) -> &'static str {
+        match self {
+            Effect::Noise { .. } => "noise",
+            Effect::Dropout { .. } => "dropout",
+            Effect::RowDropout { .. } => "row-dropout",
+            Effect::Occlusion { .. } => "occlusion",
+            Effect::Fov { .. } => "fov",
+            Effect::Smoothing { .. } => "smoothing",
+            Effect::Bias { .. } => "bias",
+            Effect::Quantization { .. } => "quantization",
+        }
+    }
+
+    /// Parameter names and values, in declaration order.
+    pub fn params(&self) -> Vec<(&'static str, f64)> {
+        match *self {
+            Effect::Noise { sigma0, k } => vec![("sigma0", sigma0), ("k", k)],
+            Effect::Dropout { p } | Effect::RowDropout { p } => vec![("p", p)],
+            Effect::Occlusion { h, x0 } => vec![("h", h), ("x0", x0)],
+            Effect::Fov { x_min, x_max } => vec![("x_min", x_min), ("x_max", x_max)],
+            Effect::Smoothing { w } => vec![("w", w)],
+            Effect::Bias { b, t } => vec![("b", b), ("t", t)],
+            Effect::Quantization { q } => vec![("q", q)],
+        }
+    }
+
+    /// Build the effect `name` from parameter values in [`Effect::params`] order.
+    pub fn from_values(name: &str, v: &[f64]) -> Option<Effect> {
+        let g = |i: usize| v.get(i).copied();
+        Some(match name {
+            "noise" => Effect::Noise { sigma0: g(0)?, k: g(1)? },
+            "dropout" => Effect::Dropout { p: g(0)? },
+            "row-dropout" => Effect::RowDropout { p: g(0)? },
+            "occlusion" => Effect::Occlusion { h: g(0)?, x0: g(1)? },
+            "fov" => Effect::Fov { x_min: g(0)?, x_max: g(1)? },
+            "smoothing" => Effect::Smoothing { w: g(0)? },
+            "bias" => Effect::Bias { b: g(0)?, t: g(1)? },
+            "quantization" => Effect::Quantization { q: g(0)? },
+            _ => return None,
+        })
+    }
+
+    /// Place in the physical chain: what the sensor can see (fov,
+    /// occlusion), how fusion shapes heights (smoothing, bias, noise,
+    /// quantization), what is lost at the end (dropout, row-dropout).
+    pub fn stage(&self) -> u8 {
+        match self {
+            Effect::Fov { .. } => 0,
+            Effect::Occlusion { .. } => 1,
+            Effect::Smoothing { .. } => 2,
+            Effect::Bias { .. } => 3,
+            Effect::Noise { .. } => 4,
+            Effect::Quantization { .. } => 5,
+            Effect::Dropout { .. } => 6,
+            Effect::RowDropout { .. } => 7,
+        }
+    }
+
+    /// Check the parameters: finite, probabilities in [0, 1], sigma >= 0,
+    /// w in (0, 1], q > 0, h > 0, x_min < x_max.
+    pub fn check(&self) -> Result<(), String> {
+        if let Some((n, v)) = self.params().into_iter().find(|(_, v)| !v.is_finite()) {
+            return Err(format!("{n} = {v} is not a finite number"));
+        }
+        match *self {
+            Effect::Noise { sigma0, k } if sigma0 < 0.0 || k < 0.0 => Err("sigma0 and k must be >= 0".into()),
+            Effect::Dropout { p } | Effect::RowDropout { p } if !(0.0..=1.0).contains(&p) => {
+                Err(format!("p = {p} is not a probability"))
+            }
+            Effect::Occlusion { h, .. } if h <= 0.0 => Err(format!("sensor height h = {h} must be > 0")),
+            Effect::Fov { x_min, x_max } if x_min >= x_max => Err(format!("x_min = {x_min} must be < x_max = {x_max}")),
+            Effect::Smoothing { w } if !(w > 0.0 && w <= 1.0) => Err(format!("w = {w} must be in (0, 1]")),
+            Effect::Quantization { q } if q <= 0.0 => Err(format!("q = {q} must be > 0")),
+            _ => Ok(()),
+        }
+    }
+
+    /// Apply to one DEM with this effect's random stream for the record.
+    /// Draws a fixed number of values whatever the parameters: 100 normals
+    /// (noise), 100 uniforms (dropout), 20 uniforms (row-dropout).
+    pub fn apply(&self, d: &mut Dem, rng: &mut ChaCha8Rng) {
+        match *self {
+            Effect::Noise { sigma0, k } => {
+                let (sx, sz) = NOISE_ORIGIN;
+                for r in 0..GRID_ROWS {
+                    for c in 0..COLS {
+                        let z: f64 = rng.sample(StandardNormal);
+                        if d.is_valid(r, c) {
+                            let h = d.height(r, c) as f64;
+                            let (dx, dy, dz) = (row_center_x(r) - sx, col_center_y(c), h - sz);
+                            let sigma = sigma0 + k * (dx * dx + dy * dy + dz * dz);
+                            d.set_valid(r, c, (h + sigma * z) as f32);
+                        }
+                    }
+                }
+            }
+            Effect::Dropout { p } => {
+                for r in 0..GRID_ROWS {
+                    for c in 0..COLS {
+                        let u: f64 = rng.gen();
+                        if u < p && d.is_valid(r, c) {
+                            d.set_missing(r, c);
+                        }
+                    }
+                }
+            }
+            Effect::RowDropout { p } => {
+                for r in 0..GRID_ROWS {
+                    let u: f64 = rng.gen();
+                    if u < p {
+                        (0..COLS).for_each(|c| d.set_missing(r, c));
+                    }
+                }
+            }
+            Effect::Occlusion { h, x0 } => occlude(d, h, x0),
+            Effect::Fov { x_min, x_max } => {
+                for r in 0..GRID_ROWS {
+                    let x = row_center_x(r);
+                    if x < x_min || x > x_max {
+                        (0..COLS).for_each(|c| d.set_missing(r, c));
+                    }
+                }
+            }
+            Effect::Smoothing { w } => smooth(d, w),
+            Effect::Bias { b, t } => {
+                for r in 0..GRID_ROWS {
+                    let off = b + t * row_center_x(r);
+                    for c in 0..COLS {
+                        if d.is_valid(r, c) {
+                            d.set_valid(r, c, (d.height(r, c) as f64 + off) as f32);
+                        }
+                    }
+                }
+            }
+            Effect::Quantization { q } => {
+                for r in 0..GRID_ROWS {
+                    for c in 0..COLS {
+                        if d.is_valid(r, c) {
+                            let h = d.height(r, c) as f64;
+                            d.set_valid(r, c, (q * (h / q + 0.5).floor()) as f32);
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+impl std::fmt::Display for Effect {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let p: Vec<String> = self.params().iter().map(|(n, v)| format!("{n}={v:.4}")).collect();
+        write!(f, "{}({})", self.name(), p.join(", "))
+    }
+}
+
+/// True when cell `(t, c)` of the original heights `z` (None = missing) is
+/// hidden from a sensor at `(x0, h)`: see the module table.
+pub fn hidden(z: &[[Option<f64>; COLS]; GRID_ROWS], t: usize, c: usize, h: f64, x0: f64) -> bool {
+    let Some(zt) = z[t][c] else { return false };
+    let xt = row_center_x(t);
+    if (xt - x0).abs() <= HALF {
+        return false;
+    }
+    let dir = if xt > x0 { 1.0 } else { -1.0 };
+    let xf = xt + dir * HALF;
+    let line = |x: f64| h + (zt - h) * (x - x0) / (xf - x0);
+    let rows: Box<dyn Iterator<Item = usize>> = if dir > 0.0 { Box::new(0..t) } else { Box::new(t + 1..GRID_ROWS) };
+    for b in rows {
+        let Some(zb) = z[b][c] else { continue };
+        let xb = row_center_x(b);
+        // The blocker's top, clipped to the stretch between sensor and target.
+        let (lo, hi) = ((xb - HALF).max(x0.min(xf)), (xb + HALF).min(x0.max(xf)));
+        if lo >= hi {
+            continue;
+        }
+        if zb > line(lo).min(line(hi)) + OCCLUSION_TOLERANCE {
+            return true;
+        }
+    }
+    false
+}
+
+fn heights(d: &Dem) -> [[Option<f64>; COLS]; GRID_ROWS] {
+    std::array::from_fn(|r| std::array::from_fn(|c| d.is_valid(r, c).then(|| d.height(r, c) as f64)))
+}
+
+fn occlude(d: &mut Dem, h: f64, x0: f64) {
+    let z = heights(d);
+    for t in 0..GRID_ROWS {
+        for c in 0..COLS {
+            if hidden(&z, t, c, h, x0) {
+                d.set_missing(t, c);
+            }
+        }
+    }
+}
+
+fn smooth(d: &mut Dem, w: f64) {
+    let z = heights(d);
+    let wn = (1.0 - w) / 8.0;
+    for r in 0..GRID_ROWS {
+        for c in 0..COLS {
+            let Some(zc) = z[r][c] else { continue };
+            let (mut sum, mut weight) = (w * zc, w);
+            for rr in r.saturating_sub(1)..(r + 2).min(GRID_ROWS) {
+                for cc in c.saturating_sub(1)..(c + 2).min(COLS) {
+                    if (rr, cc) != (r, c) {
+                        if let Some(zn) = z[rr][cc] {
+                            sum += wn * zn;
+                            weight += wn;
+                        }
+                    }
+                }
+            }
+            d.set_valid(r, c, (sum / weight) as f32);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::format::{empty_dem, FLAT_GROUND};
+    use rand::SeedableRng;
+
+    fn flat() -> Dem {
+        let mut d = empty_dem();
+        for r in 0..GRID_ROWS {
+            for c in 0..COLS {
+                d.set_valid(r, c, FLAT_GROUND);
+            }
+        }
+        d
+    }
+
+    fn rng() -> ChaCha8Rng {
+        ChaCha8Rng::seed_from_u64(1)
+    }
+
+    #[test]
+    fn flat_ground_is_never_occluded_and_a_box_casts_a_shadow() {
+        let mut d = flat();
+        Effect::Occlusion { h: 0.45, x0: 0.15 }.apply(&mut d, &mut rng());
+        assert_eq!(d.valid_cells(), 100);
+        // A 0.2 m box on rows 10..12 (x 0.45..0.65): shadow behind it.
+        let mut d = flat();
+        for r in 10..12 {
+            (0..COLS).for_each(|c| d.set_valid(r, c, 0.13));
+        }
+        Effect::Occlusion { h: 0.45, x0: 0.15 }.apply(&mut d, &mut rng());
+        assert!(d.is_valid(11, 0) && d.is_valid(9, 0), "the box and what is before it are seen");
+        // The box (x 0.4..0.6) is 0.2 m tall, the sensor 0.52 m above the
+        // ground: the shadow reaches (0.6 - 0.15) * 0.2 / 0.32 = 0.28 m past
+        // the box, to x = 0.88; a cell is seen when its far edge is.
+        assert!(!d.is_valid(12, 2) && !d.is_valid(13, 2));
+        assert!(d.is_valid(14, 2), "x 0.8..0.9: its far edge is in sight");
+    }
+
+    #[test]
+    fn fov_bias_quantization_smoothing_follow_their_formulas() {
+        let mut d = flat();
+        Effect::Fov { x_min: -0.1, x_max: 1.0 }.apply(&mut d, &mut rng());
+        assert!(!d.is_valid(4, 0) && d.is_valid(5, 0) && d.is_valid(15, 0) && !d.is_valid(16, 0));
+        let mut d = flat();
+        Effect::Bias { b: 0.01, t: 0.02 }.apply(&mut d, &mut rng());
+        assert!((d.height(0, 0) as f64 - (-0.07 + 0.01 - 0.02 * 0.55)).abs() < 1e-6);
+        Effect::Quantization { q: 0.025 }.apply(&mut d, &mut rng());
+        assert!(((d.height(0, 0) as f64) / 0.025).fract().abs() < 1e-4 || ((d.height(0, 0) as f64) / 0.025).fract().abs() > 0.9999);
+        let mut d = flat();
+        d.set_valid(10, 2, 0.73);
+        Effect::Smoothing { w: 0.5 }.apply(&mut d, &mut rng());
+        assert!((d.height(10, 2) - (0.5 * 0.73 + 0.5 * -0.07)).abs() < 1e-6);
+        assert!((d.height(9, 1) - (-0.07 + 0.8 / 16.0 / (0.5 + 0.5))).abs() < 1e-6);
+    }
+
+    #[test]
+    fn random_effects_have_their_rates_and_spread() {
+        let (mut miss, mut rows, mut sq) = (0usize, 0usize, 0.0);
+        let mut r1 = rng();
+        for _ in 0..200 {
+            let mut d = flat();
+            Effect::Dropout { p: 0.2 }.apply(&mut d, &mut r1);
+            miss += 100 - d.valid_cells();
+            let mut d = flat();
+            Effect::RowDropout { p: 0.3 }.apply(&mut d, &mut r1);
+            rows += (100 - d.valid_cells()) / 5;
+            let mut d = flat();
+            Effect::Noise { sigma0: 0.01, k: 0.0 }.apply(&mut d, &mut r1);
+            sq += (0..100).map(|i| (d[2 * i] as f64 + 0.07).powi(2)).sum::<f64>();
+        }
+        assert!((miss as f64 / 20000.0 - 0.2).abs() < 0.02);
+        assert!((rows as f64 / 4000.0 - 0.3).abs() < 0.03);
+        assert!(((sq / 20000.0).sqrt() - 0.01).abs() < 0.0005);
+    }
+}

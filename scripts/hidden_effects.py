@@ -1,0 +1,140 @@
+"""Make "real" data in which known measurement effects are hidden: apply the
+effects of spec/dem-format.md to sim DEMs, implemented here from the spec's
+formulas with numpy, independently of the Rust sensor/fitting code (its own
+random draws, its own loops), so dem-gap's tests check the fitter against
+data it did not make.
+
+usage: python hidden_effects.py SIM.npy OUT.npy SEED EFFECT [EFFECT ...]
+EFFECT: name:param=value,param=value   e.g. noise:sigma0=0.004,k=0.012
+Effects are applied in the order given. Record i of OUT is record i of SIM
+(identity pairing).
+
+Definitions (x of row r = -0.55 + 0.1 r, y of column c = (2 - c) 0.1,
+heights relative to the robot centre; missing = mask -1, height 0):
+  noise        h += N(0, s^2), s = sigma0 + k d^2, d = distance from
+               (x, y, z) = (0.15, 0, 0.45) to (x_r, y_c, h)
+  dropout      each valid cell missing with probability p
+  row-dropout  each row wholly missing with probability p
+  occlusion    per column, sensor at (x0, h): a cell is hidden when the line
+               to the far edge of its top passes more than 1 cm below the top
+               of a valid cell between them (tops are 10 cm wide)
+  fov          rows whose centre x is outside [x_min, x_max] missing
+  smoothing    3x3 kernel, centre weight w, neighbours (1-w)/8, valid only,
+               normalised by the weights used
+  bias         h += b + t x
+  quantization h = q * floor(h / q + 0.5)
+"""
+import sys
+import numpy as np
+
+X = -0.55 + 0.1 * np.arange(20)
+Y = (2 - np.arange(5)) * 0.1
+
+
+def parse(spec):
+    name, _, rest = spec.partition(":")
+    params = {}
+    for kv in filter(None, rest.split(",")):
+        k, v = kv.split("=")
+        params[k] = float(v)
+    return name, params
+
+
+def noise(d, rng, sigma0, k):
+    h, valid = d[:20, :, 0].astype(np.float64), d[:20, :, 1] > 0
+    dist2 = (X[:, None] - 0.15) ** 2 + Y[None, :] ** 2 + (h - 0.45) ** 2
+    h = h + (sigma0 + k * dist2) * rng.standard_normal((20, 5))
+    d[:20, :, 0] = np.where(valid, h, d[:20, :, 0])
+
+
+def set_missing(d, sel):
+    d[:20, :, 0][sel] = 0.0
+    d[:20, :, 1][sel] = -1.0
+
+
+def dropout(d, rng, p):
+    set_missing(d, (rng.random((20, 5)) < p) & (d[:20, :, 1] > 0))
+
+
+def row_dropout(d, rng, p):
+    set_missing(d, np.repeat((rng.random(20) < p)[:, None], 5, axis=1))
+
+
+def occlusion(d, rng, h, x0):
+    z = d[:20, :, 0].astype(np.float64)
+    valid = d[:20, :, 1] > 0
+    hide = np.zeros((20, 5), bool)
+    for c in range(5):
+        for t in range(20):
+            if not valid[t, c] or abs(X[t] - x0) <= 0.05:
+                continue
+            xf = X[t] + (0.05 if X[t] > x0 else -0.05)
+            lo_x, hi_x = min(x0, xf), max(x0, xf)
+            for b in range(20):
+                if b == t or not valid[b, c]:
+                    continue
+                # only cells between the sensor and the target
+                if (X[t] > x0 and b > t) or (X[t] < x0 and b < t):
+                    continue
+                a, e = max(X[b] - 0.05, lo_x), min(X[b] + 0.05, hi_x)
+                if a >= e:
+                    continue
+                line = lambda x: h + (z[t, c] - h) * (x - x0) / (xf - x0)
+                if z[b, c] > min(line(a), line(e)) + 0.01:
+                    hide[t, c] = True
+                    break
+    set_missing(d, hide)
+
+
+def fov(d, rng, x_min, x_max):
+    out = (X < x_min) | (X > x_max)
+    set_missing(d, np.repeat(out[:, None], 5, axis=1))
+
+
+def smoothing(d, rng, w):
+    z = d[:20, :, 0].astype(np.float64)
+    valid = d[:20, :, 1] > 0
+    zp = np.pad(np.where(valid, z, 0.0), 1)
+    vp = np.pad(valid.astype(np.float64), 1)
+    s = np.zeros((20, 5))
+    n = np.zeros((20, 5))
+    for dr in (-1, 0, 1):
+        for dc in (-1, 0, 1):
+            if dr == 0 and dc == 0:
+                continue
+            s += zp[1 + dr:21 + dr, 1 + dc:6 + dc]
+            n += vp[1 + dr:21 + dr, 1 + dc:6 + dc]
+    wn = (1 - w) / 8
+    out = (w * z + wn * s) / (w + wn * n)
+    d[:20, :, 0] = np.where(valid, out, d[:20, :, 0])
+
+
+def bias(d, rng, b, t):
+    valid = d[:20, :, 1] > 0
+    d[:20, :, 0] = np.where(valid, d[:20, :, 0] + (b + t * X)[:, None], d[:20, :, 0])
+
+
+def quantization(d, rng, q):
+    valid = d[:20, :, 1] > 0
+    hq = q * np.floor(d[:20, :, 0].astype(np.float64) / q + 0.5)
+    d[:20, :, 0] = np.where(valid, hq, d[:20, :, 0])
+
+
+EFFECTS = {"noise": noise, "dropout": dropout, "row-dropout": row_dropout, "occlusion": occlusion,
+           "fov": fov, "smoothing": smoothing, "bias": bias, "quantization": quantization}
+
+
+def main():
+    sim_path, out_path, seed = sys.argv[1], sys.argv[2], int(sys.argv[3])
+    effects = [parse(s) for s in sys.argv[4:]]
+    sim = np.load(sim_path)
+    rng = np.random.default_rng(seed)
+    out = sim.astype(np.float32).copy()
+    for d in out:
+        for name, params in effects:
+            EFFECTS[name](d, rng, **params)
+    np.save(out_path, out.astype(np.float32))
+
+
+if __name__ == "__main__":
+    main()
