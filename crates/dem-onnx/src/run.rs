@@ -205,9 +205,9 @@ fn check_signature(proto: &pb::ModelProto, name: &str) -> Result<(String, String
     }
     for (what, v) in [("input", inputs[0]), ("output", &graph.output[0])] {
         let (elem, dims) = declared(v);
-        let float = elem.map_or(true, |e| e == pb::tensor_proto::DataType::Float as i32);
-        let shape_ok = dims.as_ref().map_or(true, |d| {
-            d.len() == 4 && d[0].is_none() && d[1..].iter().zip(RECORD_SHAPE).all(|(k, want)| k.map_or(true, |k| k == want as i64))
+        let float = elem.is_none_or(|e| e == pb::tensor_proto::DataType::Float as i32);
+        let shape_ok = dims.as_ref().is_none_or(|d| {
+            d.len() == 4 && d[0].is_none() && d[1..].iter().zip(RECORD_SHAPE).all(|(k, want)| k.is_none_or(|k| k == want as i64))
         });
         if !float || !shape_ok {
             let fixed = dims.as_ref().is_some_and(|d| d.len() == 4 && d[0].is_some());
