@@ -1,0 +1,389 @@
+//! dem-eval against a numpy implementation of the spec's pair error, on the
+//! bundled data and on hand-made edge cases; `compare` exit codes.
+
+use std::path::Path;
+
+use dem_core::metric::dem_error;
+use dem_core::{npy, table};
+use dem_testkit::{arg, ok, py, run, stderr, tempdir, testdata};
+use serde_json::Value;
+
+fn td(name: &str) -> String {
+    testdata(name).to_string_lossy().into_owned()
+}
+
+/// The spec's pair error and table in numpy, the obvious way: f64 from the
+/// f32 inputs, the first real record of the smallest error, np.median.
+const NUMPY_EVAL: &str = r#"
+import json, numpy as np
+def e(y, p):
+    y = y[:20].astype(np.float64); p = p[:20].astype(np.float64)
+    v = (y[..., 1] > 0).astype(np.float64)
+    return float((((v * (y[..., 0] - p[..., 0])) ** 2 + (y[..., 1] - p[..., 1]) ** 2).sum()) / 100)
+def evaluate(pred, real, pairs, split, terrain):
+    sel = {}
+    for s, r, sp in pairs:
+        if split is None or sp == split:
+            sel.setdefault(s, [])
+            if r not in sel[s]: sel[s].append(r)
+    recs = []
+    for s in sorted(sel):
+        errs = [e(real[r], pred[s]) for r in sel[s]]
+        i = int(np.argmin(errs))
+        recs.append((s, sel[s][i], errs[i], terrain[s] if terrain else ""))
+    def row(t, es):
+        es = np.array(es)
+        return dict(terrain=t, count=len(es), lowest=es.min(), highest=es.max(), mean=es.mean(), median=np.median(es))
+    rows = [row("all", [r[2] for r in recs])]
+    for t in ["flat", "stairs-up", "stairs-down", "pallet", "other"]:
+        es = [r[2] for r in recs if r[3] == t]
+        if es: rows.append(row(t, es))
+    return recs, rows
+"#;
+
+/// Relative 1e-6 (absolute 1e-12 near zero): the f64 sums differ only in
+/// order (numpy sums pairwise), far below that.
+fn close(a: f64, b: f64) -> bool {
+    (a - b).abs() <= 1e-6 * a.abs().max(b.abs()) + 1e-12
+}
+
+fn check_rows(got: &Value, want: &Value) {
+    let (g, w) = (got.as_array().unwrap(), want.as_array().unwrap());
+    assert_eq!(g.len(), w.len(), "rows: {got} vs {want}");
+    for (g, w) in g.iter().zip(w) {
+        assert_eq!(g["terrain"], w["terrain"]);
+        assert_eq!(g["count"], w["count"]);
+        for k in ["lowest", "highest", "mean", "median"] {
+            let (a, b) = (g[k].as_f64().unwrap(), w[k].as_f64().unwrap());
+            assert!(close(a, b), "{} {k}: dem-eval {a}, numpy {b}", w["terrain"]);
+        }
+    }
+}
+
+/// `--sim DIR/sim.npy --real DIR/real.npy --pairs DIR/pairs.csv` and `extra`.
+fn eval_args(dir: &Path, extra: &[&str]) -> Vec<String> {
+    let mut v = Vec::new();
+    for (flag, file) in [("--sim", "sim.npy"), ("--real", "real.npy"), ("--pairs", "pairs.csv")] {
+        v.extend([flag.to_string(), arg(dir, file)]);
+    }
+    v.extend(extra.iter().map(|s| s.to_string()));
+    v
+}
+
+fn dem_eval(args: &[String]) -> std::process::Output {
+    run("dem-eval", &args.iter().map(String::as_str).collect::<Vec<_>>(), None)
+}
+
+#[test]
+fn random_and_edge_cases_match_numpy() {
+    let dir = tempdir();
+    // 60 sim records and predictions, 45 real records: random heights,
+    // masks +-1 and masks in (-1, 1) in the predictions; records 0..3 of
+    // each file are edge cases (all missing, all valid, masks in (-1, 1)).
+    let want = py(
+        dir.path(),
+        &format!(
+            r#"{NUMPY_EVAL}
+rng = np.random.default_rng(7)
+def dems(n, soft):
+    d = np.zeros((n, 21, 5, 2), np.float32)
+    d[:, :20, :, 0] = rng.normal(-0.07, 0.2, (n, 20, 5))
+    d[:, :20, :, 1] = rng.uniform(-1, 1, (n, 20, 5)) if soft else np.where(rng.random((n, 20, 5)) < 0.8, 1, -1)
+    d[:, 20, :, 0] = rng.normal(0, 0.3, (n, 5)); d[:, 20, :, 1] = 1
+    d[0, :20, :, 1] = -1; d[0, :20, :, 0] = 0          # all missing
+    d[1, :20, :, 1] = 1                                 # all valid
+    d[2, :20, :, 1] = rng.uniform(-0.999, 0.999, (20, 5))  # masks in (-1, 1)
+    return d
+sim, pred, real = dems(60, False), dems(60, True), dems(45, False)
+np.save("sim.npy", sim); np.save("pred.npy", pred); np.save("real.npy", real)
+terr = ["flat", "stairs-up", "stairs-down", "pallet", "other"]
+terrain = [terr[i] for i in rng.integers(0, 5, 60)]
+with open("labels.csv", "w") as f:
+    f.write("index,terrain\n" + "".join(f"{{i}},{{t}}\n" for i, t in enumerate(terrain)))
+pairs = [(0, 0, "val"), (1, 1, "val"), (2, 2, "val"), (0, 1, "val"), (1, 0, "val"), (2, 1, "val")]
+pairs += [(int(s), int(r), "val" if s % 3 else "train") for s, r in zip(rng.integers(3, 60, 150), rng.integers(0, 45, 150))]
+with open("pairs.csv", "w") as f:
+    f.write("sim_index,real_index,split\n" + "".join(f"{{s}},{{r}},{{sp}}\n" for s, r, sp in pairs))
+out = {{}}
+for name, p in [("pred", pred), ("identity", sim)]:
+    recs, rows = evaluate(p, real, pairs, "val", terrain)
+    out[name] = dict(records=recs, rows=rows)
+out["all"] = evaluate(pred, real, pairs, None, None)[1]
+print(json.dumps(out))
+"#
+        ),
+    );
+    let want: Value = serde_json::from_str(&want).unwrap();
+    let d = dir.path();
+    for (method, flag) in [("pred", vec!["--pred".to_string(), arg(d, "pred.npy")]), ("identity", vec!["--identity".into()])] {
+        let rec = arg(d, &format!("{method}_records.csv"));
+        let labels = arg(d, "labels.csv");
+        let mut a = eval_args(d, &["--split", "val", "--labels-sim", &labels, "--by", "terrain", "--format", "json", "--records", &rec]);
+        a.extend(flag);
+        let o = dem_eval(&a);
+        let got: Value = serde_json::from_slice(ok(&o)).unwrap();
+        check_rows(&got, &want[method]["rows"]);
+        assert!(got.as_array().unwrap().iter().all(|r| r["method"] == method));
+        // Per-record results: same best real record, same error, terrain.
+        let text = std::fs::read_to_string(&rec).unwrap();
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines[0], "sim_index,real_index,error,terrain");
+        let recs = want[method]["records"].as_array().unwrap();
+        assert_eq!(lines.len() - 1, recs.len());
+        for (line, w) in lines[1..].iter().zip(recs) {
+            let f: Vec<&str> = line.split(',').collect();
+            assert_eq!(f[0].parse::<u64>().unwrap(), w[0].as_u64().unwrap(), "{line}");
+            assert_eq!(f[1].parse::<u64>().unwrap(), w[1].as_u64().unwrap(), "{line}");
+            assert!(close(f[2].parse().unwrap(), w[2].as_f64().unwrap()), "{line} vs {w}");
+            assert_eq!(f[3], w[3].as_str().unwrap());
+        }
+    }
+    // Every pair (no --split), CSV output read back with dem-core.
+    let out = arg(d, "t.csv");
+    ok(&dem_eval(&eval_args(d, &["--pred", &arg(d, "pred.npy"), "--format", "csv", "-o", &out])));
+    let rows = dem_core::eval::read_table_csv(&out).unwrap();
+    check_rows(&serde_json::to_value(&rows).unwrap(), &want["all"]);
+    assert_eq!(rows[0].method, "pred");
+}
+
+#[test]
+fn worked_checks_of_the_spec() {
+    let dir = tempdir();
+    // Sim record i (the prediction, --identity) against real record i: the
+    // three worked checks, each a DEM differing from y in one cell.
+    py(
+        dir.path(),
+        r#"
+import numpy as np
+flat = np.zeros((21, 5, 2), np.float32); flat[:20, :, 0] = -0.07; flat[:20, :, 1] = 1; flat[20, :, 1] = 1
+missing = flat.copy(); missing[:20, :, 0] = 0; missing[:20, :, 1] = -1
+real = np.stack([flat, missing, flat])
+sim = real.copy()
+sim[0, 4, 2, 1] = 0.5     # mask 0.5 against 1
+sim[1, 7, 1, 1] = 0.5     # mask 0.5 against -1
+sim[2, 10, 3, 0] = -0.09  # valid height -0.09 against -0.07
+np.save("sim.npy", sim); np.save("real.npy", real)
+open("pairs.csv", "w").write("sim_index,real_index\n0,0\n1,1\n2,2\n")
+"#,
+    );
+    let rec = arg(dir.path(), "r.csv");
+    ok(&dem_eval(&eval_args(dir.path(), &["--identity", "--records", &rec])));
+    let rows: Vec<(u64, f64)> = std::fs::read_to_string(&rec)
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let f: Vec<&str> = l.split(',').collect();
+            assert_eq!(f[0], f[1]);
+            assert_eq!(f[3], "", "no labels, no terrain");
+            (f[0].parse().unwrap(), f[2].parse().unwrap())
+        })
+        .collect();
+    assert_eq!(rows.len(), 3);
+    assert!((rows[0].1 - 0.0025).abs() < 1e-12, "{rows:?}");
+    assert!((rows[1].1 - 0.0225).abs() < 1e-12, "{rows:?}");
+    // (0.02)^2 / 100 up to the f32 rounding of -0.09 and -0.07.
+    assert!((rows[2].1 - 0.000004).abs() < 1e-9, "{rows:?}");
+}
+
+#[test]
+fn identity_on_the_bundled_true_pairs_by_terrain() {
+    let dir = tempdir();
+    let rec = arg(dir.path(), "r.csv");
+    let o = run(
+        "dem-eval",
+        &[
+            "--sim", &td("sim.npy"), "--real", &td("real.npy"), "--pairs", &td("pairs.csv"), "--identity",
+            "--labels-sim", &td("sim_labels.csv"), "--by", "terrain", "--format", "json", "--records", &rec,
+        ],
+        None,
+    );
+    let rows: Value = serde_json::from_slice(ok(&o)).unwrap();
+    let rows = rows.as_array().unwrap();
+    let terrains: Vec<&str> = rows.iter().map(|r| r["terrain"].as_str().unwrap()).collect();
+    assert_eq!(terrains, ["all", "flat", "stairs-up", "stairs-down", "pallet", "other"]);
+    assert_eq!(rows[0]["count"], 966);
+    let n: u64 = rows[1..].iter().map(|r| r["count"].as_u64().unwrap()).sum();
+    let weighted: f64 = rows[1..].iter().map(|r| r["count"].as_f64().unwrap() * r["mean"].as_f64().unwrap()).sum();
+    assert_eq!(n, 966);
+    assert!(close(weighted / 966.0, rows[0]["mean"].as_f64().unwrap()));
+    // The records: the true pair (real i <-> sim i), its eq. 7.1 error, its terrain.
+    let (sim, real) = (npy::read_all(&td("sim.npy")).unwrap(), npy::read_all(&td("real.npy")).unwrap());
+    let labels = table::read_labels(&td("sim_labels.csv")).unwrap();
+    let text = std::fs::read_to_string(&rec).unwrap();
+    assert_eq!(text.lines().count(), 967);
+    for line in text.lines().skip(1) {
+        let f: Vec<&str> = line.split(',').collect();
+        let (s, r): (usize, usize) = (f[0].parse().unwrap(), f[1].parse().unwrap());
+        assert_eq!(s, r);
+        assert_eq!(f[2].parse::<f64>().unwrap(), dem_error(&real[r], &sim[s]));
+        assert_eq!(f[3], labels[s].terrain.as_str());
+    }
+}
+
+#[test]
+fn model_runs_on_the_selected_records_like_its_numpy_output() {
+    let dir = tempdir();
+    // A model that halves every value (onnx helper), and numpy's halving as
+    // a prediction file: the two tables must agree.
+    py(
+        dir.path(),
+        &format!(
+            r#"
+import numpy as np, onnx
+from onnx import helper, TensorProto
+sim = np.load({sim:?})
+np.save("half.npy", sim * np.float32(0.5))
+x = helper.make_tensor_value_info("dem", TensorProto.FLOAT, ["N", 21, 5, 2])
+y = helper.make_tensor_value_info("dem_out", TensorProto.FLOAT, ["N", 21, 5, 2])
+k = helper.make_tensor("k", TensorProto.FLOAT, [], [0.5])
+g = helper.make_graph([helper.make_node("Mul", ["dem", "k"], ["dem_out"])], "half", [x], [y], [k])
+m = helper.make_model(g, opset_imports=[helper.make_opsetid("", 13)])
+onnx.checker.check_model(m)
+onnx.save(m, "half.onnx")
+"#,
+            sim = td("sim.npy")
+        ),
+    );
+    let d = dir.path();
+    let base = ["--sim", &td("sim.npy"), "--real", &td("real.npy"), "--pairs", &td("pairs.csv"), "--format", "csv"];
+    let m = arg(d, "half.onnx");
+    let p = arg(d, "half.npy");
+    let a = run("dem-eval", &[&base[..], &["--model", &m, "--batch", "100"]].concat(), None);
+    let b = run("dem-eval", &[&base[..], &["--pred", &p]].concat(), None);
+    assert_eq!(String::from_utf8_lossy(ok(&a)), String::from_utf8_lossy(ok(&b)));
+    assert!(String::from_utf8_lossy(&a.stdout).contains("\nhalf,all,966,"));
+    // Not a model: exit 2 naming the file.
+    let o = run("dem-eval", &[&base[..], &["--model", &p]].concat(), None);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("half.npy"));
+}
+
+fn table_csv(dir: &Path, name: &str, rows: &[(&str, &str, f64, f64)]) -> String {
+    let path = arg(dir, name);
+    let mut text = String::from("method,terrain,count,lowest,highest,mean,median\n");
+    for (m, t, mean, median) in rows {
+        text += &format!("{m},{t},56,0.005,2.6,{mean},{median}\n");
+    }
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+#[test]
+fn compare_fails_on_a_worse_table_and_passes_on_an_equal_one() {
+    let dir = tempdir();
+    let d = dir.path();
+    let base = table_csv(d, "base.csv", &[("identity", "all", 0.548, 0.130), ("paired", "all", 0.334, 0.258)]);
+    let same = table_csv(d, "same.csv", &[("paired", "all", 0.334, 0.258), ("identity", "all", 0.548, 0.130)]);
+    let within = table_csv(d, "within.csv", &[("identity", "all", 0.560, 0.140), ("paired", "all", 0.300, 0.258)]);
+    let worse_mean = table_csv(d, "wm.csv", &[("identity", "all", 0.548, 0.130), ("paired", "all", 0.364, 0.258)]);
+    let worse_median = table_csv(d, "wd.csv", &[("identity", "all", 0.548, 0.160), ("paired", "all", 0.334, 0.258)]);
+    let missing = table_csv(d, "miss.csv", &[("identity", "all", 0.548, 0.130)]);
+    let cmp = |a: &str, b: &str, extra: &[&str]| run("dem-eval", &[&["compare", a, b][..], extra].concat(), None);
+
+    let o = cmp(&base, &same, &[]);
+    let out = String::from_utf8_lossy(ok(&o)).into_owned();
+    assert!(out.contains("baseline") && out.contains("current") && out.contains("diff"), "{out}");
+    ok(&cmp(&base, &within, &[]));
+    for (worse, what) in [(&worse_mean, "paired/all worse"), (&worse_median, "identity/all worse"), (&missing, "paired/all missing")] {
+        let o = cmp(&base, worse, &[]);
+        assert_eq!(o.status.code(), Some(1), "{worse}: {}", stderr(&o));
+        assert!(stderr(&o).contains(what), "{}", stderr(&o));
+        assert_eq!(stderr(&o).lines().count(), 1, "{}", stderr(&o));
+        assert!(String::from_utf8_lossy(&o.stdout).contains("WORSE") || what.ends_with("missing"));
+    }
+    // The tolerance is absolute: +0.03 passes at 0.05.
+    ok(&cmp(&base, &worse_mean, &["--tolerance", "0.05"]));
+    // Machine-readable comparison.
+    let o = cmp(&base, &worse_mean, &["--format", "json"]);
+    let v: Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v[1]["status"], "worse");
+    assert!(close(v[1]["diff_mean"].as_f64().unwrap(), 0.03));
+}
+
+#[test]
+fn compare_reads_json_and_joined_csv_tables_and_refuses_bad_ones() {
+    let dir = tempdir();
+    let d = dir.path();
+    let run_eval = |fmt: &str, name: &str| {
+        let o = run(
+            "dem-eval",
+            &["--sim", &td("sim.npy"), "--real", &td("real.npy"), "--pairs", &td("pairs.csv"), "--identity", "--name", name, "--format", fmt],
+            None,
+        );
+        ok(&o).to_vec()
+    };
+    let json = arg(d, "t.json");
+    std::fs::write(&json, [run_eval("json", "a"), run_eval("json", "b")].concat()).unwrap();
+    let csv = arg(d, "t.csv");
+    std::fs::write(&csv, [run_eval("csv", "a"), run_eval("csv", "b")].concat()).unwrap();
+    let o = run("dem-eval", &["compare", &json, &csv, "--tolerance", "0"], None);
+    let out = String::from_utf8_lossy(ok(&o)).into_owned();
+    assert_eq!(out.lines().filter(|l| l.ends_with(" ok")).count(), 2, "{out}");
+
+    for (name, text) in [
+        ("garbage.csv", "hello\n"),
+        ("badnum.csv", "method,terrain,count,lowest,highest,mean,median\na,all,3,0,1,zero,0\n"),
+        ("dup.csv", "method,terrain,count,lowest,highest,mean,median\na,all,3,0,1,0,0\na,all,3,0,1,0,0\n"),
+        ("empty.csv", ""),
+        ("bad.json", "[{\"method\": \"a\"}]"),
+    ] {
+        let p = arg(d, name);
+        std::fs::write(&p, text).unwrap();
+        for args in [["compare", &csv, &p], ["compare", &p, &csv]] {
+            let o = run("dem-eval", &args, None);
+            assert_eq!(o.status.code(), Some(2), "{name}: {}", stderr(&o));
+            assert!(stderr(&o).contains(name), "{}", stderr(&o));
+        }
+    }
+    let o = run("dem-eval", &["compare", &csv, &arg(d, "nope.csv")], None);
+    assert_eq!(o.status.code(), Some(2));
+}
+
+#[test]
+fn bad_inputs_exit_2_with_one_clear_line() {
+    let dir = tempdir();
+    let d = dir.path();
+    std::fs::write(arg(d, "past_sim.csv"), "sim_index,real_index\n0,0\n3025,1\n").unwrap();
+    std::fs::write(arg(d, "past_real.csv"), "sim_index,real_index\n0,0\n5,966\n").unwrap();
+    py(d, &format!("import numpy as np; np.save('short.npy', np.load({:?})[:100])", td("sim.npy")));
+    let base = |pairs: &str| -> Vec<String> {
+        ["--sim", &td("sim.npy"), "--real", &td("real.npy"), "--pairs", pairs].iter().map(|s| s.to_string()).collect()
+    };
+    let cases: Vec<(Vec<String>, &str)> = vec![
+        ([base(&arg(d, "past_sim.csv")), vec!["--identity".into()]].concat(), "line 3: sim_index 3025 is past the end"),
+        ([base(&arg(d, "past_real.csv")), vec!["--identity".into()]].concat(), "line 3: real_index 966 is past the end"),
+        ([base(&td("pairs.csv")), vec!["--pred".into(), arg(d, "short.npy")]].concat(), "has 100 records but"),
+        (base(&td("pairs.csv")), "choose what to evaluate"),
+        ([base(&td("pairs.csv")), vec!["--identity".into(), "--by".into(), "terrain".into()]].concat(), "--by terrain needs --labels-sim"),
+        ([base(&td("pairs.csv")), vec!["--identity".into(), "--split".into(), "val".into()]].concat(), "no split column"),
+        ([base(&td("pairs.csv")), vec!["--identity".into(), "--labels-sim".into(), td("real_labels.csv")]].concat(), "has 966 rows but"),
+        (vec!["--real".into(), td("real.npy"), "--pairs".into(), td("pairs.csv"), "--identity".into()], "--sim is required"),
+        ([base(&arg(d, "nope.csv")), vec!["--identity".into()]].concat(), "failed to open"),
+    ];
+    for (args, want) in cases {
+        let o = dem_eval(&args);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(want), "{args:?}: {err}");
+        assert_eq!(err.lines().count(), 1, "{err}");
+        assert!(o.stdout.is_empty());
+    }
+}
+
+#[test]
+fn the_table_goes_to_a_file_atomically_and_stdout_may_close_early() {
+    let dir = tempdir();
+    let out = arg(dir.path(), "t.md");
+    let a = ["--sim", &td("sim.npy"), "--real", &td("real.npy"), "--pairs", &td("pairs.csv"), "--identity", "--format", "md"];
+    let o = run("dem-eval", &[&a[..], &["-o", &out]].concat(), None);
+    assert!(ok(&o).is_empty());
+    assert!(std::fs::read_to_string(&out).unwrap().starts_with("| method | terrain |"));
+    // `| head -c 0`: a closed stdout is not an error.
+    let mut cmd = std::process::Command::new(dem_testkit::bin("dem-eval"));
+    cmd.args(a).stdout(std::process::Stdio::piped()).stderr(std::process::Stdio::piped());
+    let mut child = cmd.spawn().unwrap();
+    drop(child.stdout.take());
+    let o = child.wait_with_output().unwrap();
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+}
