@@ -12,8 +12,8 @@
 //!    subsample and rank them by how much of the gap each removes; the
 //!    evidence ([`evidence`]) says why in numbers.
 //! 3. **add** the best one when it removes more than `min_gain` of the gap
-//!    and more than the sampling floor, re-measure on all data,
-//!    repeat. The floor is the gap a perfect model would still show: the
+//!    and more than half the sampling floor (fitting sampling noise removes
+//!    less), re-measure on all data, repeat. The floor is the gap a perfect model would still show: the
 //!    model against itself with other random draws ([`draw_floor`]) and,
 //!    unpaired, two halves of real scaled to the set sizes ([`noise_floor`]).
 //! 4. **show**: [`report`] writes `report.json`, `sensor.json`, `report.md`
@@ -255,7 +255,7 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String)) -> Outcome {
             let (_, s) = measure(&trial, &sets.sim, paired, cfg.seed);
             let g = gap(&s, &real_stats);
             floor = floor_of(&trial);
-            threshold = (cfg.min_gain * gap_before).max(floor);
+            threshold = (cfg.min_gain * gap_before).max(0.5 * floor);
             if gap_before - g > threshold {
                 added = Some((*e, trial, g, s));
                 break;
@@ -264,7 +264,7 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String)) -> Outcome {
         let Some((effect, trial, gap_after, after_stats)) = added else {
             stop = match ranking.first() {
                 Some((e, r, _)) => format!(
-                    "nothing explains the rest: the best candidate, {e}, removes {:.1}% of the gap {gap_before:.3} (needed: more than {:.3}, the larger of {:.0}% of the gap and the sampling floor {floor:.3})",
+                    "nothing explains the rest: the best candidate, {e}, removes {:.1}% of the gap {gap_before:.3} (needed: more than {:.3}, the larger of {:.0}% of the gap and half the sampling floor {floor:.3})",
                     100.0 * r, threshold, 100.0 * cfg.min_gain
                 ),
                 None => "no candidate could be fitted".into(),

@@ -1,0 +1,203 @@
+//! dem-gap against data with hidden effects. The "real" files are made by
+//! `scripts/hidden_effects.py`, a numpy implementation of the effects
+//! written from the spec, independent of the Rust sensor and fitting code,
+//! with parameters the fitter is not told (and off its search grids).
+//! Records: every 10th of testdata/sim.npy (302 records, all terrains);
+//! pairs, where used, are the identity.
+
+use std::path::Path;
+use std::process::Command;
+
+use dem_testkit::{arg, ok, python, run, stderr, tempdir, testdata, workspace_root};
+use serde_json::Value;
+
+fn setup(dir: &Path) -> (String, String) {
+    let sim = arg(dir, "sim.npy");
+    let pairs = arg(dir, "pairs.csv");
+    dem_testkit::py(
+        dir,
+        &format!(
+            "import numpy as np\ns = np.load({:?})[::10]\nnp.save('sim.npy', s)\nopen('pairs.csv','w').write('sim_index,real_index\\n' + ''.join(f'{{i}},{{i}}\\n' for i in range(len(s))))",
+            testdata("sim.npy")
+        ),
+    );
+    (sim, pairs)
+}
+
+/// Hide `effects` (e.g. `noise:sigma0=0.004,k=0.012`) in the sim records.
+fn hide(dir: &Path, sim: &str, name: &str, effects: &[&str]) -> String {
+    let out = arg(dir, name);
+    let script = workspace_root().join("scripts/hidden_effects.py");
+    let o = Command::new(python()).arg(script).args([sim, &out, "11"]).args(effects).output().expect("python");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    out
+}
+
+fn gap(dir: &Path, sim: &str, real: &str, pairs: Option<&str>, extra: &[&str], out: &str) -> Value {
+    let out = arg(dir, out);
+    let mut args = vec!["--sim", sim, "--real", real, "--out", &out, "--seed", "3"];
+    if let Some(p) = pairs {
+        args.extend(["--pairs", p]);
+    }
+    args.extend(extra);
+    let o = run("dem-gap", &args, None);
+    ok(&o);
+    assert!(o.stdout.is_empty(), "data only on stdout, and dem-gap writes none");
+    serde_json::from_str(&std::fs::read_to_string(Path::new(&out).join("report.json")).unwrap()).unwrap()
+}
+
+fn names(r: &Value) -> Vec<String> {
+    r["steps"].as_array().unwrap().iter().map(|s| s["effect"].as_str().unwrap().to_string()).collect()
+}
+
+fn param(r: &Value, step: usize, name: &str) -> f64 {
+    r["steps"][step]["params"][name].as_f64().unwrap_or_else(|| panic!("no {name} in {r}"))
+}
+
+/// Effect named first, parameters within 20 % (`abs` gives an absolute
+/// tolerance instead, for parameters that only cells resolve), gap halved.
+fn check_single(r: &Value, effect: &str, want: &[(&str, f64, Option<f64>)]) {
+    let n = names(r);
+    assert_eq!(n.first().map(String::as_str), Some(effect), "named {n:?}; report {r:#}");
+    for &(p, v, abs) in want {
+        let got = param(r, 0, p);
+        let tol = abs.unwrap_or(0.2 * v.abs());
+        assert!((got - v).abs() <= tol, "{effect}.{p} = {got}, hidden {v} (tolerance {tol})");
+    }
+    let (g0, g1) = (r["gap_initial"].as_f64().unwrap(), r["gap_final"].as_f64().unwrap());
+    assert!(g1 <= 0.5 * g0, "gap {g0} -> {g1}");
+}
+
+fn single(effect: &str, spec: &str, want: &[(&str, f64, Option<f64>)]) {
+    let dir = tempdir();
+    let (sim, pairs) = setup(dir.path());
+    let real = hide(dir.path(), &sim, "real.npy", &[spec]);
+    let paired = gap(dir.path(), &sim, &real, Some(&pairs), &[], "paired");
+    check_single(&paired, effect, want);
+    let unpaired = gap(dir.path(), &sim, &real, None, &[], "unpaired");
+    check_single(&unpaired, effect, want);
+}
+
+#[test]
+fn hidden_noise() {
+    single("noise", "noise:sigma0=0.0045,k=0.0115", &[("sigma0", 0.0045, None), ("k", 0.0115, None)]);
+}
+
+#[test]
+fn hidden_dropout() {
+    single("dropout", "dropout:p=0.17", &[("p", 0.17, None)]);
+}
+
+#[test]
+fn hidden_row_dropout() {
+    single("row-dropout", "row-dropout:p=0.11", &[("p", 0.11, None)]);
+}
+
+#[test]
+fn hidden_occlusion() {
+    // The sensor's height and position trade off against each other (a
+    // higher sensor farther back casts nearly the same shadows), and x0 is
+    // resolved by 10 cm cells: h within 20 %, x0 within a cell.
+    single("occlusion", "occlusion:h=0.62,x0=0.12", &[("h", 0.62, None), ("x0", 0.12, Some(0.1))]);
+}
+
+#[test]
+fn hidden_fov() {
+    // fov acts on row centres, so the fitter reports the row boundary: the
+    // hidden limits are resolved to half a cell (0.05 m).
+    single("fov", "fov:x_min=-0.27,x_max=1.08", &[("x_min", -0.27, Some(0.05)), ("x_max", 1.08, None)]);
+}
+
+#[test]
+fn hidden_smoothing() {
+    single("smoothing", "smoothing:w=0.37", &[("w", 0.37, None)]);
+}
+
+#[test]
+fn hidden_bias() {
+    single("bias", "bias:b=0.017,t=-0.041", &[("b", 0.017, None), ("t", -0.041, None)]);
+}
+
+#[test]
+fn hidden_quantization() {
+    single("quantization", "quantization:q=0.027", &[("q", 0.027, None)]);
+}
+
+#[test]
+fn two_hidden_effects_are_both_named() {
+    let dir = tempdir();
+    let (sim, pairs) = setup(dir.path());
+    let real = hide(dir.path(), &sim, "real.npy", &["occlusion:h=0.5,x0=0.23", "noise:sigma0=0.003,k=0.009"]);
+    let r = gap(dir.path(), &sim, &real, Some(&pairs), &[], "paired");
+    let mut n = names(&r);
+    n.truncate(2);
+    n.sort();
+    assert_eq!(n, ["noise", "occlusion"], "{r:#}");
+    assert!(r["gap_final"].as_f64().unwrap() <= 0.5 * r["gap_initial"].as_f64().unwrap());
+
+    let real = hide(dir.path(), &sim, "real2.npy", &["bias:b=-0.013,t=0.02", "dropout:p=0.09"]);
+    let r = gap(dir.path(), &sim, &real, None, &[], "unpaired");
+    let mut n = names(&r);
+    n.truncate(2);
+    n.sort();
+    assert_eq!(n, ["bias", "dropout"], "{r:#}");
+}
+
+#[test]
+fn nothing_hidden_names_nothing() {
+    // Real = sim + noise (numpy's draws); the start model already has that
+    // noise (its own draws): what is left is sampling, which no effect explains.
+    let dir = tempdir();
+    let (sim, pairs) = setup(dir.path());
+    let real = hide(dir.path(), &sim, "real.npy", &["noise:sigma0=0.004,k=0.01"]);
+    let start = arg(dir.path(), "start.json");
+    std::fs::write(&start, r#"{"effects": [{"effect": "noise", "params": {"sigma0": 0.004, "k": 0.01}}]}"#).unwrap();
+    for (pairs, out) in [(Some(pairs.as_str()), "paired"), (None, "unpaired")] {
+        let r = gap(dir.path(), &sim, &real, pairs, &["--model", &start], out);
+        assert!(names(&r).is_empty(), "{out}: named {:?}", names(&r));
+        assert_eq!(r["gap_initial"], r["gap_final"]);
+        let md = std::fs::read_to_string(dir.path().join(out).join("report.md")).unwrap();
+        assert!(md.contains("nothing explains the rest"), "{md}");
+    }
+}
+
+#[test]
+fn the_report_has_the_schema_pictures_and_a_usable_model() {
+    let dir = tempdir();
+    let (sim, pairs) = setup(dir.path());
+    let real = hide(dir.path(), &sim, "real.npy", &["fov:x_min=-0.15,x_max=1.2"]);
+    let r = gap(dir.path(), &sim, &real, Some(&pairs), &["--max-steps", "1"], "out");
+    let mut keys: Vec<&String> = r.as_object().unwrap().keys().collect();
+    keys.sort();
+    assert_eq!(keys, ["gap_final", "gap_initial", "steps"]);
+    let step = r["steps"][0].as_object().unwrap();
+    let mut k: Vec<&String> = step.keys().collect();
+    k.sort();
+    assert_eq!(k, ["effect", "evidence", "gap_after", "gap_before", "params"]);
+    assert!(r["steps"][0]["evidence"].as_str().unwrap().contains('%'));
+    for f in ["report.md", "sensor.json", "compare.png", "rows-missing.png", "rows-height.png"] {
+        assert!(dir.path().join("out").join(f).exists(), "{f} missing");
+    }
+    // The model applies, and the result has the hidden rows missing.
+    let model = arg(dir.path(), "out/sensor.json");
+    let o = run("dem-sensor", &["apply", "--model", &model, &sim], None);
+    let out = dem_core::npy::NpyReader::new(ok(&o), "stdout", None).read_to_end().unwrap();
+    use dem_core::format::DemCells;
+    assert!(out.iter().all(|d| (0..5).all(|c| !d.is_valid(3, c) && !d.is_valid(19, c))));
+}
+
+#[test]
+fn bad_inputs_exit_2() {
+    let dir = tempdir();
+    let (sim, _) = setup(dir.path());
+    let bad = arg(dir.path(), "bad.csv");
+    std::fs::write(&bad, "sim_index,real_index\n0,0\n5000,1\n").unwrap();
+    let out = arg(dir.path(), "o");
+    let o = run("dem-gap", &["--sim", &sim, "--real", &sim, "--pairs", &bad, "--out", &out], None);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("bad.csv: line 3"), "{}", stderr(&o));
+    let o = run("dem-gap", &["--sim", "nope.npy", "--real", &sim, "--out", &out], None);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("nope.npy"));
+    assert!(!Path::new(&out).exists(), "no output folder on bad input");
+}

@@ -1,0 +1,122 @@
+//! dem-sensor apply on the bundled sim data: deterministic by seed for any
+//! thread count, equal to the independent numpy implementation of the
+//! deterministic effects (scripts/hidden_effects.py), refusing bad models.
+
+use std::process::Command;
+
+use dem_core::format::DemCells;
+use dem_core::npy;
+use dem_testkit::{arg, ok, python, run, run_cmd, stderr, tempdir, testdata, workspace_root};
+
+fn td(name: &str) -> String {
+    testdata(name).to_string_lossy().into_owned()
+}
+
+const MODEL: &str = r#"{"effects": [
+  {"effect": "fov", "params": {"x_min": -0.2, "x_max": 1.25}},
+  {"effect": "occlusion", "params": {"h": 0.5, "x0": 0.15}},
+  {"effect": "smoothing", "params": {"w": 0.6}},
+  {"effect": "bias", "params": {"b": 0.01, "t": -0.02}},
+  {"effect": "noise", "params": {"sigma0": 0.003, "k": 0.01}},
+  {"effect": "quantization", "params": {"q": 0.005}},
+  {"effect": "dropout", "params": {"p": 0.05}},
+  {"effect": "row-dropout", "params": {"p": 0.02}}]}"#;
+
+#[test]
+fn apply_is_deterministic_by_seed_on_any_thread_count() {
+    let dir = tempdir();
+    let model = arg(dir.path(), "m.json");
+    std::fs::write(&model, MODEL).unwrap();
+    let sim = std::fs::read(td("sim.npy")).unwrap();
+    let one = run_cmd(
+        Command::new(dem_testkit::bin("dem-sensor")).args(["apply", "--model", &model, "--seed", "5"]).env("RAYON_NUM_THREADS", "1"),
+        Some(sim.clone()),
+    );
+    let many = run_cmd(
+        Command::new(dem_testkit::bin("dem-sensor")).args(["apply", "--model", &model, "--seed", "5"]).env("RAYON_NUM_THREADS", "3"),
+        Some(sim.clone()),
+    );
+    assert!(ok(&one) == ok(&many), "thread count changed the output");
+    let other = run("dem-sensor", &["apply", "--model", &model, "--seed", "6", &td("sim.npy")], None);
+    assert!(ok(&other) != ok(&one), "the seed matters");
+    let out = npy::NpyReader::new(ok(&one), "stdout", None).read_to_end().unwrap();
+    let input = npy::read_all(&td("sim.npy")).unwrap();
+    assert_eq!(out.len(), input.len());
+    // fov: rows 0..3 (x < -0.2) and row 19 (x = 1.35) are never seen.
+    assert!(out.iter().all(|d| (0..5).all(|c| !d.is_valid(0, c) && !d.is_valid(3, c) && !d.is_valid(19, c))));
+    // Attitude rows pass through.
+    assert!(out.iter().zip(&input).all(|(a, b)| a[200..] == b[200..]));
+}
+
+#[test]
+fn deterministic_effects_equal_the_numpy_implementation() {
+    let dir = tempdir();
+    let small = arg(dir.path(), "s.npy");
+    dem_testkit::py(dir.path(), &format!("import numpy as np\nnp.save('s.npy', np.load({:?})[::7])", td("sim.npy")));
+    for spec in ["occlusion:h=0.45,x0=0.15", "fov:x_min=-0.33,x_max=0.97", "smoothing:w=0.4", "bias:b=0.02,t=0.03", "quantization:q=0.021"] {
+        let (name, params) = spec.split_once(':').unwrap();
+        let json_params: Vec<String> =
+            params.split(',').map(|kv| kv.split_once('=').unwrap()).map(|(k, v)| format!("\"{k}\": {v}")).collect();
+        let model = arg(dir.path(), "m.json");
+        std::fs::write(&model, format!(r#"{{"effects": [{{"effect": "{name}", "params": {{{}}}}}]}}"#, json_params.join(", "))).unwrap();
+        let rust = npy::NpyReader::new(ok(&run("dem-sensor", &["apply", "--model", &model, &small], None)), "stdout", None)
+            .read_to_end()
+            .unwrap();
+        let py_out = arg(dir.path(), "p.npy");
+        let o = Command::new(python())
+            .arg(workspace_root().join("scripts/hidden_effects.py"))
+            .args([&small, &py_out, "1", spec])
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let theirs = npy::read_all(&py_out).unwrap();
+        // Same cells missing; heights within 1e-6 m (f32 rounding of f64
+        // arithmetic done in a different order). Quantization may land on
+        // the other multiple where h/q + 1/2 is within rounding of an integer.
+        let mut differ = 0;
+        for (a, b) in rust.iter().zip(&theirs) {
+            for r in 0..20 {
+                for c in 0..5 {
+                    assert_eq!(a.is_valid(r, c), b.is_valid(r, c), "{spec}: cell ({r}, {c}) validity");
+                    differ += usize::from((a.height(r, c) - b.height(r, c)).abs() > 1e-6);
+                }
+            }
+        }
+        assert!(differ <= rust.len() / 100, "{spec}: {differ} heights differ");
+    }
+}
+
+#[test]
+fn bad_models_exit_2_naming_the_file() {
+    let dir = tempdir();
+    let cases = [
+        (r#"{"effects": [{"effect": "dropout", "params": {"p": 2}}]}"#, "not a probability"),
+        (r#"{"effects": [{"effect": "blur", "params": {}}]}"#, "unknown variant"),
+        ("not json", "not a sensor model"),
+    ];
+    for (text, why) in cases {
+        let model = arg(dir.path(), "bad.json");
+        std::fs::write(&model, text).unwrap();
+        let o = run("dem-sensor", &["apply", "--model", &model, &td("sim.npy")], None);
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        assert!(stderr(&o).contains("bad.json") && stderr(&o).contains(why), "{}", stderr(&o));
+    }
+    let o = run("dem-sensor", &["apply", "--model", "missing.json", &td("sim.npy")], None);
+    assert_eq!(o.status.code(), Some(2));
+}
+
+#[test]
+fn a_closed_stdout_is_not_an_error() {
+    let dir = tempdir();
+    let model = arg(dir.path(), "m.json");
+    std::fs::write(&model, MODEL).unwrap();
+    let mut child = Command::new(dem_testkit::bin("dem-sensor"))
+        .args(["apply", "--model", &model, &td("sim.npy")])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+}
