@@ -35,7 +35,7 @@ pub fn ranges(name: &str) -> Vec<Range> {
         "fov" => vec![lin(-0.65, 0.55), lin(0.35, 1.45)],
         "smoothing" => vec![lin(0.05, 1.0)],
         "bias" => vec![lin(-0.1, 0.1), lin(-0.1, 0.1)],
-        "quantization" => vec![Range { lo: 0.002, hi: 0.1, log: true }],
+        "quantization" => vec![Range { lo: 0.002, hi: 0.05, log: true }],
         _ => vec![],
     }
 }
@@ -108,8 +108,8 @@ pub fn fit(name: &str, base: &SensorModel, target: &Target) -> Option<Fitted> {
     };
     let grid = |centre: &[f64], step: f64, per: usize| -> Vec<Vec<f64>> {
         let mut pts = vec![vec![]];
-        for d in 0..dims {
-            let offsets: Vec<f64> = (0..per).map(|i| centre[d] + step * (i as f64 - (per - 1) as f64 / 2.0)).collect();
+        for &c in centre.iter().take(dims) {
+            let offsets: Vec<f64> = (0..per).map(|i| c + step * (i as f64 - (per - 1) as f64 / 2.0)).collect();
             pts = pts
                 .into_iter()
                 .flat_map(|p| offsets.iter().filter(|u| (-1e-9..=1.0 + 1e-9).contains(*u)).map(move |&u| [p.clone(), vec![u]].concat()))

@@ -297,13 +297,12 @@ fn smooth(d: &mut Dem, w: f64) {
         for c in 0..COLS {
             let Some(zc) = z[r][c] else { continue };
             let (mut sum, mut weight) = (w * zc, w);
-            for rr in r.saturating_sub(1)..(r + 2).min(GRID_ROWS) {
-                for cc in c.saturating_sub(1)..(c + 2).min(COLS) {
-                    if (rr, cc) != (r, c) {
-                        if let Some(zn) = z[rr][cc] {
-                            sum += wn * zn;
-                            weight += wn;
-                        }
+            let (r0, c0) = (r.saturating_sub(1), c.saturating_sub(1));
+            for (rr, row) in z.iter().enumerate().take(r + 2).skip(r0) {
+                for (cc, zn) in row.iter().enumerate().take(c + 2).skip(c0) {
+                    if let (true, Some(zn)) = ((rr, cc) != (r, c), zn) {
+                        sum += wn * zn;
+                        weight += wn;
                     }
                 }
             }
