@@ -33,8 +33,9 @@ impl<'a> Mat<'a> {
 }
 
 fn parallelism(work: usize) -> Parallelism {
-    // Below ~1 MFLOP the fork-join costs more than it saves.
-    if work < 1 << 20 {
+    // Inside a parallel task (a micro-batch) the threads are already busy;
+    // below ~1 MFLOP the fork-join costs more than it saves.
+    if work < 1 << 20 || rayon::current_thread_index().is_some() {
         Parallelism::None
     } else {
         Parallelism::Rayon(0)

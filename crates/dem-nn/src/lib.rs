@@ -5,6 +5,7 @@
 //! - [`reference`]: a slow f64 forward pass the fast code is tested against.
 //! - [`layers`]: conv (im2col + GEMM), instance norm + activation, dense.
 //! - [`net`]: generator and discriminator on batches, forward and backward.
+//! - [`train`]: losses, Adam and the Cycle GAN step.
 //! - [`gemm`]: the one bounds-checked wrapper over the GEMM kernel.
 #![deny(missing_docs)]
 
@@ -12,4 +13,5 @@ pub mod gemm;
 pub mod layers;
 pub mod net;
 pub mod reference;
+pub mod train;
 pub mod weights;

@@ -77,6 +77,23 @@ pub struct NormCache {
 
 /// `z = act(gamma * xhat + beta)`; `x` is `[n, p, c]` with `c = gamma.len()`.
 pub fn forward(x: &[f32], p: usize, gamma: &[f32], beta: &[f32], act: Act, cache: &mut NormCache, z: &mut Vec<f32>) {
+    // One monomorphic loop per activation, so the inner loops vectorise.
+    match act {
+        Act::None => forward_with(x, p, gamma, beta, |v| v, cache, z),
+        Act::Relu => forward_with(x, p, gamma, beta, |v| v.max(0.0), cache, z),
+        Act::Leaky => forward_with(x, p, gamma, beta, |v| v.max(LEAK * v), cache, z),
+    }
+}
+
+fn forward_with(
+    x: &[f32],
+    p: usize,
+    gamma: &[f32],
+    beta: &[f32],
+    act: impl Fn(f32) -> f32 + Sync,
+    cache: &mut NormCache,
+    z: &mut Vec<f32>,
+) {
     let c = gamma.len();
     let n = x.len() / (p * c);
     cache.xhat.resize(x.len(), 0.0);
@@ -97,11 +114,13 @@ pub fn forward(x: &[f32], p: usize, gamma: &[f32], beta: &[f32], act: Act, cache
                 var.iter_mut().zip(row).zip(&mean).for_each(|((s, v), m)| *s += (v - m) * (v - m));
             }
             inv.iter_mut().zip(&var).for_each(|(i, v)| *i = 1.0 / (v / p as f32 + NORM_EPS).sqrt());
+            let inv = &*inv;
             for ((row, hrow), zrow) in xs.chunks_exact(c).zip(hs.chunks_exact_mut(c)).zip(zs.chunks_exact_mut(c)) {
-                for j in 0..c {
-                    let h = (row[j] - mean[j]) * inv[j];
-                    hrow[j] = h;
-                    zrow[j] = act.apply(gamma[j] * h + beta[j]);
+                for ((((h, zv), x), (m, i)), (g, b)) in
+                    hrow.iter_mut().zip(zrow.iter_mut()).zip(row).zip(mean.iter().zip(inv)).zip(gamma.iter().zip(beta))
+                {
+                    *h = (x - m) * i;
+                    *zv = act(g * *h + b);
                 }
             }
         });
@@ -109,6 +128,7 @@ pub fn forward(x: &[f32], p: usize, gamma: &[f32], beta: &[f32], act: Act, cache
 
 /// Backward of [`forward`]: accumulates `dgamma`, `dbeta`; returns `dx` in
 /// place of `dz` (which must hold the gradient of `z`).
+#[allow(clippy::too_many_arguments)]
 pub fn backward(
     cache: &NormCache,
     z: &[f32],
@@ -119,31 +139,54 @@ pub fn backward(
     dgamma: &mut [f32],
     dbeta: &mut [f32],
 ) {
+    match act {
+        Act::None => backward_with(cache, z, p, gamma, |_| 1.0, dz, dgamma, dbeta),
+        Act::Relu => backward_with(cache, z, p, gamma, |o| if o > 0.0 { 1.0 } else { 0.0 }, dz, dgamma, dbeta),
+        Act::Leaky => backward_with(cache, z, p, gamma, |o| if o > 0.0 { 1.0 } else { LEAK }, dz, dgamma, dbeta),
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn backward_with(
+    cache: &NormCache,
+    z: &[f32],
+    p: usize,
+    gamma: &[f32],
+    slope: impl Fn(f32) -> f32 + Sync,
+    dz: &mut [f32],
+    dgamma: &mut [f32],
+    dbeta: &mut [f32],
+) {
     let c = gamma.len();
+    let inv_p = 1.0 / p as f32;
     let partial: Vec<Vec<f32>> = dz
         .par_chunks_mut(p * c)
         .zip(cache.xhat.par_chunks(p * c))
         .zip(z.par_chunks(p * c))
         .zip(cache.inv_std.par_chunks(c))
         .map(|(((ds, hs), zs), inv)| {
-            // sums[0..c]: sum u*xhat (dgamma), sums[c..2c]: sum u (dbeta).
-            let mut sums = vec![0.0f32; 2 * c];
+            // su: sum u (dbeta), sux: sum u*xhat (dgamma), u = dz * act'(z).
+            let mut su = vec![0.0f32; c];
+            let mut sux = vec![0.0f32; c];
             for ((drow, hrow), zrow) in ds.chunks_exact_mut(c).zip(hs.chunks_exact(c)).zip(zs.chunks_exact(c)) {
-                for j in 0..c {
-                    let u = drow[j] * act.slope(zrow[j]);
-                    drow[j] = u;
-                    sums[j] += u * hrow[j];
-                    sums[c + j] += u;
+                for ((((d, h), zv), a), b) in drow.iter_mut().zip(hrow).zip(zrow).zip(su.iter_mut()).zip(sux.iter_mut()) {
+                    let u = *d * slope(*zv);
+                    *d = u;
+                    *a += u;
+                    *b += u * h;
                 }
             }
-            // mean_p(gamma u) = gamma * sum u / p; mean_p(gamma u xhat) = gamma * sum(u xhat) / p.
+            // dx = inv * gamma * (u - mean u - xhat * mean(u xhat)).
+            let k: Vec<f32> = inv.iter().zip(gamma).map(|(i, g)| i * g).collect();
+            let mu: Vec<f32> = su.iter().map(|v| v * inv_p).collect();
+            let mux: Vec<f32> = sux.iter().map(|v| v * inv_p).collect();
             for (drow, hrow) in ds.chunks_exact_mut(c).zip(hs.chunks_exact(c)) {
-                for j in 0..c {
-                    let g = gamma[j];
-                    drow[j] = inv[j] * g * (drow[j] - sums[c + j] / p as f32 - hrow[j] * sums[j] / p as f32);
+                for ((((d, h), k), m), mx) in drow.iter_mut().zip(hrow).zip(&k).zip(&mu).zip(&mux) {
+                    *d = k * (*d - m - h * mx);
                 }
             }
-            sums
+            sux.extend_from_slice(&su);
+            sux
         })
         .collect();
     for s in partial {

@@ -1,0 +1,316 @@
+//! One training step of the Cycle GAN with paired data (`spec/network.md`).
+//!
+//! Generators' update, on a batch of sims x and reals y (the first P rows
+//! of each may be a pair: x_i is a sim key, y_i one of its reals):
+//!
+//! ```text
+//! fy = G_Y(x), fx = G_X(y)
+//! L_G = BCE(D_Y(fy), 0.9) + BCE(D_X(fx), 0.9)
+//!     + lambda_cyc (|G_X(fy) - x|_1 + |G_Y(fx) - y|_1)
+//!     + lambda_pair (mean_i<P min_k e(y_i,k, fy_i) + mean_i<P |fx_i - x_i|^2 / 100)
+//! ```
+//! then the discriminators' update `BCE(D(real), 0.9) + BCE(D(fake), 0)`.
+//!
+//! The paired terms reuse fy and fx (the PyTorch peer runs G_Y(x) a second
+//! time for them), and the discriminators' pass over the fakes is taken from
+//! the generators' update: between the two the discriminators do not change,
+//! so it is the same forward pass. The generators' backward through D asks
+//! for input gradients only.
+
+use dem_core::Dem;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use super::adam::{Adam, AdamConfig};
+use super::loss;
+use crate::net::{DiscScratch, DiscTape, Discriminator, GenScratch, GenTape, Generator};
+use crate::weights::{DiscriminatorWeights, GeneratorWeights};
+
+/// What defines a model and its training.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct GanConfig {
+    /// Generator width w.
+    pub width: usize,
+    /// Adam settings of all four networks.
+    pub adam: AdamConfig,
+    /// Weight of the cycle terms.
+    pub lambda_cyc: f32,
+    /// Weight of the paired terms.
+    pub lambda_pair: f32,
+}
+
+impl Default for GanConfig {
+    fn default() -> Self {
+        GanConfig { width: 32, adam: AdamConfig::default(), lambda_cyc: 10.0, lambda_pair: 10.0 }
+    }
+}
+
+/// One batch: grids `[n, 200]` and attitudes `[n, 10]` of sims and reals, and
+/// for the first `pairs.len()` rows the grids of every real paired with x_i.
+#[derive(Debug)]
+pub struct Batch<'a> {
+    /// Sim grids.
+    pub x_grid: Vec<f32>,
+    /// Sim attitudes.
+    pub x_att: Vec<f32>,
+    /// Real grids.
+    pub y_grid: Vec<f32>,
+    /// Real attitudes.
+    pub y_att: Vec<f32>,
+    /// Reals paired with sim row i (row i of y is one of them).
+    pub pairs: Vec<Vec<&'a [f32]>>,
+}
+
+impl<'a> Batch<'a> {
+    /// A batch from records; `pairs[i]` are the reals of sim row i.
+    pub fn new(x: &[&Dem], y: &[&Dem], pairs: Vec<Vec<&'a [f32]>>) -> Self {
+        let grid = |v: &[&Dem]| v.iter().flat_map(|d| d[..200].iter().copied()).collect();
+        let att = |v: &[&Dem]| v.iter().flat_map(|d| d[200..].iter().copied()).collect();
+        Batch { x_grid: grid(x), x_att: att(x), y_grid: grid(y), y_att: att(y), pairs }
+    }
+}
+
+/// Loss values of one step.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Losses {
+    /// Generators' adversarial terms.
+    pub gan: f32,
+    /// Weighted cycle terms.
+    pub cycle: f32,
+    /// Weighted paired G_Y term.
+    pub pair_y: f32,
+    /// Weighted paired G_X term.
+    pub pair_x: f32,
+    /// Discriminators' loss.
+    pub disc: f32,
+}
+
+impl Losses {
+    /// The generators' total.
+    pub fn generator(&self) -> f32 {
+        self.gan + self.cycle + self.pair_y + self.pair_x
+    }
+}
+
+/// Records per micro-batch, the unit of parallel work. Every record's
+/// passes are independent of the others' (instance norm, per-record losses),
+/// so a step runs its micro-batches on any thread and sums their gradients
+/// in a fixed order: the result does not depend on the thread count, and
+/// each micro-batch's buffers stay small enough for the caches.
+pub const MICRO: usize = 8;
+
+/// One micro-batch's tapes, scratch and partial gradients, kept between
+/// steps for their capacity.
+#[derive(Debug, Default)]
+struct Chunk {
+    gen: [GenTape; 4],
+    disc: [DiscTape; 4],
+    gs: GenScratch,
+    ds: DiscScratch,
+    /// Partial gradients of G_X, G_Y, D_X, D_Y.
+    grads: [Vec<f32>; 4],
+    drec: Vec<f32>,
+    dl: Vec<f32>,
+    losses: Losses,
+}
+
+/// What every micro-batch reads.
+struct Shared<'a> {
+    gen: &'a Generator,
+    disc: &'a Discriminator,
+    cfg: GanConfig,
+    params: &'a [Vec<f32>; 4],
+    b: &'a Batch<'a>,
+    n: usize,
+}
+
+impl Chunk {
+    /// The generators' passes over rows `r` of the batch.
+    fn generators(&mut self, s: &Shared, r: std::ops::Range<usize>) {
+        let (gen, disc, cfg, n) = (s.gen, s.disc, s.cfg, s.n);
+        let [pgx, pgy, pdx, pdy] = s.params;
+        let g = r.start * 200..r.end * 200;
+        let a = r.start * 10..r.end * 10;
+        let (xg, xa, yg, ya) = (&s.b.x_grid[g.clone()], &s.b.x_att[a.clone()], &s.b.y_grid[g.clone()], &s.b.y_att[a]);
+        let [ta, tb, tc, td] = &mut self.gen;
+        let [te, tf, _, _] = &mut self.disc;
+        gen.forward(pgy, xg, xa, ta);
+        gen.forward(pgx, yg, ya, tb);
+        gen.forward(pgx, &ta.out, xa, tc);
+        gen.forward(pgy, &tb.out, ya, td);
+        disc.forward(pdy, &ta.out, xa, te);
+        disc.forward(pdx, &tb.out, ya, tf);
+
+        let mut l = Losses::default();
+        for (v, len) in self.grads.iter_mut().zip([gen.len, gen.len, disc.len, disc.len]) {
+            v.clear();
+            v.resize(len, 0.0);
+        }
+        let [ggx, ggy, _, _] = &mut self.grads;
+        // Cycle terms, back through the second generator pass to fy / fx.
+        self.drec.clear();
+        self.drec.resize(xg.len(), 0.0);
+        l.cycle = loss::l1_cycle(&tc.out, xg, cfg.lambda_cyc, n, &mut self.drec);
+        let mut dfy = gen.backward(pgx, tc, &self.drec, ggx, true, &mut self.gs).expect("input grad");
+        self.drec.fill(0.0);
+        l.cycle += loss::l1_cycle(&td.out, yg, cfg.lambda_cyc, n, &mut self.drec);
+        let mut dfx = gen.backward(pgy, td, &self.drec, ggy, true, &mut self.gs).expect("input grad");
+        // Adversarial terms, back through D (input gradients only).
+        let decisions = (n * 10) as f32;
+        l.gan = loss::bce_logits(&te.logits, 0.9, decisions, &mut self.dl);
+        let d = disc.backward(pdy, te, &self.dl, None, true, &mut self.ds).expect("input grad");
+        dfy.iter_mut().zip(&d).for_each(|(a, b)| *a += b);
+        l.gan += loss::bce_logits(&tf.logits, 0.9, decisions, &mut self.dl);
+        let d = disc.backward(pdx, tf, &self.dl, None, true, &mut self.ds).expect("input grad");
+        dfx.iter_mut().zip(&d).for_each(|(a, b)| *a += b);
+        // Paired terms on the batch's first rows.
+        let np = s.b.pairs.len();
+        for i in r.start..r.end.min(np) {
+            let weight = cfg.lambda_pair / np as f32;
+            let k = (i - r.start) * 200..(i - r.start + 1) * 200;
+            l.pair_y += loss::paired_min(&s.b.pairs[i], &ta.out[k.clone()], weight, &mut dfy[k.clone()]).0;
+            l.pair_x += loss::paired_sq(&xg[k.clone()], &tb.out[k.clone()], weight, &mut dfx[k]);
+        }
+        gen.backward(pgy, ta, &dfy, ggy, false, &mut self.gs);
+        gen.backward(pgx, tb, &dfx, ggx, false, &mut self.gs);
+        self.losses = l;
+    }
+
+    /// The discriminators' passes over rows `r`: reals now, fakes from the
+    /// generators' passes (the discriminators have not changed since).
+    fn discriminators(&mut self, s: &Shared, r: std::ops::Range<usize>) {
+        let (disc, n) = (s.disc, s.n);
+        let [_, _, pdx, pdy] = s.params;
+        let g = r.start * 200..r.end * 200;
+        let a = r.start * 10..r.end * 10;
+        let [te, tf, tg, th] = &mut self.disc;
+        disc.forward(pdy, &s.b.y_grid[g.clone()], &s.b.y_att[a.clone()], tg);
+        disc.forward(pdx, &s.b.x_grid[g], &s.b.x_att[a], th);
+        let [_, _, gdx, gdy] = &mut self.grads;
+        let decisions = (n * 10) as f32;
+        let mut l = 0.0;
+        for (tape, target) in [(&*tg, 0.9), (&*te, 0.0)] {
+            l += loss::bce_logits(&tape.logits, target, decisions, &mut self.dl);
+            disc.backward(pdy, tape, &self.dl, Some(gdy), false, &mut self.ds);
+        }
+        for (tape, target) in [(&*th, 0.9), (&*tf, 0.0)] {
+            l += loss::bce_logits(&tape.logits, target, decisions, &mut self.dl);
+            disc.backward(pdx, tape, &self.dl, Some(gdx), false, &mut self.ds);
+        }
+        self.losses.disc = l;
+    }
+}
+
+/// Sum the micro-batches' gradients of network `k` in chunk order.
+fn reduce(chunks: &[Chunk], k: usize, out: &mut Vec<f32>) {
+    out.clear();
+    out.extend_from_slice(&chunks[0].grads[k]);
+    for c in &chunks[1..] {
+        out.par_chunks_mut(1 << 14).zip(c.grads[k].par_chunks(1 << 14)).for_each(|(o, g)| {
+            o.iter_mut().zip(g).for_each(|(a, b)| *a += b);
+        });
+    }
+}
+
+/// The four networks, their optimisers and the step.
+#[derive(Debug)]
+pub struct CycleGan {
+    /// Settings.
+    pub cfg: GanConfig,
+    gen: Generator,
+    disc: Discriminator,
+    /// Flat parameters of G_X, G_Y, D_X, D_Y.
+    pub params: [Vec<f32>; 4],
+    /// Their optimisers.
+    pub opts: [Adam; 4],
+    chunks: Vec<Chunk>,
+    grads: Vec<f32>,
+}
+
+/// Index of each network in [`CycleGan::params`].
+pub const GX: usize = 0;
+/// See [`GX`].
+pub const GY: usize = 1;
+/// See [`GX`].
+pub const DX: usize = 2;
+/// See [`GX`].
+pub const DY: usize = 3;
+/// Names, for checkpoints.
+pub const NAMES: [&str; 4] = ["g_x", "g_y", "d_x", "d_y"];
+
+impl CycleGan {
+    /// Fresh networks, initialised as PyTorch does, from `seed`.
+    pub fn new(cfg: GanConfig, seed: u64) -> Self {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let gen = Generator::new(cfg.width);
+        let disc = Discriminator::new();
+        let params = [
+            gen.load(&GeneratorWeights::init(&mut rng, cfg.width)),
+            gen.load(&GeneratorWeights::init(&mut rng, cfg.width)),
+            disc.load(&DiscriminatorWeights::init(&mut rng)),
+            disc.load(&DiscriminatorWeights::init(&mut rng)),
+        ];
+        let opts = params.each_ref().map(|p| Adam::new(cfg.adam, p.len()));
+        CycleGan { cfg, gen, disc, params, opts, chunks: Vec::new(), grads: Vec::new() }
+    }
+
+    /// Parameter counts of the four networks.
+    pub fn sizes(&self) -> [usize; 4] {
+        self.params.each_ref().map(Vec::len)
+    }
+
+    /// G_X (`y = false`) or G_Y (`y = true`) in PyTorch's layout.
+    pub fn generator_weights(&self, y: bool) -> GeneratorWeights {
+        self.gen.save(&self.params[if y { GY } else { GX }])
+    }
+
+    /// Run G_Y (`y = true`) or G_X over records; row 20 passes through.
+    pub fn generate(&self, y: bool, records: &[Dem]) -> Vec<Dem> {
+        let p = &self.params[if y { GY } else { GX }];
+        let mut tape = GenTape::default();
+        let mut out = Vec::with_capacity(records.len());
+        for chunk in records.chunks(256) {
+            let grid: Vec<f32> = chunk.iter().flat_map(|d| d[..200].iter().copied()).collect();
+            let att: Vec<f32> = chunk.iter().flat_map(|d| d[200..].iter().copied()).collect();
+            self.gen.forward(p, &grid, &att, &mut tape);
+            for (d, o) in chunk.iter().zip(tape.out.chunks_exact(200)) {
+                let mut r = *d;
+                r[..200].copy_from_slice(o);
+                out.push(r);
+            }
+        }
+        out
+    }
+
+    /// One generators' update and one discriminators' update.
+    pub fn step(&mut self, b: &Batch) -> Losses {
+        let n = b.x_grid.len() / 200;
+        assert!(n > 0, "empty batch");
+        assert_eq!(b.y_grid.len(), n * 200, "batch sizes");
+        let chunks = n.div_ceil(MICRO);
+        let rows = |c: usize| c * MICRO..((c + 1) * MICRO).min(n);
+        self.chunks.resize_with(chunks, Chunk::default);
+        let work = &mut self.chunks[..chunks];
+        let s = Shared { gen: &self.gen, disc: &self.disc, cfg: self.cfg, params: &self.params, b, n };
+        work.par_iter_mut().enumerate().for_each(|(c, w)| w.generators(&s, rows(c)));
+        for k in [GX, GY] {
+            reduce(work, k, &mut self.grads);
+            self.opts[k].step(&mut self.params[k], &self.grads);
+        }
+        let s = Shared { gen: &self.gen, disc: &self.disc, cfg: self.cfg, params: &self.params, b, n };
+        work.par_iter_mut().enumerate().for_each(|(c, w)| w.discriminators(&s, rows(c)));
+        for k in [DX, DY] {
+            reduce(work, k, &mut self.grads);
+            self.opts[k].step(&mut self.params[k], &self.grads);
+        }
+        work.iter().fold(Losses::default(), |a, c| Losses {
+            gan: a.gan + c.losses.gan,
+            cycle: a.cycle + c.losses.cycle,
+            pair_y: a.pair_y + c.losses.pair_y,
+            pair_x: a.pair_x + c.losses.pair_x,
+            disc: a.disc + c.losses.disc,
+        })
+    }
+}
