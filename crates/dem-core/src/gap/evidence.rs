@@ -32,7 +32,9 @@ pub fn evidence(effect: &Effect, before: &Stats, after: &Stats, real: &Stats, ga
     let spread = if real.paired { "residual (real - sim) sd" } else { "across-robot height difference sd / sqrt 2" };
     let body = match *effect {
         Effect::Noise { .. } => format!(
-            "height spread ({spread}) near (rows 6-9) real {} vs model {}, far (rows 15-19) real {} vs model {}: noise growing with range",
+            "neighbouring cells of equal height real {} vs model {}; height spread ({spread}) near (rows 6-9) real {} vs model {}, far (rows 15-19) real {} vs model {}",
+            pct(real.mean_over("level-pairs", 0..20)),
+            pct(before.mean_over("level-pairs", 0..20)),
             mm(real.mean_over("spread-sd", 6..10)),
             mm(before.mean_over("spread-sd", 6..10)),
             mm(real.mean_over("spread-sd", 15..20)),
