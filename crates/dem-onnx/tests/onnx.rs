@@ -267,3 +267,27 @@ fn unreadable_and_invalid_files_are_errors_naming_the_file() {
     let err = OnnxModel::load(&junk).unwrap_err();
     assert!(err.to_string().contains("junk.onnx"), "{err}");
 }
+
+#[test]
+fn a_model_that_mixes_records_runs_as_one_batch() {
+    // Softmax over the batch axis: each output depends on every record.
+    let mut m = pb::ModelProto::decode(&tiny_model("Softmax", 1, &[-1, 21, 5, 2], &[-1, 21, 5, 2])[..]).unwrap();
+    m.graph.as_mut().unwrap().node[0].attribute.push(pb::AttributeProto {
+        name: "axis".into(),
+        r#type: pb::attribute_proto::AttributeType::Int as i32,
+        i: 0,
+        ..Default::default()
+    });
+    let model = OnnxModel::from_proto(&m, "softmax.onnx").unwrap();
+    assert!(!model.per_record());
+    let input = records(5);
+    let got = model.run(&input).unwrap();
+    for k in 0..210 {
+        let z: f32 = input.iter().map(|d| d[k].exp()).sum();
+        for (g, x) in got.iter().zip(&input) {
+            assert!((g[k] - x[k].exp() / z).abs() < 1e-5);
+        }
+    }
+    // The generator's records are independent: it runs record by record.
+    assert!(tract_model(&generator(4, 9)).per_record());
+}
