@@ -35,6 +35,21 @@ pub struct Request {
     pub method: Method,
     /// Records per model call.
     pub batch: usize,
+    /// Keep the input, prediction and closest real record of each result.
+    pub keep: bool,
+}
+
+/// The outcome: one result per selected sim record, in index order, and,
+/// when asked for, the records behind each result in the same order.
+pub struct Evaluation {
+    /// Pair error, best real record and terrain of each selected sim record.
+    pub results: Vec<RecordResult>,
+    /// The sim records (empty unless `keep`).
+    pub input: Vec<Dem>,
+    /// Their predictions (empty unless `keep`).
+    pub pred: Vec<Dem>,
+    /// The closest real record of each (empty unless `keep`).
+    pub closest: Vec<Dem>,
 }
 
 /// Read the records of `path` whose indices are in `wanted`; returns the
@@ -70,8 +85,8 @@ fn check_range(pairs_path: &str, pairs: &[Pair], len: u64, file: &str, real: boo
     Ok(())
 }
 
-/// Run the evaluation: one result per selected sim record, in index order.
-pub fn run(q: &Request) -> anyhow::Result<Vec<RecordResult>> {
+/// Run the evaluation.
+pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
     let stdin_users = [Some(&q.sim), Some(&q.real), Some(&q.pairs), q.labels_sim.as_ref()]
         .into_iter()
         .chain([match &q.method {
@@ -112,7 +127,7 @@ pub fn run(q: &Request) -> anyhow::Result<Vec<RecordResult>> {
         None => None,
     };
     let pred: HashMap<u64, Dem> = match &q.method {
-        Method::Identity => sim,
+        Method::Identity => sim.clone(),
         Method::Pred(path) => {
             let (n, pred) = read_selected(path, &sims)?;
             if n != n_sim {
@@ -123,5 +138,13 @@ pub fn run(q: &Request) -> anyhow::Result<Vec<RecordResult>> {
         Method::Model(path) => crate::model::predict(path, &sim, q.batch)?,
     };
     let terrain = |i: u64| -> Option<Terrain> { labels.as_ref().map(|l| l[i as usize].terrain) };
-    Ok(eval::evaluate(&sel, |i| &pred[&i], |j| &real[&j], terrain))
+    let results = eval::evaluate(&sel, |i| &pred[&i], |j| &real[&j], terrain);
+    let gather = |m: &HashMap<u64, Dem>, real: bool| -> Vec<Dem> {
+        if !q.keep {
+            return Vec::new();
+        }
+        results.iter().map(|r| m[&if real { r.real_index } else { r.sim_index }]).collect()
+    };
+    let (input, pred, closest) = (gather(&sim, false), gather(&pred, false), gather(&real, true));
+    Ok(Evaluation { results, input, pred, closest })
 }

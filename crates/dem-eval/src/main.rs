@@ -11,7 +11,7 @@ use std::process::ExitCode;
 use clap::{Args as ClapArgs, Parser, Subcommand, ValueEnum};
 use dem_core::eval::{self, Status};
 use dem_core::table::{self, Split};
-use dem_core::cli;
+use dem_core::{cli, npy};
 use inputs::{Method, Request};
 use report::Format;
 
@@ -29,6 +29,8 @@ use report::Format;
   dem-eval --sim sim.npy --real real.npy --pairs pairs.csv --split val --model g.onnx \\
       --labels-sim sim_labels.csv --by terrain --records per_record.csv --format md
   dem-apply g.onnx sim.npy -o gen.npy && dem-eval --sim sim.npy --real real.npy --pairs pairs.csv --pred gen.npy
+  dem-eval ... --identity --records r.csv --emit-input in.npy --emit-closest real.npy && \\
+      dem-render --compare in.npy real.npy --row-labels input,closest --error-rows 2,1 -o fig.png
   cat identity.csv model.csv > table.csv      # CSV tables join with cat
   dem-eval compare testdata/eval_baseline.csv table.csv --tolerance 0.02 || echo regression")]
 struct Args {
@@ -79,6 +81,15 @@ struct EvalArgs {
     /// Write per-record results here: sim_index,real_index (the best pair),error,terrain.
     #[arg(long, value_name = "FILE")]
     records: Option<String>,
+    /// Write the sim record of each --records row to this NPY (for dem-render --compare).
+    #[arg(long, value_name = "FILE")]
+    emit_input: Option<String>,
+    /// Write the prediction of each --records row to this NPY.
+    #[arg(long, value_name = "FILE")]
+    emit_pred: Option<String>,
+    /// Write the closest real record of each --records row to this NPY.
+    #[arg(long, value_name = "FILE")]
+    emit_closest: Option<String>,
     /// Records per model call with --model.
     #[arg(long, default_value_t = 512)]
     batch: usize,
@@ -151,11 +162,17 @@ fn evaluate(a: EvalArgs) -> anyhow::Result<()> {
         labels_sim: a.labels_sim,
         method,
         batch: a.batch,
+        keep: a.emit_input.is_some() || a.emit_pred.is_some() || a.emit_closest.is_some(),
     };
-    let results = inputs::run(&q)?;
-    let rows = eval::table(a.name.as_deref().unwrap_or(&name), &results, a.by.is_some());
+    let ev = inputs::run(&q)?;
+    let rows = eval::table(a.name.as_deref().unwrap_or(&name), &ev.results, a.by.is_some());
     if let Some(path) = &a.records {
-        table::write_rows(path, &results)?;
+        table::write_rows(path, &ev.results)?;
+    }
+    for (path, records) in [(&a.emit_input, &ev.input), (&a.emit_pred, &ev.pred), (&a.emit_closest, &ev.closest)] {
+        if let Some(path) = path {
+            npy::write_all(path, records)?;
+        }
     }
     report::write_table(&a.output, &rows, a.format)
 }

@@ -195,6 +195,8 @@ fn identity_on_the_bundled_true_pairs_by_terrain() {
         &[
             "--sim", &td("sim.npy"), "--real", &td("real.npy"), "--pairs", &td("pairs.csv"), "--identity",
             "--labels-sim", &td("sim_labels.csv"), "--by", "terrain", "--format", "json", "--records", &rec,
+            "--emit-input", &arg(dir.path(), "in.npy"), "--emit-pred", &arg(dir.path(), "pred.npy"),
+            "--emit-closest", &arg(dir.path(), "closest.npy"),
         ],
         None,
     );
@@ -212,10 +214,13 @@ fn identity_on_the_bundled_true_pairs_by_terrain() {
     let labels = table::read_labels(&td("sim_labels.csv")).unwrap();
     let text = std::fs::read_to_string(&rec).unwrap();
     assert_eq!(text.lines().count(), 967);
-    for line in text.lines().skip(1) {
+    // --emit-*: the records behind each row, in row order, for dem-render.
+    let emitted = ["in.npy", "pred.npy", "closest.npy"].map(|f| npy::read_all(&arg(dir.path(), f)).unwrap());
+    for (n, line) in text.lines().skip(1).enumerate() {
         let f: Vec<&str> = line.split(',').collect();
         let (s, r): (usize, usize) = (f[0].parse().unwrap(), f[1].parse().unwrap());
         assert_eq!(s, r);
+        assert_eq!((emitted[0][n], emitted[1][n], emitted[2][n]), (sim[s], sim[s], real[r]));
         assert_eq!(f[2].parse::<f64>().unwrap(), dem_error(&real[r], &sim[s]));
         assert_eq!(f[3], labels[s].terrain.as_str());
     }
