@@ -30,10 +30,15 @@ OUT=${OUT:-out/thesis}
 EVAL_BY=terrain  # every row also split by terrain
 eval_setup
 OTHER_SENSOR=${OTHER_SENSOR:---camera-height 0.7 --camera-tilt 25}
+if [[ $OTHER_SENSOR == "--camera-height 0.7 --camera-tilt 25" ]]; then
+    other_label="Other sensor (camera 0.7 m high, tilted 25 deg)"
+else
+    other_label="Other sensor (dem-synth $OTHER_SENSOR)"
+fi
 
 declare -A LABEL=(
     [identity]="Identity (sim as is)"
-    [other-sensor]="Other sensor (camera 0.7 m high, tilted 25 deg)"
+    [other-sensor]="$other_label"
     [pallets-cleaned]="Pallets cleaned, no model"
     [paired-data]="Paired data"
     [fixing-pallet]="Fixing pallet"
@@ -57,9 +62,10 @@ echo "== another sensor measuring the same poses" >&2
 n_runs=$(awk -F, 'NR > 1 {print $6}' "$TD/sim_labels.csv" | sort -un | wc -l)
 if [[ $OTHER_SENSOR == none ]]; then
     echo "thesis_table: OTHER_SENSOR=none: no other-sensor row" >&2
-elif [[ ! -f "$OUT/other/real.npy" ]]; then
+elif [[ ! -f "$OUT/other/real.npy" || "$(cat "$OUT/other/options" 2>/dev/null)" != "$OTHER_SENSOR" ]]; then
     # shellcheck disable=SC2086  # OTHER_SENSOR is a list of options
     "$BIN/dem-synth" --out "$OUT/other" --runs "$n_runs" --real-runs "$n_runs" --seed 1 $OTHER_SENSOR
+    echo "$OTHER_SENSOR" > "$OUT/other/options"
 fi
 if [[ $OTHER_SENSOR == none ]]; then
     :
