@@ -100,6 +100,21 @@ mod tests {
     }
 
     #[test]
+    fn soft_masks_count_raw_and_a_zero_measured_mask_is_missing() {
+        // Measured mask 0.3 is valid (> 0): height counts; exactly 0 is
+        // missing: height does not. Predicted masks count unthresholded.
+        let mut y = empty_dem();
+        y[crate::format::at(0, 0, 1)] = 0.3;
+        y[crate::format::at(0, 1, 1)] = 0.0;
+        let mut p = y;
+        p[crate::format::at(0, 0, 0)] = 0.1; // (0.1)^2
+        p[crate::format::at(0, 1, 0)] = 0.1; // ignored
+        p[crate::format::at(0, 2, 1)] = -0.2; // (-1 - -0.2)^2 = 0.64
+        let want = (0.1f64 * 0.1 + 0.8f64.powi(2)) / 100.0;
+        assert!((dem_error(&y, &p) - want).abs() < 1e-8, "{}", dem_error(&y, &p));
+    }
+
+    #[test]
     fn pair_error_takes_the_best_measured() {
         let p = flat();
         let far = empty_dem();

@@ -1,0 +1,46 @@
+//! `dem-eval compare`: two tables side by side, exit 1 when a row got worse.
+
+use dem_core::eval::{self, Status};
+use dem_core::{cli, DemError};
+
+use crate::report::{self, Format};
+
+/// Read a table written by dem-eval: JSON (one or more arrays back to back,
+/// as `cat a.json b.json` makes them) when it starts with `[`, else CSV.
+fn read_table(path: &str) -> anyhow::Result<Vec<eval::TableRow>> {
+    let text = if path == "-" { None } else { std::fs::read(path).ok() };
+    if text.as_deref().is_some_and(|t| t.trim_ascii_start().starts_with(b"[")) {
+        let text = text.unwrap_or_default();
+        let mut rows = Vec::new();
+        for v in serde_json::Deserializer::from_slice(&text).into_iter::<Vec<eval::TableRow>>() {
+            rows.extend(v.map_err(|e| DemError::Table { path: path.into(), line: e.line() as u64, reason: e.to_string() })?);
+        }
+        return Ok(eval::check_table(path, rows)?);
+    }
+    Ok(eval::read_table_csv(path)?)
+}
+
+/// Compare `current` against `baseline`, print the comparison, fail when a row
+/// is worse or missing.
+pub fn run(baseline: &str, current: &str, tolerance: f64, format: Format) -> anyhow::Result<()> {
+    if tolerance.is_nan() || tolerance < 0.0 {
+        return Err(cli::usage("--tolerance must be a number >= 0"));
+    }
+    let (b, c) = (read_table(baseline)?, read_table(current)?);
+    let rows = eval::compare(&b, &c, tolerance);
+    report::write_comparison("-", &rows, format)?;
+    for r in rows.iter().filter(|r| r.status == Status::Ok) {
+        if let (Some(b), Some(c)) = (&r.baseline, &r.current) {
+            if b.count != c.count {
+                cli::log(format_args!("warning: {}/{}: {} records in the baseline, {} now", r.method, r.terrain, b.count, c.count));
+            }
+        }
+    }
+    let failed: Vec<String> =
+        rows.iter().filter(|r| r.fails()).map(|r| format!("{}/{} {}", r.method, r.terrain, if r.status == Status::Worse { "worse" } else { "missing" })).collect();
+    if !failed.is_empty() {
+        anyhow::bail!("{} of {} baseline rows failed (mean or median worse by more than {tolerance}, or missing): {}", failed.len(), b.len(), failed.join(", "));
+    }
+    cli::log(format_args!("{} baseline rows within tolerance {tolerance}", b.len()));
+    Ok(())
+}

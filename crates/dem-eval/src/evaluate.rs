@@ -1,0 +1,124 @@
+//! The evaluation: arguments to a checked [`Request`], then the table, the
+//! per-record results and the records behind them.
+
+use std::path::Path;
+
+use clap::{Args as ClapArgs, ValueEnum};
+use dem_core::eval;
+use dem_core::table::{self, Split};
+use dem_core::{cli, npy};
+
+use crate::inputs::{self, Method, Request};
+use crate::report::{self, Format};
+
+/// The arguments of an evaluation (dem-eval without a subcommand).
+#[derive(ClapArgs)]
+pub struct EvalArgs {
+    /// Sim NPY: the generator's inputs.
+    #[arg(long)]
+    sim: Option<String>,
+    /// Real (measured) NPY.
+    #[arg(long)]
+    real: Option<String>,
+    /// Pairs CSV (sim_index,real_index[,split]): the sim records scored and their real partners.
+    #[arg(long)]
+    pairs: Option<String>,
+    /// Only the pairs of this split [default: every pair].
+    #[arg(long, value_enum)]
+    split: Option<SplitArg>,
+    /// The prediction is the sim record as is (the thesis's Identity row).
+    #[arg(long, group = "method")]
+    identity: bool,
+    /// NPY of predictions, record i for sim record i (as many records as --sim).
+    #[arg(long, group = "method")]
+    pred: Option<String>,
+    /// ONNX generator (input `dem`, output `dem_out`, (N, 21, 5, 2)) run on the selected sim records.
+    #[arg(long, group = "method")]
+    model: Option<String>,
+    /// Name of the table row [default: identity, or the --pred / --model file stem].
+    #[arg(long)]
+    name: Option<String>,
+    /// Labels CSV of the sim file: terrain of each record (--records, --by terrain).
+    #[arg(long)]
+    labels_sim: Option<String>,
+    /// Split the table: one row over all records, then one per terrain.
+    #[arg(long, value_enum)]
+    by: Option<By>,
+    /// Table format; csv or json is what `compare` reads.
+    #[arg(long, value_enum, default_value = "text")]
+    format: Format,
+    /// Table output (`-` for stdout).
+    #[arg(short, long, default_value = "-")]
+    output: String,
+    /// Write per-record results here: sim_index,real_index (the best pair),error,terrain.
+    #[arg(long, value_name = "FILE")]
+    records: Option<String>,
+    /// Write the sim record of each --records row to this NPY (for dem-render --compare).
+    #[arg(long, value_name = "FILE")]
+    emit_input: Option<String>,
+    /// Write the prediction of each --records row to this NPY.
+    #[arg(long, value_name = "FILE")]
+    emit_pred: Option<String>,
+    /// Write the closest real record of each --records row to this NPY.
+    #[arg(long, value_name = "FILE")]
+    emit_closest: Option<String>,
+    /// Records per model call with --model.
+    #[arg(long, default_value_t = 512)]
+    batch: usize,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum SplitArg {
+    Train,
+    Val,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum By {
+    Terrain,
+}
+
+fn stem(path: &str) -> String {
+    Path::new(path).file_stem().map_or_else(|| "pred".into(), |s| s.to_string_lossy().into_owned())
+}
+
+/// Evaluate as `a` asks and write the outputs.
+pub fn run(a: EvalArgs) -> anyhow::Result<()> {
+    let (method, name) = match (a.identity, a.pred, a.model) {
+        (true, _, _) => (Method::Identity, "identity".to_string()),
+        (_, Some(p), _) => (Method::Pred(p.clone()), if p == "-" { "pred".into() } else { stem(&p) }),
+        (_, _, Some(m)) => (Method::Model(m.clone()), stem(&m)),
+        _ => return Err(cli::usage("choose what to evaluate: --identity, --pred FILE or --model FILE")),
+    };
+    let need = |v: Option<String>, flag: &str| v.ok_or_else(|| cli::usage(format!("{flag} is required")));
+    if a.by.is_some() && a.labels_sim.is_none() {
+        return Err(cli::usage("--by terrain needs --labels-sim"));
+    }
+    if a.batch == 0 {
+        return Err(cli::usage("--batch must be at least 1"));
+    }
+    let q = Request {
+        sim: need(a.sim, "--sim")?,
+        real: need(a.real, "--real")?,
+        pairs: need(a.pairs, "--pairs")?,
+        split: a.split.map(|s| match s {
+            SplitArg::Train => Split::Train,
+            SplitArg::Val => Split::Val,
+        }),
+        labels_sim: a.labels_sim,
+        method,
+        batch: a.batch,
+        keep: a.emit_input.is_some() || a.emit_pred.is_some() || a.emit_closest.is_some(),
+    };
+    let ev = inputs::run(&q)?;
+    let rows = eval::table(a.name.as_deref().unwrap_or(&name), &ev.results, a.by.is_some());
+    if let Some(path) = &a.records {
+        table::write_rows(path, &ev.results)?;
+    }
+    for (path, records) in [(&a.emit_input, &ev.input), (&a.emit_pred, &ev.pred), (&a.emit_closest, &ev.closest)] {
+        if let Some(path) = path {
+            npy::write_all(path, records)?;
+        }
+    }
+    report::write_table(&a.output, &rows, a.format)
+}
