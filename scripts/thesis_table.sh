@@ -89,7 +89,7 @@ model_row() {
             echo "thesis_table: no $2 and no $BIN/dem-train: row $name skipped" >&2
             return 0
         fi
-        model=$(train_model "$name" "$4" "$5" "$DATA/pairs_train.csv")
+        model=$(train_model "$name" "$4" "$5" "$DATA/pairs.csv")
     fi
     eval_row "$name" "$sim" --model "$model"
     rows+=("$name")
