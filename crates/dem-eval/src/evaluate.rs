@@ -5,7 +5,7 @@ use std::path::Path;
 
 use clap::{Args as ClapArgs, ValueEnum};
 use dem_core::eval;
-use dem_core::table::{self, Split};
+use dem_core::table::Split;
 use dem_core::{cli, npy};
 
 use crate::inputs::{self, Method, Request};
@@ -32,7 +32,7 @@ pub struct EvalArgs {
     /// NPY of predictions, record i for sim record i (as many records as --sim).
     #[arg(long, group = "method")]
     pred: Option<String>,
-    /// ONNX generator (input `dem`, output `dem_out`, (N, 21, 5, 2)) run on the selected sim records.
+    /// ONNX generator (one float32 input and output, (N, 21, 5, 2)) run on the selected sim records.
     #[arg(long, group = "method")]
     model: Option<String>,
     /// Name of the table row [default: identity, or the --pred / --model file stem].
@@ -53,13 +53,13 @@ pub struct EvalArgs {
     /// Write per-record results here: sim_index,real_index (the best pair),error,terrain.
     #[arg(long, value_name = "FILE")]
     records: Option<String>,
-    /// Write the sim record of each --records row to this NPY (for dem-render --compare).
+    /// Write the sim record of each evaluated record (the --records rows, in order) to this NPY.
     #[arg(long, value_name = "FILE")]
     emit_input: Option<String>,
-    /// Write the prediction of each --records row to this NPY.
+    /// Write the prediction of each evaluated record to this NPY.
     #[arg(long, value_name = "FILE")]
     emit_pred: Option<String>,
-    /// Write the closest real record of each --records row to this NPY.
+    /// Write the closest real record of each evaluated record to this NPY.
     #[arg(long, value_name = "FILE")]
     emit_closest: Option<String>,
     /// Records per model call with --model.
@@ -94,6 +94,10 @@ pub fn run(a: EvalArgs) -> anyhow::Result<()> {
     if a.by.is_some() && a.labels_sim.is_none() {
         return Err(cli::usage("--by terrain needs --labels-sim"));
     }
+    let to_stdout = [Some(&a.output), a.records.as_ref(), a.emit_input.as_ref(), a.emit_pred.as_ref(), a.emit_closest.as_ref()];
+    if to_stdout.iter().filter(|p| p.is_some_and(|p| p == "-")).count() > 1 {
+        return Err(cli::usage("only one output can be `-` (stdout); give the table a file with -o"));
+    }
     if a.batch == 0 {
         return Err(cli::usage("--batch must be at least 1"));
     }
@@ -113,7 +117,7 @@ pub fn run(a: EvalArgs) -> anyhow::Result<()> {
     let ev = inputs::run(&q)?;
     let rows = eval::table(a.name.as_deref().unwrap_or(&name), &ev.results, a.by.is_some());
     if let Some(path) = &a.records {
-        table::write_rows(path, &ev.results)?;
+        report::write_records(path, &ev.results)?;
     }
     for (path, records) in [(&a.emit_input, &ev.input), (&a.emit_pred, &ev.pred), (&a.emit_closest, &ev.closest)] {
         if let Some(path) = path {

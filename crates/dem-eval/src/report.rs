@@ -5,7 +5,7 @@
 use std::io::Write;
 
 use clap::ValueEnum;
-use dem_core::eval::{Compared, Status, TableRow, TABLE_HEADER};
+use dem_core::eval::{Compared, RecordResult, Status, TableRow, TABLE_HEADER};
 use dem_core::output::AtomicOutput;
 use dem_core::DemError;
 use serde::Serialize;
@@ -210,5 +210,18 @@ pub fn write_comparison(path: &str, rows: &[Compared], f: Format) -> anyhow::Res
             })
             .collect();
         Grid { cols, rows: grid_rows }.write(w, f)
+    })
+}
+
+/// Write per-record results as CSV, `sim_index,real_index,error,terrain`
+/// (terrain empty without labels). By hand rather than through
+/// `table::write_rows`, so a closed stdout stays a broken pipe (exit 0).
+pub fn write_records(path: &str, rows: &[RecordResult]) -> anyhow::Result<()> {
+    emit(path, |w| {
+        writeln!(w, "sim_index,real_index,error,terrain")?;
+        for r in rows {
+            writeln!(w, "{},{},{},{}", r.sim_index, r.real_index, r.error, r.terrain.as_deref().unwrap_or(""))?;
+        }
+        Ok(())
     })
 }

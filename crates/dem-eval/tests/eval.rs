@@ -391,4 +391,19 @@ fn the_table_goes_to_a_file_atomically_and_stdout_may_close_early() {
     drop(child.stdout.take());
     let o = child.wait_with_output().unwrap();
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    // Per-record results on stdout, closed after a few bytes (`| head`).
+    let mut cmd = std::process::Command::new(dem_testkit::bin("dem-eval"));
+    cmd.args(a).args(["--records", "-", "-o", &out]).stdout(std::process::Stdio::piped()).stderr(std::process::Stdio::piped());
+    let mut child = cmd.spawn().unwrap();
+    let mut first = [0u8; 10];
+    std::io::Read::read_exact(child.stdout.as_mut().unwrap(), &mut first).unwrap();
+    assert_eq!(&first, b"sim_index,");
+    drop(child.stdout.take());
+    let o = child.wait_with_output().unwrap();
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(o.stderr.is_empty(), "{}", stderr(&o));
+    // Two outputs on stdout: refused.
+    let o = run("dem-eval", &[&a[..], &["--records", "-"]].concat(), None);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("only one output can be `-`"));
 }
