@@ -31,7 +31,9 @@ pub fn ranges(name: &str) -> Vec<Range> {
     match name {
         "noise" => vec![lin(0.0, 0.03), lin(0.0, 0.03)],
         "dropout" | "row-dropout" => vec![lin(0.0, 0.6)],
-        "occlusion" => vec![lin(0.05, 1.5), lin(-0.6, 1.0)],
+        // A sensor mounted on the robot: above C by 0.2 to 1.2 m, along x
+        // within the tracks and flippers.
+        "occlusion" => vec![lin(0.2, 1.2), lin(-0.4, 0.5)],
         "fov" => vec![lin(-0.65, 0.55), lin(0.35, 1.45)],
         "smoothing" => vec![lin(0.05, 1.0)],
         "bias" => vec![lin(-0.1, 0.1), lin(-0.1, 0.1)],
