@@ -176,7 +176,7 @@ impl Discriminator {
         }
         d[0].iter_mut().zip(&t.zs[0]).for_each(|(g, z)| *g *= Act::Leaky.slope(*z));
         let c1 = &self.convs[0];
-        let cg = grads.as_deref_mut().map(|g| split2(g, &c1.w, &c1.b));
+        let cg = grads.map(|g| split2(g, &c1.w, &c1.b));
         let mut dx = Vec::new();
         conv::backward(&c1.g, &p[c1.w.clone()], &t.cols[0], &d[0], cg, want_input.then_some(&mut dx), &mut s.dcol);
         s.d = d;

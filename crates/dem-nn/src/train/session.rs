@@ -1,0 +1,205 @@
+//! A training run in a directory: the step loop with its progress bar, the
+//! per-step losses, the per-epoch validation table, checkpoints, and the
+//! exact continuation of an interrupted run.
+//!
+//! `RUN/losses.csv`: `step,epoch,gan,cycle,pair_y,pair_x,generator,disc`;
+//! `RUN/val.csv`: `epoch,step,count,lowest,highest,mean,median` (pair error
+//! of G_Y over the val split, equation 7.1); `RUN/checkpoint.bin`;
+//! `RUN/check_sim.npy`, `RUN/check_real.npy`: the records an export is
+//! checked on (the val split, or the first records without one).
+
+use std::fs::{self, File, OpenOptions};
+use std::io::{BufRead, BufReader, BufWriter, Write};
+use std::path::Path;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use dem_core::{cli, metric, npy, Dem, DemError};
+
+use super::checkpoint::{self, Meta};
+use super::cyclegan::{CycleGan, Losses};
+use super::data::{Sampler, TrainData};
+
+/// Records an export is checked on when there is no val split.
+pub const CHECK_RECORDS: usize = 256;
+
+/// Where and how long to train.
+#[derive(Clone, Debug)]
+pub struct RunOptions {
+    /// The run directory.
+    pub dir: String,
+    /// Epochs in all (a resumed run goes on up to this).
+    pub epochs: u64,
+    /// Stop after this many steps in all, whatever the epochs.
+    pub max_steps: Option<u64>,
+    /// Also checkpoint every this many steps (always at each epoch's end).
+    pub checkpoint_every: Option<u64>,
+}
+
+/// Pair-error table of a set of sims against their reals.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ValRow {
+    /// Sims evaluated.
+    pub count: usize,
+    /// Lowest pair error.
+    pub lowest: f64,
+    /// Highest.
+    pub highest: f64,
+    /// Mean.
+    pub mean: f64,
+    /// Median.
+    pub median: f64,
+}
+
+/// The pair error table of `preds[i]` (G_Y of key i) against `reals[i]`.
+pub fn pair_table(preds: &[Dem], reals: &[Vec<&Dem>]) -> Option<ValRow> {
+    let mut e: Vec<f64> = preds
+        .iter()
+        .zip(reals)
+        .filter_map(|(p, ys)| metric::pair_error(ys.iter().copied(), p).map(|(_, e)| e))
+        .collect();
+    if e.is_empty() {
+        return None;
+    }
+    e.sort_by(f64::total_cmp);
+    let n = e.len();
+    let median = if n % 2 == 1 { e[n / 2] } else { 0.5 * (e[n / 2 - 1] + e[n / 2]) };
+    Some(ValRow { count: n, lowest: e[0], highest: e[n - 1], mean: e.iter().sum::<f64>() / n as f64, median })
+}
+
+/// G_Y's validation table on the val split, if there is one.
+pub fn validate(gan: &CycleGan, data: &TrainData) -> Option<ValRow> {
+    if data.val.is_empty() {
+        return None;
+    }
+    let sims: Vec<Dem> = data.val.iter().map(|(k, _)| data.sim[*k]).collect();
+    let reals: Vec<Vec<&Dem>> = data.val.iter().map(|(_, rs)| rs.iter().map(|&r| &data.real[r]).collect()).collect();
+    pair_table(&gan.generate(true, &sims), &reals)
+}
+
+fn path(dir: &str, name: &str) -> String {
+    Path::new(dir).join(name).to_string_lossy().into_owned()
+}
+
+/// Keep the header and the rows whose first column is <= `last`.
+fn truncate_csv(file: &str, last: u64) -> Result<()> {
+    if !Path::new(file).exists() {
+        return Ok(());
+    }
+    let lines: Vec<String> = BufReader::new(File::open(file)?).lines().collect::<std::io::Result<_>>()?;
+    let kept: Vec<&String> = lines
+        .iter()
+        .enumerate()
+        .filter(|(i, l)| *i == 0 || l.split(',').next().and_then(|v| v.parse::<u64>().ok()).is_some_and(|v| v <= last))
+        .map(|(_, l)| l)
+        .collect();
+    dem_core::output::write_atomic(file, |w| kept.iter().try_for_each(|l| writeln!(w, "{l}")))?;
+    Ok(())
+}
+
+fn append(file: &str, header: &str) -> Result<BufWriter<File>> {
+    let fresh = !Path::new(file).exists();
+    let f = OpenOptions::new().create(true).append(true).open(file).with_context(|| format!("open {file}"))?;
+    let mut w = BufWriter::new(f);
+    if fresh {
+        writeln!(w, "{header}")?;
+    }
+    Ok(w)
+}
+
+/// Records of the check files: the val keys (or the first records).
+fn check_sets(data: &TrainData) -> (Vec<Dem>, Vec<Dem>) {
+    if data.val.is_empty() {
+        let n = |v: &Vec<Dem>| v[..v.len().min(CHECK_RECORDS)].to_vec();
+        (n(&data.sim), n(&data.real))
+    } else {
+        let sims = data.val.iter().map(|(k, _)| data.sim[*k]).collect();
+        let reals = data.val.iter().flat_map(|(_, rs)| rs.iter().map(|&r| data.real[r])).take(CHECK_RECORDS.max(data.val.len())).collect();
+        (sims, reals)
+    }
+}
+
+/// Prepare a fresh run directory (refusing one that already holds a run).
+pub fn start(opts: &RunOptions, data: &TrainData) -> Result<()> {
+    fs::create_dir_all(&opts.dir).with_context(|| format!("create {}", opts.dir))?;
+    let ck = path(&opts.dir, "checkpoint.bin");
+    if Path::new(&ck).exists() {
+        return Err(DemError::Usage(format!("{} already holds a run: pass --resume to continue it, or choose another --out", opts.dir)).into());
+    }
+    for f in ["losses.csv", "val.csv"] {
+        let p = path(&opts.dir, f);
+        if Path::new(&p).exists() {
+            fs::remove_file(&p)?;
+        }
+    }
+    let (sims, reals) = check_sets(data);
+    npy::write_all(&path(&opts.dir, "check_sim.npy"), &sims)?;
+    npy::write_all(&path(&opts.dir, "check_real.npy"), &reals)?;
+    Ok(())
+}
+
+/// Load the run's checkpoint and cut its logs back to it.
+pub fn resume(opts: &RunOptions) -> Result<(Meta, CycleGan)> {
+    let (meta, gan) = checkpoint::load(&path(&opts.dir, "checkpoint.bin"))?;
+    truncate_csv(&path(&opts.dir, "losses.csv"), meta.step)?;
+    truncate_csv(&path(&opts.dir, "val.csv"), meta.step / meta.steps_per_epoch)?;
+    Ok((meta, gan))
+}
+
+fn fmt_losses(l: &Losses) -> String {
+    format!("G {:.3} (gan {:.3} cyc {:.3} pair {:.3}) D {:.3}", l.generator(), l.gan, l.cycle, l.pair_y + l.pair_x, l.disc)
+}
+
+/// Train from `meta.step` to the end of the run; returns the last table.
+pub fn run(gan: &mut CycleGan, data: &TrainData, sampler: Sampler, mut meta: Meta, opts: &RunOptions) -> Result<Option<ValRow>> {
+    let spe = meta.steps_per_epoch;
+    let total = (opts.epochs * spe).min(opts.max_steps.unwrap_or(u64::MAX));
+    let mut losses = append(&path(&opts.dir, "losses.csv"), "step,epoch,gan,cycle,pair_y,pair_x,generator,disc")?;
+    let mut val = append(&path(&opts.dir, "val.csv"), "epoch,step,count,lowest,highest,mean,median")?;
+    let bar = cli::progress(total, "steps");
+    bar.set_position(meta.step);
+    let (t0, s0) = (Instant::now(), meta.step);
+    let mut last = None;
+    while meta.step < total {
+        let step = meta.step;
+        let batch = sampler.batch(data, step, spe);
+        let l = gan.step(&batch);
+        meta.step += 1;
+        let epoch = step / spe + 1;
+        writeln!(losses, "{},{epoch},{},{},{},{},{},{}", meta.step, l.gan, l.cycle, l.pair_y, l.pair_x, l.generator(), l.disc)?;
+        let rate = (meta.step - s0) as f64 * sampler.batch as f64 / t0.elapsed().as_secs_f64();
+        bar.set_position(meta.step);
+        bar.set_message(format!("epoch {epoch} {} {rate:.0} samples/s", fmt_losses(&l)));
+        let epoch_end = meta.step.is_multiple_of(spe) || meta.step == total;
+        if epoch_end {
+            if let Some(row) = validate(gan, data) {
+                writeln!(val, "{epoch},{},{},{},{},{},{}", meta.step, row.count, row.lowest, row.highest, row.mean, row.median)?;
+                bar.suspend(|| cli::log(format!("epoch {epoch}: val pair error mean {:.4} median {:.4} ({} keys)", row.mean, row.median, row.count)));
+                last = Some(row);
+            }
+        }
+        if epoch_end || opts.checkpoint_every.is_some_and(|k| meta.step.is_multiple_of(k)) {
+            losses.flush()?;
+            val.flush()?;
+            meta.adam_steps = gan.opts.each_ref().map(|o| o.t);
+            checkpoint::save(&path(&opts.dir, "checkpoint.bin"), gan, &meta)?;
+        }
+    }
+    bar.finish_and_clear();
+    losses.flush()?;
+    val.flush()?;
+    let steps = meta.step - s0;
+    if steps > 0 {
+        let secs = t0.elapsed().as_secs_f64();
+        cli::log(format!(
+            "{steps} steps of {} in {secs:.1} s: {:.1} samples/s, {} threads; checkpoint {}",
+            sampler.batch,
+            steps as f64 * sampler.batch as f64 / secs,
+            rayon::current_num_threads(),
+            path(&opts.dir, "checkpoint.bin")
+        ));
+    } else {
+        cli::log(format!("nothing to do: the run is at step {} of {total}", meta.step));
+    }
+    Ok(last)
+}

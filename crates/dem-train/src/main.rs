@@ -1,0 +1,236 @@
+//! dem-train: train G_Y (sim -> real) as a Cycle GAN with paired data, and
+//! export a trained generator to ONNX.
+
+use std::process::ExitCode;
+
+use clap::{Args, Parser, Subcommand};
+use dem_core::sensor::SensorModel;
+use dem_core::{cli, npy, table};
+use dem_nn::train::checkpoint::{self, Meta};
+use dem_nn::train::session::{self, RunOptions};
+use dem_nn::train::{AdamConfig, CycleGan, GanConfig, Sampler, TrainData};
+
+/// Train the virtual sensor network of spec/network.md: G_Y turns sim DEMs
+/// into the DEMs a real sensor + elevation mapping gives, learned from many
+/// sims, few reals and (optionally) pairs of the same pose.
+///
+/// Writes RUN/losses.csv (per step), RUN/val.csv (pair error of the val
+/// split per epoch), RUN/checkpoint.bin (each epoch, atomically). The same
+/// seed and thread count give the same model; --resume continues a run
+/// exactly where its last checkpoint left it.
+#[derive(Parser)]
+#[command(version, args_conflicts_with_subcommands = true, after_long_help = "Examples:
+  dem-pair --sim-labels sim_labels.csv --real-labels real_labels.csv --val-fraction 0.5 -o pairs.csv
+  dem-train --sim sim.npy --real real.npy --pairs pairs.csv --out run/ --epochs 20
+  dem-train --out run/ --epochs 40 --resume             # go on to 40 epochs
+  dem-train export run/ -o gy.onnx
+  dem-apply --model gy.onnx < sim.npy > realistic.npy")]
+struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
+    #[command(flatten)]
+    train: TrainArgs,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Export a run's generator to ONNX, checked against the trainer.
+    Export(ExportArgs),
+}
+
+#[derive(Args)]
+struct TrainArgs {
+    /// Sim DEMs (X), an NPY stream.
+    #[arg(long)]
+    sim: Option<String>,
+    /// Real DEMs (Y), an NPY stream.
+    #[arg(long)]
+    real: Option<String>,
+    /// Pairs CSV (sim_index,real_index[,split]); without it, a plain Cycle GAN.
+    #[arg(long)]
+    pairs: Option<String>,
+    /// Sensor model (dem-gap's sensor.json) applied to the sims first, so the
+    /// network learns only what the named effects leave unexplained.
+    #[arg(long)]
+    sensor: Option<String>,
+    /// Run directory.
+    #[arg(long)]
+    out: Option<String>,
+    /// Epochs in all (one epoch = ceil(sims / batch) steps).
+    #[arg(long, default_value_t = 10)]
+    epochs: u64,
+    /// Stop after this many steps in all (e.g. tiny CI runs).
+    #[arg(long)]
+    max_steps: Option<u64>,
+    /// Records per batch [default: 64].
+    #[arg(long)]
+    batch: Option<usize>,
+    /// Generator width w [default: 32].
+    #[arg(long)]
+    width: Option<usize>,
+    /// Adam learning rate [default: 2e-4].
+    #[arg(long)]
+    lr: Option<f32>,
+    /// Weight of the cycle terms [default: 10].
+    #[arg(long)]
+    lambda_cyc: Option<f32>,
+    /// Weight of the paired terms [default: 10].
+    #[arg(long)]
+    lambda_pair: Option<f32>,
+    /// Share of each batch drawn from train pairs [default: 0.5].
+    #[arg(long)]
+    paired_fraction: Option<f64>,
+    /// Seed of initialisation, sampling and the sensor model [default: 0].
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Worker threads (default: all cores). Results depend on the seed only,
+    /// not on the thread count.
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Also checkpoint every N steps (always at each epoch's end).
+    #[arg(long)]
+    checkpoint_every: Option<u64>,
+    /// Continue the run in --out from its checkpoint.
+    #[arg(long)]
+    resume: bool,
+}
+
+#[derive(Args)]
+struct ExportArgs {
+    /// Run directory made by dem-train.
+    run: String,
+    /// Output ONNX file.
+    #[arg(short, long)]
+    output: String,
+    /// Which generator: y (sim -> real) or x (real -> sim).
+    #[arg(long, default_value = "y", value_parser = ["y", "x"])]
+    generator: String,
+}
+
+fn main() -> ExitCode {
+    cli::run(|| {
+        let c = Cli::parse();
+        match c.command {
+            Some(Command::Export(e)) => export(&e),
+            None => train(c.train),
+        }
+    })
+}
+
+fn run_file(dir: &str, name: &str) -> String {
+    std::path::Path::new(dir).join(name).to_string_lossy().into_owned()
+}
+
+fn export(e: &ExportArgs) -> anyhow::Result<()> {
+    let (_, gan) = checkpoint::load(&run_file(&e.run, "checkpoint.bin"))?;
+    let y = e.generator == "y";
+    let check = npy::read_all(&run_file(&e.run, if y { "check_sim.npy" } else { "check_real.npy" }))?;
+    let expected = gan.generate(y, &check);
+    let report = dem_onnx::export::export_checked(&gan.generator_weights(y), &check, &expected, &e.output)?;
+    cli::log(format!(
+        "wrote {} ({} bytes): G_{} of {}, tract reproduces the trainer on {} check records (max |diff| {:.2e})",
+        report.path,
+        report.bytes,
+        e.generator.to_uppercase(),
+        e.run,
+        report.records,
+        report.max_abs_diff
+    ));
+    Ok(())
+}
+
+fn train(a: TrainArgs) -> anyhow::Result<()> {
+    let dir = a.out.clone().ok_or_else(|| cli::usage("--out RUN/ is required"))?;
+    if let Some(t) = a.threads {
+        if t == 0 {
+            return Err(cli::usage("--threads must be at least 1"));
+        }
+        rayon::ThreadPoolBuilder::new().num_threads(t).build_global()?;
+    }
+    let sim_path = a.sim.clone().ok_or_else(|| cli::usage("--sim is required"))?;
+    let real_path = a.real.clone().ok_or_else(|| cli::usage("--real is required"))?;
+    let opts = RunOptions { dir: dir.clone(), epochs: a.epochs, max_steps: a.max_steps, checkpoint_every: a.checkpoint_every };
+    if a.batch == Some(0) || a.width == Some(0) {
+        return Err(cli::usage("--batch and --width must be at least 1"));
+    }
+    if a.paired_fraction.is_some_and(|f| !(0.0..=1.0).contains(&f)) {
+        return Err(cli::usage("--paired-fraction must be in 0..1"));
+    }
+    let mut sim = npy::read_all(&sim_path)?;
+    let real = npy::read_all(&real_path)?;
+    let pairs = match &a.pairs {
+        Some(p) => table::read_pairs(p)?,
+        None => Vec::new(),
+    };
+    let sensor = a.sensor.as_deref().map(SensorModel::read).transpose()?;
+    if let Some(m) = &sensor {
+        // One fixed draw per sim record, so every epoch sees the same inputs
+        // (the residual the network learns is then a function of the input).
+        m.apply_all(&mut sim, a.seed.unwrap_or(0), 0);
+        cli::log(format!("applied sensor model {} to {} sims: {}", a.sensor.as_deref().unwrap_or(""), sim.len(), m.summary()));
+    }
+    let data = TrainData::new(sim, real, &pairs, [&sim_path, &real_path, a.pairs.as_deref().unwrap_or("-")])?;
+    let (meta, mut gan) = if a.resume {
+        let (meta, gan) = session::resume(&opts)?;
+        check_same(&a, &meta)?;
+        if meta.steps_per_epoch != data.steps_per_epoch(meta.batch) {
+            return Err(cli::usage(format!(
+                "--resume: {dir} was trained on data with {} steps per epoch, these inputs give {}",
+                meta.steps_per_epoch,
+                data.steps_per_epoch(meta.batch)
+            )));
+        }
+        cli::log(format!("resuming {dir} at step {}", meta.step));
+        (meta, gan)
+    } else {
+        let config = GanConfig {
+            width: a.width.unwrap_or(32),
+            adam: AdamConfig { lr: a.lr.unwrap_or(2e-4), ..AdamConfig::default() },
+            lambda_cyc: a.lambda_cyc.unwrap_or(10.0),
+            lambda_pair: a.lambda_pair.unwrap_or(10.0),
+        };
+        let seed = a.seed.unwrap_or(0);
+        let batch = a.batch.unwrap_or(64);
+        let gan = CycleGan::new(config, seed);
+        session::start(&opts, &data)?;
+        let mut meta = checkpoint::meta(&gan, seed, batch, a.paired_fraction.unwrap_or(0.5), 0, data.steps_per_epoch(batch));
+        meta.sensor = sensor.as_ref().map(|m| serde_json::from_str(&m.to_json()).expect("json"));
+        (meta, gan)
+    };
+    let sampler = Sampler { seed: meta.seed, batch: meta.batch, paired_fraction: meta.paired_fraction };
+    cli::log(format!(
+        "{} sims, {} reals, {} train keys, {} val keys; width {}, batch {} ({} paired rows), {} steps per epoch, {} threads",
+        data.sim.len(),
+        data.real.len(),
+        data.train.len(),
+        data.val.len(),
+        meta.config.width,
+        meta.batch,
+        sampler.paired_rows(&data),
+        meta.steps_per_epoch,
+        rayon::current_num_threads()
+    ));
+    if data.val.is_empty() {
+        cli::log("no val split in the pairs: val.csv stays empty (dem-pair --val-fraction makes one)");
+    }
+    session::run(&mut gan, &data, sampler, meta, &opts)?;
+    Ok(())
+}
+
+/// On --resume, settings given again must be the run's.
+fn check_same(a: &TrainArgs, m: &Meta) -> anyhow::Result<()> {
+    let c = &m.config;
+    let clash = [
+        ("--width", a.width.is_some_and(|v| v != c.width)),
+        ("--batch", a.batch.is_some_and(|v| v != m.batch)),
+        ("--lr", a.lr.is_some_and(|v| v != c.adam.lr)),
+        ("--lambda-cyc", a.lambda_cyc.is_some_and(|v| v != c.lambda_cyc)),
+        ("--lambda-pair", a.lambda_pair.is_some_and(|v| v != c.lambda_pair)),
+        ("--paired-fraction", a.paired_fraction.is_some_and(|v| v != m.paired_fraction)),
+        ("--seed", a.seed.is_some_and(|v| v != m.seed)),
+    ];
+    if let Some((name, _)) = clash.iter().find(|(_, c)| *c) {
+        return Err(cli::usage(format!("--resume: {name} differs from the run's checkpoint (leave it out to keep the run's)")));
+    }
+    Ok(())
+}

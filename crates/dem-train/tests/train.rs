@@ -1,0 +1,167 @@
+//! dem-train as users run it: short runs on testdata, resume, determinism,
+//! export checked by onnxruntime, dem-apply against the trainer, refusals.
+
+use std::path::Path;
+
+use dem_core::npy;
+use dem_nn::train::checkpoint;
+use dem_testkit::{arg, ok, py, run, stderr, tempdir, testdata};
+
+fn td(name: &str) -> String {
+    testdata(name).to_string_lossy().into_owned()
+}
+
+/// A small train/val pairs file over testdata: real i <-> sim i, val for
+/// every third key.
+fn pairs(dir: &Path) -> String {
+    let text: String = std::iter::once("sim_index,real_index,split\n".to_string())
+        .chain((0..966).map(|i| format!("{i},{i},{}\n", if i % 3 == 0 { "val" } else { "train" })))
+        .collect();
+    let p = arg(dir, "pairs.csv");
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+fn train(dir: &Path, run_dir: &str, extra: &[&str]) -> std::process::Output {
+    let (sim, real, pairs) = (td("sim.npy"), td("real.npy"), pairs(dir));
+    let mut args = vec!["--sim", &sim, "--real", &real, "--pairs", &pairs, "--out", run_dir, "--width", "4", "--batch", "16"];
+    args.extend_from_slice(extra);
+    run("dem-train", &args, None)
+}
+
+fn losses(run_dir: &str) -> Vec<f64> {
+    let text = std::fs::read_to_string(Path::new(run_dir).join("losses.csv")).unwrap();
+    text.lines().skip(1).map(|l| l.split(',').nth(6).unwrap().parse().unwrap()).collect()
+}
+
+#[test]
+fn a_short_run_lowers_the_losses_and_writes_the_run_files() {
+    let d = tempdir();
+    let r = arg(d.path(), "run");
+    let out = train(d.path(), &r, &["--max-steps", "60", "--seed", "3"]);
+    ok(&out);
+    let l = losses(&r);
+    assert_eq!(l.len(), 60);
+    let first: f64 = l[..5].iter().sum::<f64>() / 5.0;
+    let last: f64 = l[55..].iter().sum::<f64>() / 5.0;
+    assert!(last < 0.8 * first, "generator loss {first} -> {last}");
+    // A val row at the end of the run, with the val keys counted.
+    let val = std::fs::read_to_string(Path::new(&r).join("val.csv")).unwrap();
+    let row: Vec<&str> = val.lines().nth(1).expect("a val row").split(',').collect();
+    assert_eq!(row[2], "322", "{val}");
+    assert!(stderr(&out).contains("samples/s"));
+}
+
+#[test]
+fn resume_continues_exactly_and_threads_do_not_change_the_model() {
+    let d = tempdir();
+    let (a, b, c) = (arg(d.path(), "a"), arg(d.path(), "b"), arg(d.path(), "c"));
+    ok(&train(d.path(), &a, &["--max-steps", "24", "--threads", "2"]));
+    ok(&train(d.path(), &b, &["--max-steps", "10", "--threads", "2"]));
+    let out = train(d.path(), &b, &["--max-steps", "24", "--resume"]);
+    ok(&out);
+    assert!(stderr(&out).contains("resuming"), "{}", stderr(&out));
+    ok(&train(d.path(), &c, &["--max-steps", "24", "--threads", "1"]));
+    let ck = |r: &str| std::fs::read(Path::new(r).join("checkpoint.bin")).unwrap();
+    assert!(ck(&a) == ck(&b), "resumed run differs from the uninterrupted one");
+    assert!(ck(&a) == ck(&c), "one thread and two threads differ");
+    assert_eq!(losses(&a), losses(&b));
+    // A settings clash on resume is refused.
+    let out = train(d.path(), &b, &["--max-steps", "30", "--resume", "--lr", "0.001"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("--lr differs"), "{}", stderr(&out));
+}
+
+#[test]
+fn checkpoints_round_trip() {
+    let d = tempdir();
+    let r = arg(d.path(), "run");
+    ok(&train(d.path(), &r, &["--max-steps", "3"]));
+    let p = arg(Path::new(&r), "checkpoint.bin");
+    let (meta, gan) = checkpoint::load(&p).unwrap();
+    assert_eq!(meta.step, 3);
+    assert_eq!(meta.adam_steps, [3; 4]);
+    let q = arg(d.path(), "again.bin");
+    checkpoint::save(&q, &gan, &meta).unwrap();
+    assert_eq!(std::fs::read(&p).unwrap(), std::fs::read(&q).unwrap());
+    // A truncated file is refused, naming it.
+    let bytes = std::fs::read(&p).unwrap();
+    std::fs::write(&q, &bytes[..bytes.len() - 4]).unwrap();
+    let e = checkpoint::load(&q).unwrap_err().to_string();
+    assert!(e.contains("again.bin"), "{e}");
+}
+
+#[test]
+fn export_matches_the_trainer_in_onnxruntime_and_dem_apply() {
+    let d = tempdir();
+    let r = arg(d.path(), "run");
+    ok(&train(d.path(), &r, &["--max-steps", "8"]));
+    let model = arg(d.path(), "gy.onnx");
+    let out = run("dem-train", &["export", &r, "-o", &model], None);
+    ok(&out);
+    assert!(stderr(&out).contains("tract reproduces the trainer"), "{}", stderr(&out));
+    // The trainer's own forward pass on the check records.
+    let (_, gan) = checkpoint::load(&arg(Path::new(&r), "checkpoint.bin")).unwrap();
+    let check = npy::read_all(&arg(Path::new(&r), "check_sim.npy")).unwrap();
+    let want = gan.generate(true, &check);
+    let want_path = arg(d.path(), "want.npy");
+    npy::write_all(&want_path, &want).unwrap();
+    let worst = py(
+        d.path(),
+        &format!(
+            "import numpy as np, onnxruntime as ort\n\
+             s = ort.InferenceSession({model:?}, providers=['CPUExecutionProvider'])\n\
+             x = np.load({c:?})\n\
+             y = s.run(['dem_out'], {{'dem': x}})[0]\n\
+             print(float(np.abs(y - np.load({want_path:?})).max()))",
+            c = arg(Path::new(&r), "check_sim.npy")
+        ),
+    );
+    let worst: f64 = worst.trim().parse().unwrap();
+    assert!(worst < 1e-4, "onnxruntime differs from the trainer by {worst}");
+    // dem-apply streams the same records through tract.
+    let applied = arg(d.path(), "applied.npy");
+    ok(&run("dem-apply", &["--model", &model, "-o", &applied, &arg(Path::new(&r), "check_sim.npy")], None));
+    let got = npy::read_all(&applied).unwrap();
+    assert_eq!(got.len(), want.len());
+    let diff = got.iter().zip(&want).flat_map(|(a, b)| a.iter().zip(b).map(|(x, y)| (x - y).abs())).fold(0.0f32, f32::max);
+    assert!(diff < 1e-4, "dem-apply differs from the trainer by {diff}");
+    // G_X exports too.
+    ok(&run("dem-train", &["export", &r, "-o", &arg(d.path(), "gx.onnx"), "--generator", "x"], None));
+}
+
+#[test]
+fn bad_inputs_are_refused_clearly() {
+    let d = tempdir();
+    let (sim, real) = (td("sim.npy"), td("real.npy"));
+    let r = arg(d.path(), "run");
+    // Pairs past the data.
+    let bad = arg(d.path(), "bad.csv");
+    std::fs::write(&bad, "sim_index,real_index\n0,0\n1,5000\n").unwrap();
+    let out = run("dem-train", &["--sim", &sim, "--real", &real, "--pairs", &bad, "--out", &r], None);
+    assert_eq!(out.status.code(), Some(2));
+    let e = stderr(&out);
+    assert!(e.contains("bad.csv") && e.contains("line 3") && e.contains("real_index 5000"), "{e}");
+    assert_eq!(e.lines().count(), 1, "{e}");
+    // An empty sim set.
+    let empty = arg(d.path(), "empty.npy");
+    std::fs::write(&empty, b"").unwrap();
+    let out = run("dem-train", &["--sim", &empty, "--real", &real, "--out", &r], None);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("empty.npy") && stderr(&out).contains("no records"), "{}", stderr(&out));
+    // Records of the wrong shape.
+    let wrong = arg(d.path(), "wrong.npy");
+    py(d.path(), &format!("import numpy as np; np.save({wrong:?}, np.zeros((3, 21, 5, 3), np.float32))"));
+    let out = run("dem-train", &["--sim", &wrong, "--real", &real, "--out", &r], None);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("wrong.npy") && stderr(&out).contains("shape"), "{}", stderr(&out));
+    // Resume without a run; export of nothing.
+    let out = run("dem-train", &["--sim", &sim, "--real", &real, "--out", &arg(d.path(), "none"), "--resume"], None);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    let out = run("dem-train", &["export", &arg(d.path(), "none"), "-o", &arg(d.path(), "m.onnx")], None);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(!d.path().join("m.onnx").exists());
+    // Missing --out.
+    let out = run("dem-train", &["--sim", &sim, "--real", &real], None);
+    assert_eq!(out.status.code(), Some(2));
+}
