@@ -13,9 +13,9 @@
 //! | `row-missing` | fraction of records with the whole row missing | 0.02 |
 //! | `shadow` | fraction of cells missing behind a drop: the nearest valid cell toward the sensor side (x = 0.1 m) is >= [`SHADOW_DROP`] taller than the nearest valid cell beyond | 0.01 |
 //! | `height` | paired: mean residual D = h - h_sim on cells valid in both; unpaired: mean height | 0.005 m |
-//! | `spread-sd`, `spread-q50`, `spread-q90` (`spread-q99` paired) | paired: sd and quantiles of abs(D - mean D of the row); unpaired: of abs(h[r,c] - h[r,c+1]) / sqrt 2 (the across-robot roughness) | 0.002 m |
+//! | `spread-sd`, `spread-q50`, `spread-q90` (`spread-q99` paired) | paired: sd and quantiles of abs(D - mean D of the row); unpaired: of `abs(h[r,c] - h[r,c+1])` / sqrt 2 (the across-robot roughness) | 0.002 m |
 //! | `level-pairs` | fraction of across-robot neighbours with equal heights (within 0.1 mm) | 0.02 |
-//! | `edge-2cm`, `edge-steep`, `edge-10cm` | fraction of steps abs(h[r+1,c] - h[r,c]) (row pairs 0..18) above 0.02, 0.05, 0.1 m: sharp edges against ramps | 0.01 |
+//! | `edge-2cm`, `edge-steep`, `edge-10cm` | fraction of steps `abs(h[r+1,c] - h[r,c])` (row pairs 0..18) above 0.02, 0.05, 0.1 m: sharp edges against ramps | 0.01 |
 //! | `steps` | fraction of all neighbour pairs whose difference falls in each bin of [`STEP_BINS`] (0.1-1-3-10-30-100 mm; 5 numbers) | 0.01 |
 //!
 //! The gap between sets A (model(sim)) and B (real) is the sum over terms
@@ -46,7 +46,7 @@ pub const STEP_BINS: [f64; 6] = [1e-4, 0.001, 0.003, 0.01, 0.03, 0.1];
 /// the number of samples behind it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Term {
-    /// Name (see [`TERMS`]).
+    /// Name (`missing`, `shadow`, ...: see the module table).
     pub name: &'static str,
     /// Value per component.
     pub values: Vec<f64>,
