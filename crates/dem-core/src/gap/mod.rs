@@ -88,6 +88,12 @@ pub struct TerrainRow {
     pub records: usize,
     /// Missing-cell rate: sim, final model(sim), real.
     pub missing: [f64; 3],
+    /// Mean residual (paired) or mean height (m): sim, model(sim), real.
+    pub height: [f64; 3],
+    /// Residual spread (paired) or across-robot roughness (m), the same three.
+    pub spread: [f64; 3],
+    /// Share of steps between rows above 0.02 m (edge profile), the same three.
+    pub edges: [f64; 3],
     /// Gap of the start and of the final model on this terrain.
     pub gap: [f64; 2],
 }
@@ -348,11 +354,14 @@ fn per_terrain(sets: &Sets, start: &SensorModel, model: &SensorModel, seed: u64)
         let (_, s0) = measure(start, &sim, sets.paired, seed);
         let (_, s1) = measure(model, &sim, sets.paired, seed);
         let (_, sr) = measure(&SensorModel::default(), &sim, sets.paired, seed);
-        let miss = |s: &Stats| s.mean_over("missing", 0..20);
+        let three = |name: &str, n: usize| [&sr, &s1, &rs].map(|s| s.mean_over(name, 0..n));
         rows.push(TerrainRow {
             terrain: t,
             records: ri.len(),
-            missing: [miss(&sr), miss(&s1), miss(&rs)],
+            missing: three("missing", 20),
+            height: three("height", 20),
+            spread: three("spread-sd", 20),
+            edges: three("edge-2cm", 19),
             gap: [gap(&s0, &rs), gap(&s1, &rs)],
         });
     }
