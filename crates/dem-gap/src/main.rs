@@ -87,7 +87,11 @@ fn main() -> ExitCode {
         };
         let t = std::time::Instant::now();
         let sets = gap::load(&cfg)?;
-        let outcome = gap::run(&cfg, &sets, &|line| cli::log(line));
+        // Candidates fitted: 8 at the first step, one fewer at each next.
+        let fits = (0..cfg.max_steps.min(8)).map(|k| 8 - k as u64).sum();
+        let bar = cli::progress(fits, "fits");
+        let outcome = gap::run(&cfg, &sets, &|line| bar.suspend(|| cli::log(line)), &|| bar.inc(1));
+        bar.finish_and_clear();
         report::write(&cfg.out, &outcome, &sets, &cfg.start, cfg.seed)?;
         cli::log(format_args!(
             "gap {:.3} -> {:.3} with {}; {} written in {:.1} s",

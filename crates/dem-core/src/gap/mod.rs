@@ -205,8 +205,9 @@ pub fn measure(model: &SensorModel, sim: &[Dem], paired: bool, seed: u64) -> (Ve
     (out, s)
 }
 
-/// Run the measure-name-add loop on loaded sets; `log` gets progress lines.
-pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String)) -> Outcome {
+/// Run the measure-name-add loop on loaded sets; `log` gets progress lines,
+/// `tick` is called after each candidate fit (for a progress bar).
+pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) -> Outcome {
     let paired = sets.paired;
     let real_stats = stats::stats(&sets.real, paired.then_some(&sets.sim[..]));
     let split_floor = if paired { 0.0 } else { noise_floor(sets) };
@@ -249,6 +250,7 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String)) -> Outcome {
                 log(format!("step {}: candidate {} removes {:.1}% of the gap on the fitting subsample", step + 1, f.effect, 100.0 * removed));
                 ranking.push((f.effect, removed, f.gap));
             }
+            tick();
         }
         ranking.sort_by(|a, b| a.2.total_cmp(&b.2));
         let (gap_before, before_stats) = current.clone();
