@@ -369,3 +369,37 @@ fn per_terrain(sets: &Sets, start: &SensorModel, model: &SensorModel, seed: u64)
     }
     rows
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::format::{empty_dem, DemCells};
+
+    /// The point: the gap compares distributions, so sim with the
+    /// right noise (other draws) beats noise-free sim, while the paired
+    /// equation 7.1 error prefers the noise-free one.
+    #[test]
+    fn the_right_noise_lowers_the_gap_but_raises_equation_7_1() {
+        let sim: Vec<Dem> = (0..400)
+            .map(|i| {
+                let mut d = empty_dem();
+                for r in 0..20 {
+                    for c in 0..5 {
+                        d.set_valid(r, c, if r > 8 + i % 7 { 0.1 } else { -0.07 });
+                    }
+                }
+                d
+            })
+            .collect();
+        let noise = SensorModel { effects: vec![Effect::Noise { sigma0: 0.004, k: 0.01 }] };
+        let (real, _) = measure(&noise, &sim, true, 1);
+        for paired in [true, false] {
+            let rs = stats::stats(&real, paired.then_some(&sim[..]));
+            let (plain, s0) = measure(&SensorModel::default(), &sim, paired, 2);
+            let (model, s1) = measure(&noise, &sim, paired, 2);
+            assert!(gap(&s1, &rs) < 0.05 * gap(&s0, &rs), "paired {paired}: {} vs {}", gap(&s1, &rs), gap(&s0, &rs));
+            let e = |p: &[Dem]| p.iter().zip(&real).map(|(p, y)| metric::dem_error(y, p)).sum::<f64>();
+            assert!(e(&model) > e(&plain));
+        }
+    }
+}
