@@ -201,3 +201,23 @@ fn bad_inputs_exit_2() {
     assert!(stderr(&o).contains("nope.npy"));
     assert!(!Path::new(&out).exists(), "no output folder on bad input");
 }
+
+#[test]
+fn the_same_seed_gives_the_same_report_on_any_thread_count() {
+    let dir = tempdir();
+    let (sim, _) = setup(dir.path());
+    let real = hide(dir.path(), &sim, "real.npy", &["dropout:p=0.1"]);
+    let mut outs = Vec::new();
+    for threads in ["1", "2"] {
+        let out = arg(dir.path(), &format!("t{threads}"));
+        let o = dem_testkit::run_cmd(
+            Command::new(dem_testkit::bin("dem-gap"))
+                .args(["--sim", &sim, "--real", &real, "--out", &out, "--seed", "4", "--max-steps", "2"])
+                .env("RAYON_NUM_THREADS", threads),
+            None,
+        );
+        ok(&o);
+        outs.push(["report.json", "sensor.json"].map(|f| std::fs::read(Path::new(&out).join(f)).unwrap()));
+    }
+    assert!(outs[0] == outs[1]);
+}
