@@ -5,3 +5,4 @@
 pub mod conv;
 pub mod dense;
 pub mod norm;
+pub mod winograd;

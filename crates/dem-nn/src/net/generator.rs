@@ -6,7 +6,8 @@
 //! the caller copies row 20 through. Shapes inside: `[n, 100, c]`.
 
 use super::params::{channels_first, Alloc, ConvLayer, DenseLayer, NormLayer};
-use crate::layers::conv::{self, ConvGeom};
+use crate::layers::conv::ConvGeom;
+use crate::layers::winograd::{self, WinoCache, WinoScratch};
 use crate::layers::dense;
 use crate::layers::norm::{self, Act, NormCache};
 use crate::weights::{GeneratorWeights, ResBlock};
@@ -36,8 +37,10 @@ pub struct Generator {
 #[derive(Debug, Default)]
 pub struct GenTape {
     n: usize,
-    /// Input of each conv, as im2col columns.
-    cols: Vec<Vec<f32>>,
+    /// Input of each conv, Winograd-transformed.
+    convs: Vec<WinoCache>,
+    /// Scratch of the Winograd products.
+    m: Vec<f32>,
     norms: Vec<NormCache>,
     /// Output of each norm + activation.
     zs: Vec<Vec<f32>>,
@@ -55,7 +58,7 @@ pub struct GenScratch {
     dh: Vec<f32>,
     dres: Vec<f32>,
     dfeat: Vec<f32>,
-    dcol: Vec<f32>,
+    wino: WinoScratch,
 }
 
 const ENC: usize = 0;
@@ -127,7 +130,7 @@ impl Generator {
 
     fn conv_fwd(&self, i: usize, p: &[f32], x: &[f32], t: &mut GenTape) {
         let l = &self.convs[i];
-        conv::forward(&l.g, &p[l.w.clone()], &p[l.b.clone()], x, &mut t.cols[i], &mut t.ys[i]);
+        winograd::forward(&l.g, &p[l.w.clone()], &p[l.b.clone()], x, &mut t.convs[i], &mut t.m, &mut t.ys[i]);
     }
 
     fn norm_fwd(&self, j: usize, conv: usize, p: &[f32], act: Act, t: &mut GenTape) {
@@ -141,7 +144,7 @@ impl Generator {
         let n = grid.len() / GRID;
         assert_eq!(att.len(), n * ATT, "attitude rows");
         t.n = n;
-        t.cols.resize_with(12, Vec::new);
+        t.convs.resize_with(12, WinoCache::default);
         t.ys.resize_with(12, Vec::new);
         t.zs.resize_with(11, Vec::new);
         t.norms.resize_with(11, NormCache::default);
@@ -251,7 +254,8 @@ impl Generator {
     ) {
         let l = &self.convs[i];
         let (gw, gb) = split2(grads, &l.w, &l.b);
-        conv::backward(&l.g, &p[l.w.clone()], &t.cols[i], dy, Some((gw, gb)), dx, &mut s.dcol);
+        let _ = p;
+        winograd::backward(&l.g, &t.convs[i], dy, Some((gw, gb)), dx, &mut s.wino);
     }
 
     fn norm_bwd(&self, j: usize, p: &[f32], t: &GenTape, act: Act, dz: &mut [f32], grads: &mut [f32]) {
