@@ -9,7 +9,7 @@ BIN := target/release
 OUT := out
 comma := ,
 
-.PHONY: all build venv test demo bench clean testdata
+.PHONY: all build venv venv-torch test demo bench clean testdata eval-ci eval-baseline thesis-table
 
 all: build
 
@@ -27,6 +27,25 @@ $(VENV)/.stamp: scripts/requirements.txt
 test: venv
 	DEM_PYTHON=$(abspath $(PY)) $(CARGO) test --workspace
 
+# PyTorch (CPU) for the training benchmark only: large, kept out of the tests.
+TORCH_VENV := .venv-torch
+venv-torch: $(TORCH_VENV)/.stamp
+$(TORCH_VENV)/.stamp:
+	$(PYTHON) -m venv $(TORCH_VENV)
+	$(TORCH_VENV)/bin/pip install -q --upgrade pip
+	$(TORCH_VENV)/bin/pip install -q torch --index-url https://download.pytorch.org/whl/cpu \
+	  || $(TORCH_VENV)/bin/pip install -q torch
+	touch $@
+
+# The validation error table against testdata/eval_baseline.csv (exit 1 when worse).
+eval-ci: build
+	BIN=$(BIN) OUT=$(OUT)/eval_ci bash scripts/eval_ci.sh
+eval-baseline: build
+	BIN=$(BIN) OUT=$(OUT)/eval_ci UPDATE_BASELINE=1 bash scripts/eval_ci.sh
+# The thesis's table 7.x on testdata: 6 rows and pictures (three trainings, ~10 min).
+thesis-table: build
+	BIN=$(BIN) OUT=$(OUT)/thesis bash scripts/thesis_table.sh
+
 clean:
 	rm -rf $(OUT) .bench
 
@@ -35,7 +54,12 @@ bench: build venv
 	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench_npy.sh
 	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench_synth.sh
 	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench_prep.sh
-	@echo "Reports: .bench/npy.txt .bench/synth.txt .bench/prep.txt"
+	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench_gap.sh
+	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench_apply.sh
+	$(MAKE) venv-torch
+	$(CARGO) build --release -p dem-nn --example step_speed
+	TORCH_PY=$(TORCH_VENV)/bin/python BIN=$(BIN) OUT=.bench bash scripts/bench_train.sh
+	@echo "Reports: .bench/npy.txt .bench/synth.txt .bench/prep.txt .bench/gap.txt .bench/apply.txt .bench/train.txt"
 
 # Records of testdata/real.npy (and the same poses in testdata/sim.npy) that
 # show the effects: a startup frame, flat ground, stairs up (approach, on
@@ -44,6 +68,8 @@ bench: build venv
 DEMO_RECORDS := 0,230,48,68,103,110,137,148,155,398,413,344
 STAGES := occlusion smoothing noise dropout fov
 TD := testdata
+# Epochs of the demo's G_Y (width 32, batch 64; ~15 s an epoch on 2 cores).
+DEMO_EPOCHS ?= 5
 
 demo: build venv
 	@mkdir -p $(OUT)/prep
@@ -78,14 +104,40 @@ demo: build venv
 	    $(OUT)/prep/real_filled.npy -o $(OUT)/prep/startup_filled.npy
 	$(BIN)/dem-render --compare $(OUT)/prep/startup.npy $(OUT)/prep/startup_filled.npy --row-labels measured,filled \
 	    --title "dem-fill-nans: the first frame of each run before and after" -o $(OUT)/startup_filled.png
+	@echo "== 4. train G_Y on the prepared data (Cycle GAN + pairs), export to ONNX, evaluate on the val split"
+	rm -rf $(OUT)/train
+	$(BIN)/dem-pair --by content --sim $(OUT)/prep/sim.npy --real $(OUT)/prep/real.npy \
+	    --sim-labels $(OUT)/prep/sim_labels.csv --k 3 --val-fraction 0.5 --seed 1 -o $(OUT)/prep/pairs_split.csv
+	$(BIN)/dem-train --sim $(OUT)/prep/sim.npy --real $(OUT)/prep/real.npy --pairs $(OUT)/prep/pairs_split.csv \
+	    --out $(OUT)/train --epochs $(DEMO_EPOCHS) --seed 1
+	$(BIN)/dem-train export $(OUT)/train -o $(OUT)/gy.onnx
+	$(BIN)/dem-eval --sim $(OUT)/prep/sim.npy --real $(OUT)/prep/real.npy --pairs $(OUT)/prep/pairs_split.csv \
+	    --split val --identity --format csv -o $(OUT)/train/identity.csv
+	$(BIN)/dem-eval --sim $(OUT)/prep/sim.npy --real $(OUT)/prep/real.npy --pairs $(OUT)/prep/pairs_split.csv \
+	    --split val --model $(OUT)/gy.onnx --name paired-data --format csv -o $(OUT)/train/model.csv \
+	    --emit-input $(OUT)/train/input.npy --emit-pred $(OUT)/train/pred.npy --emit-closest $(OUT)/train/closest.npy
+	awk 'NR == 1 || FNR > 1' $(OUT)/train/identity.csv $(OUT)/train/model.csv > $(OUT)/train/table.csv
+	$(BIN)/dem-apply --model $(OUT)/gy.onnx $(OUT)/train/input.npy -o $(OUT)/train/apply.npy
+	$(BIN)/dem-render --compare $(OUT)/train/input.npy $(OUT)/train/closest.npy $(OUT)/train/pred.npy \
+	    --row-labels input,closest-real,generated --error-rows 2,1 --start 0 --count 12 \
+	    --title "G_Y on val keys: sim input, closest real, generated (eq. 7.1 pair error under each)" -o $(OUT)/generated.png
+	column -s, -t < $(OUT)/train/table.csv
+	@echo "== 5. CI guard: the validation table of a tiny model against testdata/eval_baseline.csv"
+	BIN=$(BIN) OUT=$(OUT)/eval_ci bash scripts/eval_ci.sh
+	@echo "== 6. dem-gap: name the sim-to-real gap, emulator stages one at a time"
+	BIN=$(BIN) OUT=$(OUT) PY=$(PY) TD=$(TD) bash scripts/gap_demo.sh
 	@echo
 	@echo "Pictures:"
+	@echo "  $(OUT)/generated.png         G_Y: sim input, closest real, generated, pair error under each"
 	@echo "  $(OUT)/sim_vs_measured.png   sim and measured DEMs side by side (holes, shadows, smoothing, startup rows)"
 	@echo "  $(OUT)/effects.png           the same poses with each emulator stage switched off"
 	@echo "  $(OUT)/pallets_cleaned.png   sim pallets before and after dem-clean-pallet"
 	@echo "  $(OUT)/startup_filled.png    startup frames before and after dem-fill-nans"
 	@echo "Table: $(OUT)/effects.md (missing cells, residuals and Identity error per emulator stage)"
 	@echo "Data: $(OUT)/prep/ (sim keys, real, pairs.csv, cleaned and filled streams)"
+	@echo "Model: $(OUT)/gy.onnx (dem-apply --model $(OUT)/gy.onnx < sim.npy > realistic.npy); run: $(OUT)/train/"
+	@echo "Tables: $(OUT)/train/table.csv (Identity vs G_Y), $(OUT)/eval_ci/compare.txt (CI guard)"
+	@echo "Gap: $(OUT)/gap/summary.md (effects named per emulator stage), $(OUT)/gap/all/report.md (report with pictures)"
 
 # The committed test data set (see testdata/README.md).
 testdata: build

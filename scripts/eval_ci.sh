@@ -65,6 +65,7 @@ train_model() {
         echo "eval_ci: $BIN/dem-train is not built" >&2
         return 1
     fi
+    rm -rf "$run"  # a fresh run each time (dem-train refuses to overwrite one)
     # shellcheck disable=SC2086  # TRAIN_ARGS is a list of options
     "$BIN/dem-train" --sim "$sim" --real "$real" --pairs "$pairs" --out "$run" $TRAIN_ARGS >&2
     "$BIN/dem-train" export "$run" -o "$run/model.onnx" >&2
