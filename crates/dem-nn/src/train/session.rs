@@ -14,6 +14,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
+use dem_core::eval::Stats;
 use dem_core::{cli, metric, npy, Dem, DemError};
 
 use super::checkpoint::{self, Meta};
@@ -36,39 +37,19 @@ pub struct RunOptions {
     pub checkpoint_every: Option<u64>,
 }
 
-/// Pair-error table of a set of sims against their reals.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ValRow {
-    /// Sims evaluated.
-    pub count: usize,
-    /// Lowest pair error.
-    pub lowest: f64,
-    /// Highest.
-    pub highest: f64,
-    /// Mean.
-    pub mean: f64,
-    /// Median.
-    pub median: f64,
-}
-
-/// The pair error table of `preds[i]` (G_Y of key i) against `reals[i]`.
-pub fn pair_table(preds: &[Dem], reals: &[Vec<&Dem>]) -> Option<ValRow> {
-    let mut e: Vec<f64> = preds
+/// The pair error table of `preds[i]` (G_Y of key i) against `reals[i]`,
+/// summarised as dem-eval does.
+pub fn pair_table(preds: &[Dem], reals: &[Vec<&Dem>]) -> Option<Stats> {
+    let e: Vec<f64> = preds
         .iter()
         .zip(reals)
         .filter_map(|(p, ys)| metric::pair_error(ys.iter().copied(), p).map(|(_, e)| e))
         .collect();
-    if e.is_empty() {
-        return None;
-    }
-    e.sort_by(f64::total_cmp);
-    let n = e.len();
-    let median = if n % 2 == 1 { e[n / 2] } else { 0.5 * (e[n / 2 - 1] + e[n / 2]) };
-    Some(ValRow { count: n, lowest: e[0], highest: e[n - 1], mean: e.iter().sum::<f64>() / n as f64, median })
+    Stats::of(&e)
 }
 
 /// G_Y's validation table on the val split, if there is one.
-pub fn validate(gan: &CycleGan, data: &TrainData) -> Option<ValRow> {
+pub fn validate(gan: &CycleGan, data: &TrainData) -> Option<Stats> {
     if data.val.is_empty() {
         return None;
     }
@@ -151,7 +132,7 @@ fn fmt_losses(l: &Losses) -> String {
 }
 
 /// Train from `meta.step` to the end of the run; returns the last table.
-pub fn run(gan: &mut CycleGan, data: &TrainData, sampler: Sampler, mut meta: Meta, opts: &RunOptions) -> Result<Option<ValRow>> {
+pub fn run(gan: &mut CycleGan, data: &TrainData, sampler: Sampler, mut meta: Meta, opts: &RunOptions) -> Result<Option<Stats>> {
     let spe = meta.steps_per_epoch;
     let total = (opts.epochs * spe).min(opts.max_steps.unwrap_or(u64::MAX));
     let mut losses = append(&path(&opts.dir, "losses.csv"), "step,epoch,gan,cycle,pair_y,pair_x,generator,disc")?;
