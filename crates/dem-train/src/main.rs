@@ -163,39 +163,56 @@ fn train(a: TrainArgs) -> anyhow::Result<()> {
         None => Vec::new(),
     };
     let sensor = a.sensor.as_deref().map(SensorModel::read).transpose()?;
+    let sensor_json = sensor.as_ref().map(|m| serde_json::from_str::<serde_json::Value>(&m.to_json()).expect("json"));
+    // A resumed run keeps its settings (and its seed, which the sensor draw uses).
+    let resumed = if a.resume {
+        let (meta, gan) = session::resume(&opts)?;
+        check_same(&a, &meta)?;
+        if sensor_json != meta.sensor {
+            return Err(cli::usage(format!(
+                "--resume: {dir} was trained {} a sensor model; give the same --sensor again",
+                if meta.sensor.is_some() { "with" } else { "without" }
+            )));
+        }
+        Some((meta, gan))
+    } else {
+        None
+    };
+    let seed = resumed.as_ref().map_or(a.seed.unwrap_or(0), |(m, _)| m.seed);
     if let Some(m) = &sensor {
         // One fixed draw per sim record, so every epoch sees the same inputs
         // (the residual the network learns is then a function of the input).
-        m.apply_all(&mut sim, a.seed.unwrap_or(0), 0);
+        m.apply_all(&mut sim, seed, 0);
         cli::log(format!("applied sensor model {} to {} sims: {}", a.sensor.as_deref().unwrap_or(""), sim.len(), m.summary()));
     }
     let data = TrainData::new(sim, real, &pairs, [&sim_path, &real_path, a.pairs.as_deref().unwrap_or("-")])?;
-    let (meta, mut gan) = if a.resume {
-        let (meta, gan) = session::resume(&opts)?;
-        check_same(&a, &meta)?;
-        if meta.steps_per_epoch != data.steps_per_epoch(meta.batch) {
-            return Err(cli::usage(format!(
-                "--resume: {dir} was trained on data with {} steps per epoch, these inputs give {}",
-                meta.steps_per_epoch,
-                data.steps_per_epoch(meta.batch)
-            )));
+    let (meta, mut gan) = match resumed {
+        Some((meta, gan)) => {
+            if meta.steps_per_epoch != data.steps_per_epoch(meta.batch) {
+                return Err(cli::usage(format!(
+                    "--resume: {dir} was trained on data with {} steps per epoch, these inputs give {}",
+                    meta.steps_per_epoch,
+                    data.steps_per_epoch(meta.batch)
+                )));
+            }
+            cli::log(format!("resuming {dir} at step {}", meta.step));
+            (meta, gan)
         }
-        cli::log(format!("resuming {dir} at step {}", meta.step));
-        (meta, gan)
-    } else {
-        let config = GanConfig {
-            width: a.width.unwrap_or(32),
-            adam: AdamConfig { lr: a.lr.unwrap_or(2e-4), ..AdamConfig::default() },
-            lambda_cyc: a.lambda_cyc.unwrap_or(10.0),
-            lambda_pair: a.lambda_pair.unwrap_or(10.0),
-        };
-        let seed = a.seed.unwrap_or(0);
-        let batch = a.batch.unwrap_or(64);
-        let gan = CycleGan::new(config, seed);
-        session::start(&opts, &data)?;
-        let mut meta = checkpoint::meta(&gan, seed, batch, a.paired_fraction.unwrap_or(0.5), 0, data.steps_per_epoch(batch));
-        meta.sensor = sensor.as_ref().map(|m| serde_json::from_str(&m.to_json()).expect("json"));
-        (meta, gan)
+        None => {
+            let config = GanConfig {
+                width: a.width.unwrap_or(32),
+                adam: AdamConfig { lr: a.lr.unwrap_or(2e-4), ..AdamConfig::default() },
+                lambda_cyc: a.lambda_cyc.unwrap_or(10.0),
+                lambda_pair: a.lambda_pair.unwrap_or(10.0),
+            };
+            let batch = a.batch.unwrap_or(64);
+            let gan = CycleGan::new(config, seed);
+            session::start(&opts, &data)?;
+            let pf = a.paired_fraction.unwrap_or(0.5);
+            let mut meta = checkpoint::meta(&gan, seed, batch, pf, 0, data.steps_per_epoch(batch));
+            meta.sensor = sensor_json;
+            (meta, gan)
+        }
     };
     let sampler = Sampler { seed: meta.seed, batch: meta.batch, paired_fraction: meta.paired_fraction };
     cli::log(format!(

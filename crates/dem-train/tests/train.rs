@@ -165,3 +165,24 @@ fn bad_inputs_are_refused_clearly() {
     let out = run("dem-train", &["--sim", &sim, "--real", &real], None);
     assert_eq!(out.status.code(), Some(2));
 }
+
+#[test]
+fn a_sensor_model_is_applied_first_and_must_be_given_again_on_resume() {
+    let d = tempdir();
+    let r = arg(d.path(), "run");
+    let sensor = arg(d.path(), "sensor.json");
+    std::fs::write(&sensor, r#"{"effects": [{"effect": "dropout", "params": {"p": 0.1}}]}"#).unwrap();
+    let out = train(d.path(), &r, &["--max-steps", "4", "--sensor", &sensor, "--seed", "2"]);
+    ok(&out);
+    assert!(stderr(&out).contains("applied sensor model"), "{}", stderr(&out));
+    // The check records are the sims as the sensor model left them.
+    let check = npy::read_all(&arg(Path::new(&r), "check_sim.npy")).unwrap();
+    let missing = check.iter().flat_map(|d| d[..200].chunks(2).map(|c| c[1] < 0.0)).filter(|m| *m).count();
+    assert!(missing > 0, "dropout left no missing cell in the check records");
+    let (meta, _) = checkpoint::load(&arg(Path::new(&r), "checkpoint.bin")).unwrap();
+    assert!(meta.sensor.is_some());
+    let out = train(d.path(), &r, &["--max-steps", "6", "--resume"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("give the same --sensor"), "{}", stderr(&out));
+    ok(&train(d.path(), &r, &["--max-steps", "6", "--resume", "--sensor", &sensor]));
+}
