@@ -3,7 +3,8 @@
 //!
 //! - [`weights`]: the parameters, in PyTorch's layout (checkpoints, export).
 //! - [`reference`]: a slow f64 forward pass the fast code is tested against.
-//! - [`layers`]: conv (im2col + GEMM), instance norm + activation, dense.
+//! - [`layers`]: Winograd 3x3 conv, im2col conv over GEMM, instance norm +
+//!   activation, dense.
 //! - [`net`]: generator and discriminator on batches, forward and backward.
 //! - [`train`]: losses, Adam and the Cycle GAN step.
 //! - [`gemm`]: the one bounds-checked wrapper over the GEMM kernel.

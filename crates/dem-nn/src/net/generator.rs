@@ -211,11 +211,11 @@ impl Generator {
         }
         let mut dh = std::mem::take(&mut s.dh);
         let mut next = Vec::new();
-        self.conv_bwd(DEC + 2, p, t, &dh, grads, Some(&mut next), s);
+        self.conv_bwd(DEC + 2, t, &dh, grads, Some(&mut next), s);
         std::mem::swap(&mut dh, &mut next);
         for j in [DEC + 1, DEC] {
             self.norm_bwd(j, p, t, Act::Leaky, &mut dh, grads);
-            self.conv_bwd(j, p, t, &dh, grads, Some(&mut next), s);
+            self.conv_bwd(j, t, &dh, grads, Some(&mut next), s);
             std::mem::swap(&mut dh, &mut next);
         }
         for b in (0..3).rev() {
@@ -224,16 +224,16 @@ impl Generator {
             branch.clear();
             branch.extend_from_slice(&dh);
             self.norm_bwd(cb, p, t, Act::None, &mut branch, grads);
-            self.conv_bwd(cb, p, t, &branch, grads, Some(&mut next), s);
+            self.conv_bwd(cb, t, &branch, grads, Some(&mut next), s);
             self.norm_bwd(ca, p, t, Act::Relu, &mut next, grads);
-            self.conv_bwd(ca, p, t, &next, grads, Some(&mut branch), s);
+            self.conv_bwd(ca, t, &next, grads, Some(&mut branch), s);
             dh.iter_mut().zip(&branch).for_each(|(a, b)| *a += b);
             s.dres = branch;
         }
         for j in (0..3).rev() {
             self.norm_bwd(j, p, t, Act::Leaky, &mut dh, grads);
             let wants = j > 0 || want_input;
-            self.conv_bwd(j, p, t, &dh, grads, wants.then_some(&mut next), s);
+            self.conv_bwd(j, t, &dh, grads, wants.then_some(&mut next), s);
             std::mem::swap(&mut dh, &mut next);
         }
         let out = want_input.then(|| dh.clone());
@@ -241,20 +241,11 @@ impl Generator {
         out
     }
 
-    #[allow(clippy::too_many_arguments)]
-    fn conv_bwd(
-        &self,
-        i: usize,
-        p: &[f32],
-        t: &GenTape,
-        dy: &[f32],
-        grads: &mut [f32],
-        dx: Option<&mut Vec<f32>>,
-        s: &mut GenScratch,
-    ) {
+    /// Conv `i`'s backward; the weights it needs were transformed and kept
+    /// by the forward pass (in the tape).
+    fn conv_bwd(&self, i: usize, t: &GenTape, dy: &[f32], grads: &mut [f32], dx: Option<&mut Vec<f32>>, s: &mut GenScratch) {
         let l = &self.convs[i];
         let (gw, gb) = split2(grads, &l.w, &l.b);
-        let _ = p;
         winograd::backward(&l.g, &t.convs[i], dy, Some((gw, gb)), dx, &mut s.wino);
     }
 
