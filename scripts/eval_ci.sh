@@ -2,7 +2,8 @@
 # The CI guard of the validation error table (issue 6):
 #   prepare testdata/ (dem-filter, dem-pair with a val split)
 #   -> train a tiny generator and export it (dem-train; skipped until it is built)
-#   -> dem-eval on the val split, one CSV row per method
+#   -> dem-eval on the val split, one CSV row per method (pair error, height
+#      error, roughness, gap: docs/dem-eval.md)
 #   -> dem-eval compare testdata/eval_baseline.csv against it (exit 1 when worse).
 #
 # Environment (all optional):
@@ -11,6 +12,9 @@
 #   TD=testdata               the data set
 #   BASELINE=testdata/eval_baseline.csv
 #   TOLERANCE=0.02            absolute growth of mean or median allowed
+#   HEIGHT_TOLERANCE, ROUGH_TOLERANCE, GAP_TOLERANCE
+#                             growth of height_cm, |rough - real_rough| (cm) and
+#                             gap allowed [dem-eval compare's defaults]
 #   MODEL=path.onnx           evaluate this model as the `tiny` row instead of training one
 #   TRAIN_ARGS="..."          dem-train options of the tiny model (see below)
 #   UPDATE_BASELINE=1         write BASELINE from this run instead of comparing
@@ -101,7 +105,9 @@ eval_ci_main() {
         cat "$baseline" >&2
         return 0
     fi
-    "$BIN/dem-eval" compare "$baseline" "$OUT/table.csv" --tolerance "${TOLERANCE:-0.02}" | tee "$OUT/compare.txt"
+    "$BIN/dem-eval" compare "$baseline" "$OUT/table.csv" --tolerance "${TOLERANCE:-0.02}" \
+        ${HEIGHT_TOLERANCE:+--height-tolerance "$HEIGHT_TOLERANCE"} ${ROUGH_TOLERANCE:+--rough-tolerance "$ROUGH_TOLERANCE"} \
+        ${GAP_TOLERANCE:+--gap-tolerance "$GAP_TOLERANCE"} | tee "$OUT/compare.txt"
 }
 
 if [[ "${BASH_SOURCE[0]}" == "$0" ]]; then

@@ -50,7 +50,7 @@ pub struct EvalArgs {
     /// Table output (`-` for stdout).
     #[arg(short, long, default_value = "-")]
     output: String,
-    /// Write per-record results here: sim_index,real_index (the best pair),error,terrain.
+    /// Write per-record results here: sim_index,real_index (the best pair),error,terrain,height_cm.
     #[arg(long, value_name = "FILE")]
     records: Option<String>,
     /// Write the sim record of each evaluated record (the --records rows, in order) to this NPY.
@@ -115,7 +115,7 @@ pub fn run(a: EvalArgs) -> anyhow::Result<()> {
         keep: a.emit_input.is_some() || a.emit_pred.is_some() || a.emit_closest.is_some(),
     };
     let ev = inputs::run(&q)?;
-    let rows = eval::table(a.name.as_deref().unwrap_or(&name), &ev.results, a.by.is_some());
+    let rows = eval::table_with(a.name.as_deref().unwrap_or(&name), &ev.results, a.by.is_some(), |g| ev.gap(g));
     if let Some(path) = &a.records {
         report::write_records(path, &ev.results)?;
     }

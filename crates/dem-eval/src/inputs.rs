@@ -5,6 +5,7 @@
 use std::collections::{BTreeSet, HashMap};
 
 use dem_core::eval::{self, RecordResult, Selection};
+use dem_core::gap::stats;
 use dem_core::npy::{self, CHUNK_RECORDS};
 use dem_core::table::{self, Pair, Split};
 use dem_core::{cli, Dem, DemError, Terrain};
@@ -42,6 +43,12 @@ pub struct Request {
 /// The outcome: one result per selected sim record, in index order, and,
 /// when asked for, the records behind each result in the same order.
 pub struct Evaluation {
+    /// The selection evaluated: each sim record's real partners.
+    sel: Selection,
+    /// Prediction of each selected sim record.
+    pred_of: HashMap<u64, Dem>,
+    /// Each real record paired in the selection.
+    real_of: HashMap<u64, Dem>,
     /// Pair error, best real record and terrain of each selected sim record.
     pub results: Vec<RecordResult>,
     /// The sim records (empty unless `keep`).
@@ -145,6 +152,22 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
         }
         results.iter().map(|r| m[&if real { r.real_index } else { r.sim_index }]).collect()
     };
-    let (input, pred, closest) = (gather(&sim, false), gather(&pred, false), gather(&real, true));
-    Ok(Evaluation { results, input, pred, closest })
+    let (input, pred_kept, closest) = (gather(&sim, false), gather(&pred, false), gather(&real, true));
+    Ok(Evaluation { sel, pred_of: pred, real_of: real, results, input, pred: pred_kept, closest })
+}
+
+impl Evaluation {
+    /// The distribution gap (dem-gap's measure, unpaired) of the predictions
+    /// of `group` against its real set: the unique real records paired with
+    /// its sim records in the evaluated pairs (not only the closest ones),
+    /// in index order. None for an empty group.
+    pub fn gap(&self, group: &[&RecordResult]) -> Option<f64> {
+        if group.is_empty() {
+            return None;
+        }
+        let preds: Vec<Dem> = group.iter().map(|r| self.pred_of[&r.sim_index]).collect();
+        let reals: BTreeSet<u64> = group.iter().flat_map(|r| self.sel[&r.sim_index].iter().copied()).collect();
+        let reals: Vec<Dem> = reals.iter().map(|j| self.real_of[j]).collect();
+        Some(stats::gap(&stats::stats(&preds, None), &stats::stats(&reals, None)))
+    }
 }

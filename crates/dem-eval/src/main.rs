@@ -10,13 +10,18 @@ mod report;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
-use dem_core::cli;
+use dem_core::{cli, eval};
 use report::Format;
 
 /// Score predictions of real DEMs for the sim records of a pairs CSV: each
 /// sim record's pair error is the smallest equation 7.1 error of its
 /// prediction against the real records paired with it (raw predicted mask,
-/// no threshold). Prints the table: count, lowest, highest, mean and median.
+/// no threshold). Prints the table: count, lowest, highest, mean and median,
+/// and the measures that see heights: height_cm (mean abs height error
+/// against the closest real record, cells valid in both), the roughness
+/// across and along of the predictions and of the closest real records
+/// (mean abs difference of neighbouring valid cells, cm), and gap (dem-gap's
+/// distribution gap of the predictions against the paired real records).
 ///
 /// The prediction is the sim record itself (--identity), record i of a file
 /// made by another tool (--pred), or an ONNX generator run on the selected
@@ -30,7 +35,7 @@ use report::Format;
   dem-eval ... --identity --records r.csv --emit-input in.npy --emit-closest real.npy && \\
       dem-render --compare in.npy real.npy --row-labels input,closest --error-rows 2,1 -o fig.png
   cat identity.csv model.csv > table.csv      # CSV tables join with cat
-  dem-eval compare testdata/eval_baseline.csv table.csv --tolerance 0.02 || echo regression")]
+  dem-eval compare testdata/eval_baseline.csv table.csv --tolerance 0.02 --height-tolerance 0.5 || echo regression")]
 struct Args {
     #[command(subcommand)]
     cmd: Option<Cmd>,
@@ -44,21 +49,39 @@ enum Cmd {
     ///
     /// Rows match by (method, terrain). A row is worse when CURRENT's mean or
     /// median pair error exceeds BASELINE's by more than --tolerance, an
-    /// absolute difference in equation 7.1 units; a baseline row missing
-    /// from CURRENT fails too. Prints both tables side by side with the
-    /// differences (current minus baseline). Exit 0: no row worse; 1: some
-    /// row worse or missing; 2: a file is not a table (CSV or JSON of dem-eval).
+    /// absolute difference in equation 7.1 units; when height_cm grows by
+    /// more than --height-tolerance (cm); when the roughness's distance from
+    /// the real one, |rough - real_rough| across or along, grows by more than
+    /// --rough-tolerance (cm); or when gap grows by more than
+    /// --gap-tolerance. A measure the baseline lacks (an older table) is not
+    /// checked; one CURRENT lacks (no valid cells left) fails. A baseline row
+    /// missing from CURRENT fails too. Prints both tables side by side with
+    /// the differences (current minus baseline) and the measures that
+    /// failed. Exit 0: no row worse; 1: some row worse or missing (stderr
+    /// names the rows and measures); 2: a file is not a table (CSV or JSON
+    /// of dem-eval).
     #[command(after_long_help = "Examples:
-  dem-eval compare testdata/eval_baseline.csv out/eval/table.csv
-  dem-eval compare base.json current.json --tolerance 0.05 --format md >> $GITHUB_STEP_SUMMARY")]
+  dem-eval compare testdata/eval_baseline.csv out/eval_ci/table.csv
+  dem-eval compare base.json current.json --tolerance 0.05 --format md >> $GITHUB_STEP_SUMMARY
+  dem-eval compare base.csv current.csv --height-tolerance 0.2 --rough-tolerance 0.2 --gap-tolerance 1
+  dem-eval compare old_7_column_table.csv current.csv   # only mean and median are checked")]
     Compare {
         /// Baseline table (CSV or JSON written by dem-eval).
         baseline: String,
         /// Current table (CSV or JSON written by dem-eval).
         current: String,
-        /// Largest allowed growth of the mean and of the median (absolute).
+        /// Largest allowed growth of the mean and of the median pair error (absolute).
         #[arg(long, default_value_t = 0.02)]
         tolerance: f64,
+        /// Largest allowed growth of height_cm (cm).
+        #[arg(long, default_value_t = 0.5)]
+        height_tolerance: f64,
+        /// Largest allowed growth of |rough - real_rough|, across or along (cm).
+        #[arg(long, default_value_t = 0.5)]
+        rough_tolerance: f64,
+        /// Largest allowed growth of the gap.
+        #[arg(long, default_value_t = eval::DEFAULT_GAP_TOLERANCE)]
+        gap_tolerance: f64,
         /// Output format.
         #[arg(long, value_enum, default_value = "text")]
         format: Format,
@@ -69,7 +92,10 @@ fn main() -> ExitCode {
     cli::run(|| {
         let a = Args::parse();
         match a.cmd {
-            Some(Cmd::Compare { baseline, current, tolerance, format }) => compare::run(&baseline, &current, tolerance, format),
+            Some(Cmd::Compare { baseline, current, tolerance, height_tolerance, rough_tolerance, gap_tolerance, format }) => {
+                let tol = eval::Tolerances { pair: tolerance, height_cm: height_tolerance, rough_cm: rough_tolerance, gap: gap_tolerance };
+                compare::run(&baseline, &current, &tol, format)
+            }
             None => evaluate::run(a.eval),
         }
     })

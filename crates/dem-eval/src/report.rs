@@ -1,11 +1,13 @@
 //! The tables dem-eval prints: a validation table, or a comparison of two,
 //! as aligned text, CSV, JSON or Markdown. CSV and JSON carry every digit
-//! (f64 shortest round trip), text and Markdown four decimals.
+//! (f64 shortest round trip); text and Markdown four decimals for the pair
+//! error, two for centimetres and three for the gap, `-` for a measure a
+//! row lacks.
 
 use std::io::Write;
 
 use clap::ValueEnum;
-use dem_core::eval::{Compared, RecordResult, Status, TableRow, TABLE_HEADER};
+use dem_core::eval::{Compared, Measure, RecordResult, Status, TableRow, TABLE_HEADER};
 use dem_core::output::AtomicOutput;
 use dem_core::DemError;
 use serde::Serialize;
@@ -13,13 +15,13 @@ use serde::Serialize;
 /// Output format of a table.
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum Format {
-    /// Aligned columns for people (four decimals).
+    /// Aligned columns for people (pair error four decimals, cm two, gap three).
     Text,
     /// CSV, every digit: the machine-readable table `compare` reads.
     Csv,
     /// A JSON array of rows, every digit (`compare` reads it too).
     Json,
-    /// A Markdown table (four decimals).
+    /// A Markdown table (as text).
     Md,
 }
 
@@ -112,6 +114,35 @@ fn signed(v: f64, f: Format) -> String {
     }
 }
 
+/// A measure that may be absent, with `decimals` for people (`-` when absent;
+/// an empty CSV field).
+fn opt(v: Option<f64>, decimals: usize, sign: bool, f: Format) -> String {
+    match (v, f) {
+        (None, Format::Csv) => String::new(),
+        (None, _) => "-".into(),
+        (Some(v), Format::Csv | Format::Json) => format!("{v}"),
+        (Some(v), _) if sign => format!("{v:+.decimals$}"),
+        (Some(v), _) => format!("{v:.decimals$}"),
+    }
+}
+
+/// The height measures of a row, in [`TABLE_HEADER`] order.
+fn measures(r: &TableRow, f: Format) -> Vec<String> {
+    let cm = [r.height_cm, r.rough_across_cm, r.rough_along_cm, r.real_rough_across_cm, r.real_rough_along_cm];
+    let mut v: Vec<String> = cm.iter().map(|&x| opt(x, 2, false, f)).collect();
+    v.push(opt(r.gap, 3, false, f));
+    v
+}
+
+/// Decimals of measure `m` for people.
+fn decimals(m: Measure) -> usize {
+    match m {
+        Measure::Mean | Measure::Median => 4,
+        Measure::HeightCm | Measure::RoughAcross | Measure::RoughAlong => 2,
+        Measure::Gap => 3,
+    }
+}
+
 /// Write `body` to `path` (`-` for stdout), atomically for files.
 fn emit(path: &str, body: impl FnOnce(&mut AtomicOutput) -> std::io::Result<()>) -> anyhow::Result<()> {
     let mut out = AtomicOutput::create(path)?;
@@ -135,6 +166,7 @@ pub fn write_table(path: &str, rows: &[TableRow], f: Format) -> anyhow::Result<(
             .map(|r| {
                 let mut v = vec![r.method.clone(), r.terrain.clone(), r.count.to_string()];
                 v.extend([r.lowest, r.highest, r.mean, r.median].map(|x| num(x, f)));
+                v.extend(measures(r, f));
                 v
             })
             .collect();
@@ -152,6 +184,14 @@ struct ComparedJson<'a> {
     current: Option<&'a TableRow>,
     diff_mean: Option<f64>,
     diff_median: Option<f64>,
+    diff_height_cm: Option<f64>,
+    /// Growth of |rough_across_cm - real_rough_across_cm|.
+    diff_rough_across: Option<f64>,
+    /// Growth of |rough_along_cm - real_rough_along_cm|.
+    diff_rough_along: Option<f64>,
+    diff_gap: Option<f64>,
+    /// The measures that made the row worse.
+    worse: &'a [Measure],
 }
 
 fn status_str(s: Status) -> &'static str {
@@ -164,9 +204,10 @@ fn status_str(s: Status) -> &'static str {
 }
 
 /// Write a comparison: baseline and current side by side, the differences
-/// of mean and median (current minus baseline) and the verdict of each row.
+/// (current minus baseline) of every measure compare checks (for roughness:
+/// of its distance from the real roughness, |rough - real_rough|), the
+/// verdict of each row and the measures that failed.
 pub fn write_comparison(path: &str, rows: &[Compared], f: Format) -> anyhow::Result<()> {
-    let diff = |c: &Compared, g: fn(&TableRow) -> f64| Some(g(c.current.as_ref()?) - g(c.baseline.as_ref()?));
     emit(path, |w| {
         if f == Format::Json {
             let js: Vec<ComparedJson> = rows
@@ -177,8 +218,13 @@ pub fn write_comparison(path: &str, rows: &[Compared], f: Format) -> anyhow::Res
                     status: c.status,
                     baseline: c.baseline.as_ref(),
                     current: c.current.as_ref(),
-                    diff_mean: diff(c, |r| r.mean),
-                    diff_median: diff(c, |r| r.median),
+                    diff_mean: c.diff(Measure::Mean),
+                    diff_median: c.diff(Measure::Median),
+                    diff_height_cm: c.diff(Measure::HeightCm),
+                    diff_rough_across: c.diff(Measure::RoughAcross),
+                    diff_rough_along: c.diff(Measure::RoughAlong),
+                    diff_gap: c.diff(Measure::Gap),
+                    worse: &c.worse,
                 })
                 .collect();
             serde_json::to_writer_pretty(&mut *w, &js).map_err(std::io::Error::other)?;
@@ -186,26 +232,32 @@ pub fn write_comparison(path: &str, rows: &[Compared], f: Format) -> anyhow::Res
         }
         let mut cols = vec![("", "method"), ("", "terrain")];
         for g in ["baseline", "current"] {
-            cols.extend(["count", "lowest", "highest", "mean", "median"].map(|c| (g, c)));
+            cols.extend(TABLE_HEADER[2..].iter().map(|&c| (g, c)));
         }
-        cols.extend([("diff", "mean"), ("diff", "median"), ("", "status")]);
+        cols.extend(Measure::ALL.map(|m| ("diff", m.name())));
+        cols.extend([("", "status"), ("", "worse")]);
         let side = |r: Option<&TableRow>| match r {
             Some(r) => {
                 let mut v = vec![r.count.to_string()];
                 v.extend([r.lowest, r.highest, r.mean, r.median].map(|x| num(x, f)));
+                v.extend(measures(r, f));
                 v
             }
-            None => vec![if f == Format::Csv { String::new() } else { "-".into() }; 5],
+            None => vec![if f == Format::Csv { String::new() } else { "-".into() }; TABLE_HEADER.len() - 2],
         };
-        let opt = |v: Option<f64>| v.map_or_else(|| if f == Format::Csv { String::new() } else { "-".into() }, |v| signed(v, f));
         let grid_rows = rows
             .iter()
             .map(|c| {
                 let mut v = vec![c.method.clone(), c.terrain.clone()];
                 v.extend(side(c.baseline.as_ref()));
                 v.extend(side(c.current.as_ref()));
-                v.extend([opt(diff(c, |r| r.mean)), opt(diff(c, |r| r.median))]);
+                v.extend(Measure::ALL.map(|m| match c.diff(m) {
+                    Some(d) if decimals(m) == 4 => signed(d, f),
+                    d => opt(d, decimals(m), true, f),
+                }));
                 v.push(if f == Format::Csv { format!("{:?}", c.status).to_lowercase() } else { status_str(c.status).into() });
+                // `;` keeps the CSV field unquoted.
+                v.push(c.worse.iter().map(|m| m.name()).collect::<Vec<_>>().join(if f == Format::Csv { ";" } else { "," }));
                 v
             })
             .collect();
@@ -213,14 +265,17 @@ pub fn write_comparison(path: &str, rows: &[Compared], f: Format) -> anyhow::Res
     })
 }
 
-/// Write per-record results as CSV, `sim_index,real_index,error,terrain`
-/// (terrain empty without labels). By hand rather than through
-/// `table::write_rows`, so a closed stdout stays a broken pipe (exit 0).
+/// Write per-record results as CSV, `sim_index,real_index,error,terrain,height_cm`
+/// (terrain empty without labels; height_cm, the mean abs height error
+/// against that real record on cells valid in both, empty without such
+/// cells). By hand rather than through `table::write_rows`, so a closed
+/// stdout stays a broken pipe (exit 0).
 pub fn write_records(path: &str, rows: &[RecordResult]) -> anyhow::Result<()> {
     emit(path, |w| {
-        writeln!(w, "sim_index,real_index,error,terrain")?;
+        writeln!(w, "sim_index,real_index,error,terrain,height_cm")?;
         for r in rows {
-            writeln!(w, "{},{},{},{}", r.sim_index, r.real_index, r.error, r.terrain.as_deref().unwrap_or(""))?;
+            let h = r.height.mean_cm().map_or(String::new(), |h| h.to_string());
+            writeln!(w, "{},{},{},{},{h}", r.sim_index, r.real_index, r.error, r.terrain.as_deref().unwrap_or(""))?;
         }
         Ok(())
     })

@@ -1,8 +1,10 @@
-//! dem-eval against a numpy implementation of the spec's pair error, on the
-//! bundled data and on hand-made edge cases; `compare` exit codes.
+//! dem-eval against a numpy implementation of the spec's pair error and of
+//! the height measures (height error, roughness), on the bundled data and on
+//! hand-made edge cases; the gap against dem-core's; `compare` exit codes.
 
 use std::path::Path;
 
+use dem_core::gap::stats;
 use dem_core::metric::dem_error;
 use dem_core::{npy, table};
 use dem_testkit::{arg, ok, py, run, stderr, tempdir, testdata};
@@ -26,19 +28,37 @@ def evaluate(pred, real, pairs, split, terrain):
         if split is None or sp == split:
             sel.setdefault(s, [])
             if r not in sel[s]: sel[s].append(r)
-    recs = []
+    recs, meas = [], []
     for s in sorted(sel):
         errs = [e(real[r], pred[s]) for r in sel[s]]
         i = int(np.argmin(errs))
-        recs.append((s, sel[s][i], errs[i], terrain[s] if terrain else ""))
-    def row(t, es):
-        es = np.array(es)
-        return dict(terrain=t, count=len(es), lowest=es.min(), highest=es.max(), mean=es.mean(), median=np.median(es))
-    rows = [row("all", [r[2] for r in recs])]
+        h, rp, ry = heights(pred[s], real[sel[s][i]])
+        recs.append((s, sel[s][i], errs[i], terrain[s] if terrain else "", float(h.mean() * 100) if h.size else None))
+        meas.append((h,) + rp + ry)
+    def cm(parts):
+        v = np.concatenate(parts)
+        return float(v.mean() * 100) if v.size else None
+    def row(t, idx):
+        es = np.array([recs[k][2] for k in idx])
+        r = dict(terrain=t, count=len(es), lowest=es.min(), highest=es.max(), mean=es.mean(), median=np.median(es))
+        for j, name in enumerate(MEASURES):
+            r[name] = cm([meas[k][j] for k in idx])
+        return r
+    rows = [row("all", range(len(recs)))]
     for t in ["flat", "stairs-up", "stairs-down", "pallet", "other"]:
-        es = [r[2] for r in recs if r[3] == t]
-        if es: rows.append(row(t, es))
+        idx = [k for k, r in enumerate(recs) if r[3] == t]
+        if idx: rows.append(row(t, idx))
     return recs, rows
+MEASURES = ["height_cm", "rough_across_cm", "rough_along_cm", "real_rough_across_cm", "real_rough_along_cm"]
+def rough(d):
+    v = d[..., 1] > 0
+    h = d[..., 0]
+    return np.abs(np.diff(h, axis=1))[v[:, :-1] & v[:, 1:]], np.abs(np.diff(h, axis=0))[v[:-1] & v[1:]]
+def heights(p, y):
+    """abs height differences on cells valid in both; roughness of p and y (rows 0..19)."""
+    p = p[:20].astype(np.float64); y = y[:20].astype(np.float64)
+    both = (p[..., 1] > 0) & (y[..., 1] > 0)
+    return np.abs(p[..., 0] - y[..., 0])[both], rough(p), rough(y)
 "#;
 
 /// Relative 1e-6 (absolute 1e-12 near zero): the f64 sums differ only in
@@ -46,6 +66,10 @@ def evaluate(pred, real, pairs, split, terrain):
 fn close(a: f64, b: f64) -> bool {
     (a - b).abs() <= 1e-6 * a.abs().max(b.abs()) + 1e-12
 }
+
+/// The height measures: numpy sums f64 differences of the same f32
+/// heights, so they agree to rounding; null (no cells) on both sides alike.
+const MEASURES: [&str; 5] = ["height_cm", "rough_across_cm", "rough_along_cm", "real_rough_across_cm", "real_rough_along_cm"];
 
 fn check_rows(got: &Value, want: &Value) {
     let (g, w) = (got.as_array().unwrap(), want.as_array().unwrap());
@@ -56,6 +80,12 @@ fn check_rows(got: &Value, want: &Value) {
         for k in ["lowest", "highest", "mean", "median"] {
             let (a, b) = (g[k].as_f64().unwrap(), w[k].as_f64().unwrap());
             assert!(close(a, b), "{} {k}: dem-eval {a}, numpy {b}", w["terrain"]);
+        }
+        for k in MEASURES {
+            match (g[k].as_f64(), w[k].as_f64()) {
+                (Some(a), Some(b)) => assert!(close(a, b), "{} {k}: dem-eval {a}, numpy {b}", w["terrain"]),
+                (a, b) => assert_eq!((a, b), (None, None), "{} {k}", w["terrain"]),
+            }
         }
     }
 }
@@ -127,7 +157,7 @@ print(json.dumps(out))
         // Per-record results: same best real record, same error, terrain.
         let text = std::fs::read_to_string(&rec).unwrap();
         let lines: Vec<&str> = text.lines().collect();
-        assert_eq!(lines[0], "sim_index,real_index,error,terrain");
+        assert_eq!(lines[0], "sim_index,real_index,error,terrain,height_cm");
         let recs = want[method]["records"].as_array().unwrap();
         assert_eq!(lines.len() - 1, recs.len());
         for (line, w) in lines[1..].iter().zip(recs) {
@@ -136,7 +166,13 @@ print(json.dumps(out))
             assert_eq!(f[1].parse::<u64>().unwrap(), w[1].as_u64().unwrap(), "{line}");
             assert!(close(f[2].parse().unwrap(), w[2].as_f64().unwrap()), "{line} vs {w}");
             assert_eq!(f[3], w[3].as_str().unwrap());
+            match w[4].as_f64() {
+                Some(h) => assert!(close(f[4].parse().unwrap(), h), "{line} vs {w}"),
+                None => assert_eq!(f[4], "", "{line}: no cell valid in both"),
+            }
         }
+        // Every row has a gap (dem-gap's, checked on the bundled data below).
+        assert!(got.as_array().unwrap().iter().all(|r| r["gap"].as_f64().is_some_and(|g| g >= 0.0)), "{got}");
     }
     // Every pair (no --split), CSV output read back with dem-core.
     let out = arg(d, "t.csv");
@@ -226,6 +262,70 @@ fn identity_on_the_bundled_true_pairs_by_terrain() {
     }
 }
 
+/// The new columns of Identity on the bundled data (true pairs, by terrain)
+/// against numpy, and the gap against dem-gap's own measure of the same sets.
+#[test]
+fn identity_height_measures_on_the_bundled_data_match_numpy_and_dem_gap() {
+    let dir = tempdir();
+    let want = py(
+        dir.path(),
+        &format!(
+            r#"{NUMPY_EVAL}
+import csv
+sim, real = np.load({sim:?}), np.load({real:?})
+pairs = [(int(r["sim_index"]), int(r["real_index"]), None) for r in csv.DictReader(open({pairs:?}))]
+terrain = [r["terrain"] for r in csv.DictReader(open({labels:?}))]
+print(json.dumps(evaluate(sim, real, pairs, None, terrain)[1]))
+"#,
+            sim = td("sim.npy"),
+            real = td("real.npy"),
+            pairs = td("pairs.csv"),
+            labels = td("sim_labels.csv")
+        ),
+    );
+    let want: Value = serde_json::from_str(&want).unwrap();
+    let o = run(
+        "dem-eval",
+        &[
+            "--sim", &td("sim.npy"), "--real", &td("real.npy"), "--pairs", &td("pairs.csv"), "--identity",
+            "--labels-sim", &td("sim_labels.csv"), "--by", "terrain", "--format", "json",
+        ],
+        None,
+    );
+    let got: Value = serde_json::from_slice(ok(&o)).unwrap();
+    check_rows(&got, &want);
+    let rows = got.as_array().unwrap();
+    // Sim DEMs are smoother than measured ones, and close to them in height.
+    let (h, across, real_across) =
+        (rows[0]["height_cm"].as_f64().unwrap(), rows[0]["rough_across_cm"].as_f64().unwrap(), rows[0]["real_rough_across_cm"].as_f64().unwrap());
+    assert!(h > 0.1 && h < 5.0 && across < real_across, "{}", rows[0]);
+    // The gap: dem-gap's stats of the row's predictions (here the sim
+    // records) against the unique real records paired with them.
+    let (sim, real) = (npy::read_all(&td("sim.npy")).unwrap(), npy::read_all(&td("real.npy")).unwrap());
+    let pairs = table::read_pairs(&td("pairs.csv")).unwrap();
+    let labels = table::read_labels(&td("sim_labels.csv")).unwrap();
+    for row in rows {
+        let t = row["terrain"].as_str().unwrap();
+        let in_row = |s: u64| t == "all" || labels[s as usize].terrain.as_str() == t;
+        let sims: std::collections::BTreeSet<u64> = pairs.iter().map(|p| p.sim_index).filter(|&s| in_row(s)).collect();
+        let reals: std::collections::BTreeSet<u64> = pairs.iter().filter(|p| in_row(p.sim_index)).map(|p| p.real_index).collect();
+        let pred: Vec<_> = sims.iter().map(|&s| sim[s as usize]).collect();
+        let real: Vec<_> = reals.iter().map(|&r| real[r as usize]).collect();
+        let g = stats::gap(&stats::stats(&pred, None), &stats::stats(&real, None));
+        let got = row["gap"].as_f64().unwrap();
+        assert!(close(got, g), "{t}: dem-eval gap {got}, dem-gap {g}");
+    }
+    // Text and Markdown show them: cm with two decimals, the gap with three.
+    for fmt in ["text", "md"] {
+        let o = run("dem-eval", &["--sim", &td("sim.npy"), "--real", &td("real.npy"), "--pairs", &td("pairs.csv"), "--identity", "--format", fmt], None);
+        let out = String::from_utf8_lossy(ok(&o)).into_owned();
+        for col in MEASURES.iter().chain(&["gap"]) {
+            assert!(out.lines().next().unwrap().contains(col), "{fmt}: {out}");
+        }
+        assert!(out.contains(&format!(" {h:.2} ")) && out.contains(&format!(" {:.3}", rows[0]["gap"].as_f64().unwrap())), "{fmt}: {out}");
+    }
+}
+
 #[test]
 fn model_runs_on_the_selected_records_like_its_numpy_output() {
     let dir = tempdir();
@@ -304,6 +404,73 @@ fn compare_fails_on_a_worse_table_and_passes_on_an_equal_one() {
     let v: Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(v[1]["status"], "worse");
     assert!(close(v[1]["diff_mean"].as_f64().unwrap(), 0.03));
+}
+
+#[test]
+fn compare_fails_when_a_height_measure_grows_and_names_it() {
+    let dir = tempdir();
+    let d = dir.path();
+    let head = dem_core::eval::TABLE_HEADER.join(",");
+    // Real roughness 0.33 across, 0.45 along; the model's 0.08 and 0.5.
+    let write = |name: &str, height: f64, across: f64, gap: f64| {
+        let path = arg(d, name);
+        std::fs::write(&path, format!("{head}\nm,all,56,0.005,2.6,0.3,0.2,{height},{across},0.5,0.33,0.45,{gap}\n")).unwrap();
+        path
+    };
+    let gap_tol = dem_core::eval::DEFAULT_GAP_TOLERANCE;
+    let base = write("base.csv", 1.5, 0.08, 3.0);
+    let cmp = |cur: &str, extra: &[&str]| run("dem-eval", &[&["compare", &base, cur][..], extra].concat(), None);
+    // Better or within: height +0.4 cm, roughness closer to the real one, gap equal.
+    ok(&cmp(&write("within.csv", 1.9, 0.3, 3.0), &[]));
+    for (name, cur, what) in [
+        ("height.csv", write("height.csv", 2.1, 0.08, 3.0), "m/all worse (height_cm +0.6"),
+        // |1.2 - 0.33| = 0.87 against |0.08 - 0.33| = 0.25: +0.62.
+        ("rough.csv", write("rough.csv", 1.5, 1.2, 3.0), "m/all worse (rough_across +0.62"),
+        ("gap.csv", write("gap.csv", 1.5, 0.08, 3.0 + gap_tol + 0.01), "m/all worse (gap +"),
+    ] {
+        let o = cmp(&cur, &[]);
+        assert_eq!(o.status.code(), Some(1), "{name}: {}", stderr(&o));
+        assert!(stderr(&o).contains(what), "{name}: {}", stderr(&o));
+        assert_eq!(stderr(&o).lines().count(), 1, "{}", stderr(&o));
+        let out = String::from_utf8_lossy(&o.stdout).into_owned();
+        let measure = what.split(['(', ' ']).nth(3).unwrap();
+        let line = out.lines().nth(2).unwrap();
+        assert!(line.contains(" WORSE ") && line.ends_with(&format!(" {measure}")), "{name}: {out}");
+    }
+    ok(&cmp(&write("h2.csv", 2.1, 0.08, 3.0), &["--height-tolerance", "1"]));
+    // |0.98 - 0.33| = 0.65: +0.4 passes at 0.5, not at 0.3.
+    ok(&cmp(&write("r2.csv", 1.5, 0.98, 3.0), &[]));
+    let o = cmp(&write("r3.csv", 1.5, 0.98, 3.0), &["--rough-tolerance", "0.3"]);
+    assert!(stderr(&o).contains("rough_across +0.4000 > 0.3"), "{}", stderr(&o));
+    // Everything at once, named together; JSON carries the diffs and the measures.
+    let all = write("all.csv", 9.0, 9.0, 99.0);
+    let o = cmp(&all, &["--format", "json"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("(height_cm +7.5000 > 0.5, rough_across +8.4200 > 0.5, gap +96.0000 > "), "{}", stderr(&o));
+    let v: Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v[0]["worse"], serde_json::json!(["height_cm", "rough_across", "gap"]));
+    assert!(close(v[0]["diff_height_cm"].as_f64().unwrap(), 7.5) && close(v[0]["diff_gap"].as_f64().unwrap(), 96.0));
+    assert_eq!(v[0]["current"]["real_rough_along_cm"], 0.45);
+    // CSV and Markdown show them too.
+    let o = cmp(&all, &["--format", "csv"]);
+    let csv = String::from_utf8_lossy(&o.stdout).into_owned();
+    let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+    for col in ["baseline_height_cm", "current_gap", "diff_height_cm", "diff_rough_across", "diff_rough_along", "diff_gap", "worse"] {
+        assert!(header.contains(&col), "{col}: {csv}");
+    }
+    assert!(csv.lines().nth(1).unwrap().ends_with(",worse,height_cm;rough_across;gap"), "{csv}");
+    let o = cmp(&all, &["--format", "md"]);
+    assert!(String::from_utf8_lossy(&o.stdout).contains("| diff height_cm |"));
+    // A baseline of the old seven columns checks mean and median only; a
+    // current table without the measures fails against one that has them.
+    let old = table_csv(d, "old.csv", &[("m", "all", 0.3, 0.2)]);
+    ok(&run("dem-eval", &["compare", &old, &all], None));
+    let o = run("dem-eval", &["compare", &base, &old], None);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("height_cm absent"), "{}", stderr(&o));
+    let o = run("dem-eval", &["compare", &base, &base, "--gap-tolerance=-1"], None);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("--gap-tolerance"));
 }
 
 #[test]
