@@ -124,7 +124,7 @@ demo: build venv
 	column -s, -t < $(OUT)/train/table.csv
 	@echo "== 5. CI guard: the validation table of a tiny model against testdata/eval_baseline.csv"
 	BIN=$(BIN) OUT=$(OUT)/eval_ci bash scripts/eval_ci.sh
-	@echo "== 6. dem-gap: name the sim-to-real gap, emulator stages one at a time"
+	@echo "== 6. dem-gap: name the sim-to-real gap, leaving one emulator stage out at a time"
 	BIN=$(BIN) OUT=$(OUT) PY=$(PY) TD=$(TD) bash scripts/gap_demo.sh
 	@echo
 	@echo "Pictures:"
@@ -137,7 +137,7 @@ demo: build venv
 	@echo "Data: $(OUT)/prep/ (sim keys, real, pairs.csv, cleaned and filled streams)"
 	@echo "Model: $(OUT)/gy.onnx (dem-apply --model $(OUT)/gy.onnx < sim.npy > realistic.npy); run: $(OUT)/train/"
 	@echo "Tables: $(OUT)/train/table.csv (Identity vs G_Y), $(OUT)/eval_ci/compare.txt (CI guard)"
-	@echo "Gap: $(OUT)/gap/summary.md (effects named per emulator stage), $(OUT)/gap/all/report.md (report with pictures)"
+	@echo "Gap: $(OUT)/gap/summary.md (effects named per emulator stage left out), $(OUT)/gap/exact-paired/report.md (report with pictures)"
 
 # The committed test data set (see testdata/README.md).
 testdata: build

@@ -1,44 +1,78 @@
 #!/usr/bin/env bash
-# dem-gap against the physical emulator (issue 7, item 4): dem-synth's
-# measured data with its stages switched on one at a time (all others off),
-# with none on and with all on (testdata/). No vocabulary effect is exactly
-# what the emulator does (3-D camera rays, Kalman fusion with memory, 5 cm
-# map resampled to 10 cm); the loop must still shrink the gap and name the
-# closest effects. Writes OUT/gap/<case>/ (report.md, pictures, sensor.json)
-# and OUT/gap/summary.md.
+# dem-gap against the physical emulator, leave one stage out (issue 12):
+# for every stage dem-synth can switch off, the "simulation" is the measured
+# DEMs of `dem-synth --no-<stage>` and "real" is the measured DEMs with all
+# stages, the same seed and so the same poses (the first RUNS runs), compared
+# paired 1:1 and unpaired. Then exact sim -> all stages, paired and unpaired.
+# Writes OUT/gap/<case>/ (report.md, pictures, sensor.json, report.json) and
+# OUT/gap/summary.md.
+#
+#   BIN=target/release OUT=out bash scripts/gap_demo.sh
+#   SYNTH_ARGS="--camera-height 0.7 --camera-tilt 25" SEED=2 OUT=out-cam bash scripts/gap_demo.sh
+#   STAGES="occlusion noise" bash scripts/gap_demo.sh   # a subset
 set -euo pipefail
 BIN=${BIN:-target/release}
 OUT=${OUT:-out}
 PY=${PY:-python3}
-TD=${TD:-testdata}
-STAGES="fov occlusion noise smoothing dropout holes"
+SEED=${SEED:-1}
+RUNS=${RUNS:-20}
+EXACT_RUNS=${EXACT_RUNS:-60}
+SYNTH_ARGS=${SYNTH_ARGS:-}
+GAP_ARGS=${GAP_ARGS:-}
+STAGES=${STAGES:-"fov occlusion smoothing noise dropout holes"}
 dir="$OUT/gap"
 mkdir -p "$dir"
-run_gap() { # case sim real pairs labels-sim labels-real [extra]
-  local name=$1 sim=$2 real=$3 pairs=$4 ls=$5 lr=$6; shift 6
+synth() { # out-dir runs [flags]
+  local d=$1 runs=$2; shift 2
+  # shellcheck disable=SC2086
+  "$BIN/dem-synth" --out "$d" --runs "$runs" --real-runs "$RUNS" --seed "$SEED" $SYNTH_ARGS "$@" 2>/dev/null
+}
+run_gap() { # case sim real pairs labels-sim labels-real
+  local name=$1 sim=$2 real=$3 pairs=$4 ls=$5 lr=$6
+  # shellcheck disable=SC2086
   "$BIN/dem-gap" --sim "$sim" --real "$real" ${pairs:+--pairs "$pairs"} --labels-sim "$ls" --labels-real "$lr" \
-      --out "$dir/$name" --seed 1 "$@" 2> "$dir/$name.log"
+      --out "$dir/$name" --seed "$SEED" $GAP_ARGS 2> "$dir/$name.log"
   echo "  $name: $(tail -1 "$dir/$name.log" | sed 's/^dem-gap: //')"
 }
-for st in none $STAGES; do
-  flags=()
-  for o in $STAGES; do [ "$o" = "$st" ] || flags+=("--no-$o"); done
-  "$BIN/dem-synth" --out "$dir/data-$st" --runs 20 --real-runs 20 --seed 1 "${flags[@]}" 2>/dev/null
-  d="$dir/data-$st"
-  run_gap "only-$st" "$d/sim.npy" "$d/real.npy" "$d/pairs.csv" "$d/sim_labels.csv" "$d/real_labels.csv"
+# Real: all stages. The exact sim of the same world has EXACT_RUNS runs (sim
+# records of the measured runs come first, so pairs.csv pairs them 1:1).
+synth "$dir/data-all" "$EXACT_RUNS"
+A="$dir/data-all"
+for st in $STAGES; do
+  synth "$dir/data-no-$st" "$RUNS" "--no-$st"
+  d="$dir/data-no-$st"
+  # Sim side: the measured DEMs without the stage; the same poses, 1:1.
+  run_gap "no-$st-paired" "$d/real.npy" "$A/real.npy" "$d/pairs.csv" "$d/real_labels.csv" "$A/real_labels.csv"
+  run_gap "no-$st-unpaired" "$d/real.npy" "$A/real.npy" "" "$d/real_labels.csv" "$A/real_labels.csv"
 done
-run_gap all "$TD/sim.npy" "$TD/real.npy" "$TD/pairs.csv" "$TD/sim_labels.csv" "$TD/real_labels.csv"
-run_gap all-unpaired "$TD/sim.npy" "$TD/real.npy" "" "$TD/sim_labels.csv" "$TD/real_labels.csv"
+run_gap exact-paired "$A/sim.npy" "$A/real.npy" "$A/pairs.csv" "$A/sim_labels.csv" "$A/real_labels.csv"
+run_gap exact-unpaired "$A/sim.npy" "$A/real.npy" "" "$A/sim_labels.csv" "$A/real_labels.csv"
 "$PY" - "$dir" $STAGES <<'PYEOF' | tee "$dir/summary.md"
 import json, sys
 d, stages = sys.argv[1], sys.argv[2:]
-cases = [("only-none", "none (fusion and resampling only)")] + [(f"only-{s}", f"{s} only") for s in stages] \
-    + [("all", "all stages (testdata)"), ("all-unpaired", "all stages, unpaired")]
-print("| emulator stages on | effects named, in order (fitted parameters) | gap initial | gap final | removed |")
-print("|---|---|---|---|---|")
-for case, label in cases:
-    r = json.load(open(f"{d}/{case}/report.json"))
+# The effects that model each emulator stage (docs/dem-sensor.md).
+expect = {
+    "fov": {"fov", "startup"},
+    "occlusion": {"occlusion"},
+    "smoothing": {"smoothing", "edge-holes"},
+    "noise": {"noise"},
+    "dropout": {"patch-dropout", "dropout"},
+    "holes": {"edge-holes", "dropout", "patch-dropout"},
+}
+cases = [(f"no-{s}-{m}", f"{s} ({m})", s) for s in stages for m in ("paired", "unpaired")]
+cases += [("exact-paired", "exact sim -> all (paired)", None), ("exact-unpaired", "exact sim -> all (unpaired)", None)]
+print("| stage hidden | effects named, in order (fitted parameters) | first named right | at box edge | gap initial | gap final | removed |")
+print("|---|---|---|---|---|---|---|")
+for case, label, st in cases:
+    try:
+        r = json.load(open(f"{d}/{case}/report.json"))
+    except FileNotFoundError:
+        print(f"| {label} | (no report) | | | | | |")
+        continue
     named = "; ".join(f"`{s['effect']}` ({', '.join(f'{k} {v:.3g}' for k, v in s['params'].items())})" for s in r["steps"]) or "nothing"
+    first = r["steps"][0]["effect"] if r["steps"] else None
+    right = "-" if st is None else ("yes" if first in expect.get(st, set()) else "**no**")
+    edges = "; ".join(f"{s['effect']}.{p}" for s in r["steps"] for p in s.get("at_edge", [])) or "none"
     g0, g1 = r["gap_initial"], r["gap_final"]
-    print(f"| {label} | {named} | {g0:.1f} | {g1:.1f} | {100 * (1 - g1 / g0) if g0 else 0:.0f}% |")
+    print(f"| {label} | {named} | {right} | {edges} | {g0:.2f} | {g1:.2f} | {100 * (1 - g1 / g0) if g0 else 0:.0f}% |")
 PYEOF

@@ -23,6 +23,14 @@ heights relative to the robot centre; missing = mask -1, height 0):
                normalised by the weights used
   bias         h += b + t x
   quantization h = q * floor(h / q + 0.5)
+  startup      with probability p the record is a startup frame: rows with
+               centre x < x0 - u (x0 + 0.6), u uniform, missing (the
+               per-record form, used without times; v is ignored here)
+  patch-dropout  each of 8 slots holds a blob with probability n / 8, centre
+               uniform over the grid's rectangle widened by r; cells whose
+               square lies within r of the centre missing
+  edge-holes   a valid cell with a valid 4-neighbour more than g higher is
+               missing with probability p
 """
 import sys
 import numpy as np
@@ -120,8 +128,38 @@ def quantization(d, rng, q):
     d[:20, :, 0] = np.where(valid, hq, d[:20, :, 0])
 
 
+def startup(d, rng, x0, p, v=0.0):
+    u1, u2 = rng.random(2)
+    if u1 < p:
+        edge = x0 - u2 * (x0 + 0.6)
+        set_missing(d, np.repeat((X < edge)[:, None], 5, axis=1))
+
+
+def patch_dropout(d, rng, n, r):
+    xlo, xhi, ylo, yhi = X[0] - 0.05, X[-1] + 0.05, Y[-1] - 0.05, Y[0] + 0.05
+    for u, a, b in rng.random((8, 3)):
+        if u >= n / 8:
+            continue
+        px = xlo - r + a * (xhi - xlo + 2 * r)
+        py = ylo - r + b * (yhi - ylo + 2 * r)
+        dx = np.maximum(np.abs(X - px) - 0.05, 0.0)[:, None]
+        dy = np.maximum(np.abs(Y - py) - 0.05, 0.0)[None, :]
+        set_missing(d, dx ** 2 + dy ** 2 <= r * r)
+
+
+def edge_holes(d, rng, g, p):
+    z = d[:20, :, 0].astype(np.float64)
+    valid = d[:20, :, 1] > 0
+    zp = np.pad(np.where(valid, z, -np.inf), 1, constant_values=-np.inf)
+    jump = np.zeros((20, 5), bool)
+    for dr, dc in ((-1, 0), (1, 0), (0, -1), (0, 1)):
+        jump |= zp[1 + dr:21 + dr, 1 + dc:6 + dc] - z > g
+    set_missing(d, jump & valid & (rng.random((20, 5)) < p))
+
+
 EFFECTS = {"noise": noise, "dropout": dropout, "row-dropout": row_dropout, "occlusion": occlusion,
-           "fov": fov, "smoothing": smoothing, "bias": bias, "quantization": quantization}
+           "fov": fov, "smoothing": smoothing, "bias": bias, "quantization": quantization,
+           "startup": startup, "patch-dropout": patch_dropout, "edge-holes": edge_holes}
 
 
 def main():

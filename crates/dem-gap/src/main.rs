@@ -10,8 +10,10 @@ use dem_core::cli;
 
 /// Measure the gap between model(sim) and real, name the effect that
 /// closes most of it (noise, dropout, row-dropout, occlusion, fov,
-/// smoothing, bias, quantization), fit it, add it, repeat while an effect
-/// still helps. Writes DIR/report.json, DIR/sensor.json (usable by
+/// smoothing, bias, quantization, startup, patch-dropout, edge-holes), fit
+/// it, add it, repeat while an effect still helps. A fit at the edge of its
+/// search box is flagged (stderr, report.md, report.json `at_edge`); a
+/// model that hides far more cells than real misses is never accepted. Writes DIR/report.json, DIR/sensor.json (usable by
 /// `dem-sensor apply`), DIR/report.md with pictures; progress on stderr.
 ///
 /// Labels and pairs are optional: without pairs the distributions of the
@@ -22,6 +24,8 @@ use dem_core::cli;
   dem-gap --sim testdata/sim.npy --real testdata/real.npy --pairs testdata/pairs.csv \\
       --labels-sim testdata/sim_labels.csv --labels-real testdata/real_labels.csv --out gap/ --seed 1
   dem-gap --sim sim.npy --real real.npy --model start.json --max-steps 2 --out gap2/
+  dem-gap --sim no_fov/real.npy --real all/real.npy --labels-sim no_fov/real_labels.csv \
+      --labels-real all/real_labels.csv --out gap3/     # labels' time lets `startup` fit its speed
   dem-sensor apply --model gap/sensor.json sim.npy -o sim_as_measured.npy   # use the result")]
 struct Args {
     /// Sim NPY file.
@@ -87,8 +91,9 @@ fn main() -> ExitCode {
         };
         let t = std::time::Instant::now();
         let sets = gap::load(&cfg)?;
-        // Candidates fitted: 8 at the first step, one fewer at each next.
-        let fits = (0..cfg.max_steps.min(8)).map(|k| 8 - k as u64).sum();
+        // Candidates fitted: the whole vocabulary at the first step, one fewer at each next.
+        let n = dem_core::sensor::effects::NAMES.len();
+        let fits = (0..cfg.max_steps.min(n)).map(|k| (n - k) as u64).sum();
         let bar = cli::progress(fits, "fits");
         let outcome = gap::run(&cfg, &sets, &|line| bar.suspend(|| cli::log(line)), &|| bar.inc(1));
         bar.finish_and_clear();

@@ -4,15 +4,17 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 use dem_core::cli;
-use dem_core::sensor::{apply_stream, SensorModel};
+use dem_core::sensor::{apply_stream_at, SensorModel};
 
 /// Sensor models of named effects (noise, dropout, row-dropout, occlusion,
-/// fov, smoothing, bias, quantization) as JSON, applied to NPY streams.
+/// fov, smoothing, bias, quantization, startup, patch-dropout, edge-holes)
+/// as JSON, applied to NPY streams.
 #[derive(Parser)]
 #[command(version, after_long_help = "Examples:
   dem-sensor apply --model sensor.json --seed 1 < sim.npy > model_sim.npy
   dem-gap --sim sim.npy --real real.npy --out gap/ && dem-sensor apply --model gap/sensor.json sim.npy -o sim_as_measured.npy
   dem-sensor apply --model gap/sensor.json sim.npy | dem-render - --count 12 -o measured_look.png
+  dem-sensor apply --model gap/sensor.json --labels sim_labels.csv sim.npy -o out.npy  # startup by time
   dem-sensor show --model sensor.json        # the effects, one a line
 
 A model file:
@@ -43,6 +45,10 @@ enum Command {
         /// Seed of the random effects.
         #[arg(long, default_value_t = 0)]
         seed: u64,
+        /// Labels CSV of the input (one row per record): `startup` uses
+        /// each record's `time` in its run; without, its per-record rate p.
+        #[arg(long)]
+        labels: Option<String>,
     },
     /// Check a model and print its effects, one a line.
     Show {
@@ -54,13 +60,18 @@ enum Command {
 
 fn main() -> ExitCode {
     cli::run(|| match Args::parse().command {
-        Command::Apply { model, input, output, seed } => {
+        Command::Apply { model, input, output, seed, labels } => {
             if output != "-" && output == input {
                 return Err(cli::usage(format!("-o {output} would overwrite the input")));
             }
             let m = SensorModel::read(&model)?;
+            let times = match &labels {
+                Some(p) => Some(dem_core::table::read_labels(p)?.iter().map(|l| l.time.unwrap_or(f64::NAN)).collect::<Vec<f64>>()),
+                None => None,
+            };
             let bar = cli::progress(0, "records");
-            let n = apply_stream(&m, &input, &output, seed, |k| bar.inc(k))?;
+            let t = labels.as_deref().zip(times.as_deref());
+            let n = apply_stream_at(&m, &input, &output, seed, t, |k| bar.inc(k))?;
             bar.finish_and_clear();
             cli::log(format_args!("{n} records through {}", m.summary()));
             Ok(())

@@ -53,7 +53,7 @@ fn deterministic_effects_equal_the_numpy_implementation() {
     let dir = tempdir();
     let small = arg(dir.path(), "s.npy");
     dem_testkit::py(dir.path(), &format!("import numpy as np\nnp.save('s.npy', np.load({:?})[::7])", td("sim.npy")));
-    for spec in ["occlusion:h=0.45,x0=0.15", "fov:x_min=-0.33,x_max=0.97", "smoothing:w=0.4", "bias:b=0.02,t=0.03", "quantization:q=0.021"] {
+    for spec in ["occlusion:h=0.45,x0=0.15", "fov:x_min=-0.33,x_max=0.97", "smoothing:w=0.4", "bias:b=0.02,t=0.03", "quantization:q=0.021", "edge-holes:g=0.06,p=1"] {
         let (name, params) = spec.split_once(':').unwrap();
         let json_params: Vec<String> =
             params.split(',').map(|kv| kv.split_once('=').unwrap()).map(|(k, v)| format!("\"{k}\": {v}")).collect();
@@ -119,4 +119,67 @@ fn a_closed_stdout_is_not_an_error() {
     drop(child.stdout.take());
     let out = child.wait_with_output().unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+}
+
+/// startup follows the labels' time (rows behind the blind edge x0 - v t
+/// missing, the rest kept); without labels, its per-record rate p.
+#[test]
+fn startup_follows_the_labels_time_and_its_rate_without() {
+    let dir = tempdir();
+    let model = arg(dir.path(), "m.json");
+    std::fs::write(&model, r#"{"effects": [{"effect": "startup", "params": {"x0": 0.47, "v": 0.25, "p": 0.3}}]}"#).unwrap();
+    let sim = npy::read_all(&td("sim.npy")).unwrap();
+    let labels = dem_core::table::read_labels(&td("sim_labels.csv")).unwrap();
+    let o = run("dem-sensor", &["apply", "--model", &model, "--labels", &td("sim_labels.csv"), &td("sim.npy")], None);
+    let out = npy::NpyReader::new(ok(&o), "stdout", None).read_to_end().unwrap();
+    assert_eq!(out.len(), sim.len());
+    for ((d, s), l) in out.iter().zip(&sim).zip(&labels) {
+        let edge = 0.47 - 0.25 * l.time.unwrap();
+        for r in 0..20 {
+            let x = -0.55 + 0.1 * r as f64;
+            for c in 0..5 {
+                let want = s.is_valid(r, c) && x >= edge;
+                assert_eq!(d.is_valid(r, c), want, "record {} t {:?} row {r}", l.index, l.time);
+            }
+        }
+    }
+    // Without labels: about 30 % of records have rows missing at the back.
+    let o = run("dem-sensor", &["apply", "--model", &model, "--seed", "2", &td("sim.npy")], None);
+    let out = npy::NpyReader::new(ok(&o), "stdout", None).read_to_end().unwrap();
+    let blind = out.iter().filter(|d| (0..5).all(|c| !d.is_valid(0, c))).count() as f64 / out.len() as f64;
+    assert!((blind - 0.3).abs() < 0.04, "share of startup frames {blind}");
+    // Labels that do not cover the stream are refused.
+    let short = arg(dir.path(), "short.csv");
+    std::fs::write(&short, "index,terrain,time\n0,flat,0.0\n").unwrap();
+    let o = run("dem-sensor", &["apply", "--model", &model, "--labels", &short, &td("sim.npy")], None);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("short.csv"), "{}", stderr(&o));
+}
+
+/// patch-dropout removes blobs: at the same missing rate as dropout, far
+/// more missing cells have a missing neighbour across the robot.
+#[test]
+fn patch_dropout_makes_blobs_of_its_size() {
+    let dir = tempdir();
+    let model = arg(dir.path(), "m.json");
+    std::fs::write(&model, r#"{"effects": [{"effect": "patch-dropout", "params": {"n": 2.0, "r": 0.12}}]}"#).unwrap();
+    let o = run("dem-sensor", &["apply", "--model", &model, "--seed", "3", &td("sim.npy")], None);
+    let out = npy::NpyReader::new(ok(&o), "stdout", None).read_to_end().unwrap();
+    let (mut miss, mut pairs, mut both) = (0usize, 0usize, 0usize);
+    for d in &out {
+        for r in 0..20 {
+            for c in 0..5 {
+                miss += usize::from(!d.is_valid(r, c));
+                if c + 1 < 5 {
+                    pairs += 1;
+                    both += usize::from(!d.is_valid(r, c) && !d.is_valid(r, c + 1));
+                }
+            }
+        }
+    }
+    let rate = miss as f64 / (out.len() * 100) as f64;
+    let pair_rate = both as f64 / pairs as f64;
+    assert!(rate > 0.03 && rate < 0.4, "missing rate {rate}");
+    // Scattered cells at this rate would give rate^2 of pairs.
+    assert!(pair_rate > 3.0 * rate * rate, "pairs {pair_rate} vs rate {rate}");
 }

@@ -18,6 +18,7 @@ use dem_core::{cli, Terrain};
 #[command(version, after_long_help = "Examples:
   dem-synth --out run/ --runs 400 --real-runs 20 --seed 1
   dem-synth --out shadowless/ --no-occlusion --seed 1      # same worlds, one effect hidden
+  dem-synth --out high/ --camera-height 0.7 --camera-tilt 25 --seed 2   # another camera mount
   dem-synth --out run/ && dem-render --compare run/sim.npy run/real.npy \\
       --row-labels sim,measured --start 40 --count 12 -o pairs.png")]
 struct Args {
@@ -72,7 +73,8 @@ struct Args {
     /// Switch off dark patches.
     #[arg(long)]
     no_dropout: bool,
-    /// Switch off the maximum-variance holes.
+    /// Switch off the map's holes: no maximum variance, and one valid 5 cm
+    /// map cell (of 4) is enough for a DEM cell.
     #[arg(long)]
     no_holes: bool,
 }

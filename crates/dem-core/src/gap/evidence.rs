@@ -31,19 +31,40 @@ pub fn evidence(effect: &Effect, before: &Stats, after: &Stats, real: &Stats, ga
     let per_rec = |s: &Stats, name: &str| total(s, name) / s.records.max(1) as f64;
     let spread = if real.paired { "residual (real - sim) sd" } else { "across-robot height difference sd / sqrt 2" };
     let body = match *effect {
-        Effect::Noise { .. } => format!(
-            "neighbouring cells of equal height real {} vs model {}; height spread ({spread}) near (rows 6-9) real {} vs model {}, far (rows 15-19) real {} vs model {}",
-            pct(real.mean_over("level-pairs", 0..20)),
-            pct(before.mean_over("level-pairs", 0..20)),
-            mm(real.mean_over("spread-sd", 6..10)),
-            mm(before.mean_over("spread-sd", 6..10)),
-            mm(real.mean_over("spread-sd", 15..20)),
-            mm(before.mean_over("spread-sd", 15..20)),
-        ),
+        Effect::Noise { .. } => {
+            let (rn, bn, rf, bf) = (
+                real.mean_over("spread-sd", 6..10),
+                before.mean_over("spread-sd", 6..10),
+                real.mean_over("spread-sd", 15..20),
+                before.mean_over("spread-sd", 15..20),
+            );
+            let verdict = if rn >= bn && rf >= bf {
+                "real is the noisier"
+            } else {
+                "the model's spread is already as large or larger in part (terrain, not noise): the noise is named for the equal neighbours and the small height steps"
+            };
+            format!(
+                "neighbouring cells of equal height real {} vs model {}; height spread ({spread}) near (rows 6-9) real {} vs model {}, far (rows 15-19) real {} vs model {}: {verdict}",
+                pct(real.mean_over("level-pairs", 0..20)),
+                pct(before.mean_over("level-pairs", 0..20)),
+                mm(rn),
+                mm(bn),
+                mm(rf),
+                mm(bf),
+            )
+        }
         Effect::Dropout { .. } => {
             let extra = per_rec(real, "missing") - per_rec(before, "missing");
             let rows = 5.0 * (per_rec(real, "row-missing") - per_rec(before, "row-missing"));
             let shadow = per_rec(real, "shadow") - per_rec(before, "shadow");
+            if extra <= 0.0 {
+                return format!(
+                    "missing cells real {} vs model {}: no extra missing cells, the fitted {effect} trades where cells are missing; it removes {} of the gap ({gap_before:.3} -> {gap_after:.3})",
+                    pct(real.mean_over("missing", 0..20)),
+                    pct(before.mean_over("missing", 0..20)),
+                    pct(removed)
+                );
+            }
             format!(
                 "missing cells real {} vs model {}; of the {:.1} extra missing cells per record only {} are whole rows and {} lie in shadows: scattered single cells",
                 pct(real.mean_over("missing", 0..20)),
@@ -66,6 +87,16 @@ pub fn evidence(effect: &Effect, before: &Stats, after: &Stats, real: &Stats, ga
         Effect::Occlusion { .. } => {
             let extra = per_rec(real, "missing") - per_rec(before, "missing");
             let shadow = per_rec(real, "shadow") - per_rec(before, "shadow");
+            if extra <= 0.0 || shadow <= 0.0 {
+                return format!(
+                    "shadowed cells (missing behind cells at least 0.08 m taller) real {} vs model {}, missing cells real {} vs model {}: the fitted {effect} changes where cells are missing more than how many; it removes {} of the gap ({gap_before:.3} -> {gap_after:.3})",
+                    pct(real.mean_over("shadow", 0..20)),
+                    pct(before.mean_over("shadow", 0..20)),
+                    pct(real.mean_over("missing", 0..20)),
+                    pct(before.mean_over("missing", 0..20)),
+                    pct(removed)
+                );
+            }
             format!(
                 "{} of the extra missing cells lie behind cells at least 0.08 m taller, in the sensor's line of sight (shadowed cells real {} vs model {})",
                 pct((shadow / extra.max(1e-9)).clamp(0.0, 1.0)),
@@ -80,20 +111,70 @@ pub fn evidence(effect: &Effect, before: &Stats, after: &Stats, real: &Stats, ga
                 let t = s.term("missing").map(|t| t.values.clone()).unwrap_or_default();
                 outside.iter().map(|&r| t.get(r).copied().unwrap_or(0.0)).sum::<f64>() / outside.len().max(1) as f64
             };
+            let (mr, mb) = (m(real), m(before));
+            let verdict = if mr >= 0.9 {
+                "never in the field of view"
+            } else if mr > mb {
+                "seen in some records, not in others: a field of view only in part (startup frames, map memory)"
+            } else {
+                "no more missing in real than in the model: the field of view does not explain them"
+            };
             format!(
-                "rows outside x in [{x_min:.2}, {x_max:.2}] m ({} rows) are missing in {} of real cells vs {} of model cells: never in the field of view",
+                "rows outside x in [{x_min:.2}, {x_max:.2}] m ({} rows) are missing in {} of real cells vs {} of model cells: {verdict}",
                 outside.len(),
-                pct(m(real)),
-                pct(m(before)),
+                pct(mr),
+                pct(mb),
             )
         }
-        Effect::Smoothing { .. } => format!(
-            "steps between neighbouring rows above 0.1 m: real {} vs model {}; above 0.02 m: real {} vs model {}: sharp edges become ramps",
-            pct(real.mean_over("edge-10cm", 0..19)),
-            pct(before.mean_over("edge-10cm", 0..19)),
-            pct(real.mean_over("edge-2cm", 0..19)),
-            pct(before.mean_over("edge-2cm", 0..19)),
+        Effect::Startup { x0, v, p } => {
+            let back = |s: &Stats| s.mean_over("missing", 0..6);
+            let how = if v > 0.0 {
+                format!("a blind edge at x = {x0:.2} m at the start of a run that recedes at {v:.2} m/s ({} of records are startup frames)", pct(p))
+            } else {
+                format!("{} of records are startup frames whose blind edge starts at x = {x0:.2} m", pct(p))
+            };
+            format!(
+                "cells behind the robot (rows 0-5) missing: real {} vs model {}, whole rows in some records and none in others: {how}",
+                pct(back(real)),
+                pct(back(before)),
+            )
+        }
+        Effect::PatchDropout { .. } => format!(
+            "missing cells real {} vs model {}; both cells of an across-robot neighbour pair missing (in rows not wholly missing): real {} vs model {}: {}",
+            pct(real.mean_over("missing", 0..20)),
+            pct(before.mean_over("missing", 0..20)),
+            pct(real.mean_over("missing-pair", 0..20)),
+            pct(before.mean_over("missing-pair", 0..20)),
+            if real.mean_over("missing-pair", 0..20) > before.mean_over("missing-pair", 0..20) {
+                "missing cells come in blobs"
+            } else {
+                "no more blobs in real than in the model: blobs are the closest effect, not a clear one"
+            },
         ),
+        Effect::EdgeHoles { .. } => {
+            let (r, b) = (real.mean_over("jump-missing", 0..20), before.mean_over("jump-missing", 0..20));
+            format!(
+                "missing cells between valid cells of their column that differ by 5 cm or more: real {} vs model {}: {}",
+                pct(r),
+                pct(b),
+                if r > b { "holes at height jumps" } else { "no more of them in real: the holes are the closest effect, not a clear one" }
+            )
+        }
+        Effect::Smoothing { .. } => {
+            let (r10, b10) = (real.mean_over("edge-10cm", 0..19), before.mean_over("edge-10cm", 0..19));
+            let verdict = if r10 < b10 {
+                "sharp edges become ramps"
+            } else {
+                "real has as many sharp edges: the smoothing is named for the small steps and spreads, not for ramps"
+            };
+            format!(
+                "steps between neighbouring rows above 0.1 m: real {} vs model {}; above 0.02 m: real {} vs model {}: {verdict}",
+                pct(r10),
+                pct(b10),
+                pct(real.mean_over("edge-2cm", 0..19)),
+                pct(before.mean_over("edge-2cm", 0..19)),
+            )
+        }
         Effect::Bias { .. } => format!(
             "mean {} behind (rows 0-5) real {} vs model {}, far ahead (rows 15-19) real {} vs model {}: an offset and a tilt",
             if real.paired { "residual" } else { "height" },

@@ -9,7 +9,7 @@ use rayon::prelude::*;
 use crate::format::{row_center_x, Dem, GRID_ROWS};
 use crate::sensor::{Effect, SensorModel};
 
-use super::stats::{gap, stats, Stats};
+use super::stats::{gap, hides_too_much, stats, Stats};
 
 /// One parameter's search range; `log` searches log(value).
 #[derive(Debug, Clone, Copy)]
@@ -38,6 +38,33 @@ pub fn ranges(name: &str) -> Vec<Range> {
         "smoothing" => vec![lin(0.05, 1.0)],
         "bias" => vec![lin(-0.1, 0.1), lin(-0.1, 0.1)],
         "quantization" => vec![Range { lo: 0.002, hi: 0.05, log: true }],
+        // x0, v, p: v is fitted when the records' times are known, p when
+        // not (see `fit`).
+        "startup" => vec![lin(-0.3, 1.2), lin(0.02, 0.6), lin(0.0, 0.6)],
+        // A blob is more than one cell: r from 2 cm (up to four cells
+        // around a corner); smaller is `dropout`'s business.
+        "patch-dropout" => vec![lin(0.0, 4.0), lin(0.02, 0.2)],
+        "edge-holes" => vec![lin(0.02, 0.3), lin(0.0, 1.0)],
+        _ => vec![],
+    }
+}
+
+/// How far each parameter's box may be widened when a fit lands on its
+/// edge (the physical limits), and which edges are natural (the effect
+/// fades out there, or covers the whole grid), so a fit on them is no flag.
+/// Per parameter: (hard low, hard high, low edge natural, high edge natural).
+pub fn limits(name: &str) -> Vec<(f64, f64, bool, bool)> {
+    match name {
+        "noise" => vec![(0.0, 0.1, true, false), (0.0, 0.1, true, false)],
+        "dropout" | "row-dropout" => vec![(0.0, 1.0, true, false)],
+        "occlusion" => vec![(0.05, 3.0, false, false), (-1.0, 1.2, false, false)],
+        "fov" => vec![(-0.65, 0.55, true, false), (0.35, 1.45, false, true)],
+        "smoothing" => vec![(0.01, 1.0, false, true)],
+        "bias" => vec![(-0.5, 0.5, false, false), (-0.5, 0.5, false, false)],
+        "quantization" => vec![(0.0005, 0.2, false, false)],
+        "startup" => vec![(-0.6, 1.45, true, true), (0.005, 3.0, false, false), (0.0, 1.0, true, false)],
+        "patch-dropout" => vec![(0.0, 8.0, true, false), (0.02, 0.5, true, false)],
+        "edge-holes" => vec![(0.005, 1.0, false, true), (0.0, 1.0, true, false)],
         _ => vec![],
     }
 }
@@ -58,6 +85,8 @@ impl Range {
 pub struct Target<'a> {
     /// Sim records to push through the model.
     pub sim: &'a [Dem],
+    /// Each sim record's time in its run (labels), when known.
+    pub times: Option<&'a [f64]>,
     /// True when `sim[i]` is paired with the i-th real record of `real`.
     pub paired: bool,
     /// Statistics of the real records.
@@ -70,13 +99,18 @@ impl Target<'_> {
     /// Statistics of model(sim).
     pub fn model_stats(&self, model: &SensorModel) -> Stats {
         let mut out = self.sim.to_vec();
-        model.apply_all(&mut out, self.seed, 0);
+        model.apply_all_at(&mut out, self.seed, 0, self.times);
         stats(&out, self.paired.then_some(self.sim))
     }
 
-    /// Gap of model(sim) against real.
+    /// Gap of model(sim) against real; infinite for a model that hides far
+    /// more cells than real misses ([`hides_too_much`]).
     pub fn gap(&self, model: &SensorModel) -> f64 {
-        gap(&self.model_stats(model), self.real)
+        let s = self.model_stats(model);
+        if hides_too_much(&s, self.real).is_some() {
+            return f64::INFINITY;
+        }
+        gap(&s, self.real)
     }
 }
 
@@ -87,14 +121,88 @@ pub struct Fitted {
     pub effect: Effect,
     /// Gap on the fitting subsample with the effect added.
     pub gap: f64,
+    /// Parameters that ended on an edge of their box that is no natural
+    /// end of the effect, after widening the box up to its limits: the
+    /// effect is only the closest of the vocabulary, not the right one.
+    pub at_edge: Vec<&'static str>,
+    /// The boxes were widened (parameter names), to the limits of [`limits`].
+    pub widened: Vec<&'static str>,
 }
 
-/// Fit effect `name` on top of `base` by grid search plus refinement.
+/// Fit effect `name` on top of `base` by grid search plus refinement; a
+/// parameter that lands on an edge of its box that is no natural end gets
+/// its box widened toward its limit (twice at most) and is fitted again.
 pub fn fit(name: &str, base: &SensorModel, target: &Target) -> Option<Fitted> {
-    let ranges = ranges(name);
-    let dims = ranges.len();
+    let mut ranges = ranges(name);
+    let lim = limits(name);
+    // startup: with times, fit x0 and v (p follows from the times); without,
+    // x0 and p (v unknown: 0).
+    let fixed: Vec<Option<f64>> = match name {
+        "startup" if target.times.is_some() => vec![None, None, Some(0.0)],
+        "startup" => vec![None, Some(0.0), None],
+        _ => vec![None; ranges.len()],
+    };
+    let mut widened = Vec::new();
+    let mut fitted = fit_in(name, base, target, &ranges, &fixed)?;
+    for _ in 0..2 {
+        let mut changed = false;
+        for (i, (r, &(hlo, hhi, nlo, nhi))) in ranges.iter_mut().zip(&lim).enumerate() {
+            let Some(u) = fitted.1.get(i).copied() else { continue };
+            let width = r.hi - r.lo;
+            if u <= EDGE && !nlo && r.lo > hlo {
+                r.lo = (r.lo - width).max(hlo);
+                changed = true;
+            } else if u >= 1.0 - EDGE && !nhi && r.hi < hhi {
+                r.hi = (r.hi + width).min(hhi);
+                changed = true;
+            } else {
+                continue;
+            }
+            let pname = Effect::from_values(name, &vec![0.0; lim.len()]).map(|e| e.params()[i].0).unwrap_or("?");
+            if !widened.contains(&pname) {
+                widened.push(pname);
+            }
+        }
+        if !changed {
+            break;
+        }
+        fitted = fit_in(name, base, target, &ranges, &fixed)?;
+    }
+    let (mut effect, u, g) = fitted;
+    let names: Vec<&'static str> = effect.params().iter().map(|p| p.0).collect();
+    let at_edge = (0..ranges.len())
+        .filter(|&i| fixed[i].is_none())
+        .filter(|&i| (u[i] <= EDGE && !lim[i].2) || (u[i] >= 1.0 - EDGE && !lim[i].3))
+        .map(|i| names[i])
+        .collect();
+    if let (Effect::Startup { x0, v, .. }, Some(times)) = (effect, target.times) {
+        // The share of records that are startup frames, from the times: the
+        // model then also works on records without times.
+        let blind = times.iter().filter(|&&t| t.is_finite() && x0 - v * t > -0.55).count();
+        let p = blind as f64 / times.len().max(1) as f64;
+        effect = Effect::Startup { x0, v, p: (p * 1e4).round() / 1e4 };
+    }
+    Some(Fitted { effect, gap: g, at_edge, widened })
+}
+
+/// A parameter within this share of its box from an edge is on the edge.
+const EDGE: f64 = 0.01;
+
+/// Grid search plus refinement in the boxes `ranges`; parameters with a
+/// `fixed` value are not searched. Returns the effect, the best point in
+/// box units and its gap.
+fn fit_in(name: &str, base: &SensorModel, target: &Target, ranges: &[Range], fixed: &[Option<f64>]) -> Option<(Effect, Vec<f64>, f64)> {
+    let free: Vec<usize> = (0..ranges.len()).filter(|&i| fixed[i].is_none()).collect();
+    let dims = free.len();
+    let values = |u: &[f64]| -> Vec<f64> {
+        let mut v: Vec<f64> = fixed.iter().map(|f| f.unwrap_or(0.0)).collect();
+        for (k, &i) in free.iter().enumerate() {
+            v[i] = ranges[i].at(u[k]);
+        }
+        v
+    };
     let eval = |u: &[f64]| -> f64 {
-        let v: Vec<f64> = u.iter().zip(&ranges).map(|(&u, r)| r.at(u)).collect();
+        let v = values(u);
         match Effect::from_values(name, &v) {
             Some(e) if e.check().is_ok() => target.gap(&base.with(e)),
             _ => f64::INFINITY,
@@ -135,9 +243,15 @@ pub fn fit(name: &str, base: &SensorModel, target: &Target) -> Option<Fitted> {
         }
         step /= 2.0;
     }
-    let v: Vec<f64> = best.iter().zip(&ranges).map(|(&u, r)| r.at(u)).collect();
-    let effect = snap(Effect::from_values(name, &v)?);
-    Some(Fitted { effect, gap: best_gap })
+    if !best_gap.is_finite() {
+        return None;
+    }
+    let effect = snap(Effect::from_values(name, &values(&best))?);
+    let mut u = vec![0.5; ranges.len()];
+    for (k, &i) in free.iter().enumerate() {
+        u[i] = best[k];
+    }
+    Some((effect, u, best_gap))
 }
 
 /// fov acts on row centres only, so any x_min between two centres gives the

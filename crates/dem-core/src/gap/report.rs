@@ -4,8 +4,19 @@
 //! per-row plots `rows-missing.png` and `rows-height.png`.
 //!
 //! ```text
-//! {"steps": [{"effect": NAME, "params": {...}, "gap_before": x, "gap_after": y, "evidence": "..."}],
+//! {"steps": [{"effect": NAME, "params": {...}, "gap_before": x, "gap_after": y, "evidence": "...",
+//!             "at_edge": [PARAM, ...], "widened": [PARAM, ...]}],
+//!  "refits": [{"effect": NAME, "params_named": {...}, "params": {...}, "gap_before": x, "gap_after": y, "at_edge": [...]}],
 //!  "gap_initial": x, "gap_final": y}
+//! ```
+//!
+//! `at_edge` names the parameters fitted on an edge of their search box
+//! (after widening it up to the effect's limits, `widened`): such an effect
+//! is the closest of the vocabulary, not the right one. `refits`: effects
+//! re-fitted after the loop with all others in place (the final model,
+//! `sensor.json`, holds these parameters).
+//!
+//! ```text
 //! ```
 
 use std::fmt::Write as _;
@@ -29,10 +40,20 @@ pub fn report_json(o: &Outcome) -> Value {
         .iter()
         .map(|s| {
             let params: Map<String, Value> = s.effect.params().into_iter().map(|(k, v)| (k.to_string(), json!(v))).collect();
-            json!({"effect": s.effect.name(), "params": params, "gap_before": s.gap_before, "gap_after": s.gap_after, "evidence": s.evidence})
+            json!({"effect": s.effect.name(), "params": params, "gap_before": s.gap_before, "gap_after": s.gap_after,
+                   "evidence": s.evidence, "at_edge": s.at_edge, "widened": s.widened})
         })
         .collect();
-    json!({"steps": steps, "gap_initial": o.gap_initial, "gap_final": o.gap_final})
+    let refits: Vec<Value> = o
+        .refits
+        .iter()
+        .map(|r| {
+            let p = |e: &crate::sensor::Effect| -> Map<String, Value> { e.params().into_iter().map(|(k, v)| (k.to_string(), json!(v))).collect() };
+            json!({"effect": r.after.name(), "params_named": p(&r.before), "params": p(&r.after),
+                   "gap_before": r.gap_before, "gap_after": r.gap_after, "at_edge": r.at_edge})
+        })
+        .collect();
+    json!({"steps": steps, "refits": refits, "gap_initial": o.gap_initial, "gap_final": o.gap_final})
 }
 
 fn path(dir: &str, name: &str) -> String {
@@ -72,7 +93,7 @@ fn pictures(dir: &str, o: &Outcome, sets: &Sets, start: &crate::sensor::SensorMo
         idx.iter()
             .map(|&i| {
                 let mut d = all[i];
-                m.apply(&mut d, seed, i as u64);
+                m.apply_at(&mut d, seed, i as u64, sets.sim_time.as_ref().and_then(|t| t.get(i).copied()).filter(|t| t.is_finite()));
                 all[i] = d;
                 d
             })
@@ -243,17 +264,47 @@ pub fn markdown(o: &Outcome) -> String {
         o.floor
     );
     let _ = writeln!(s, "Final sensor model (`sensor.json`): {}\n", o.model.summary());
-    let _ = writeln!(s, "## Steps\n\n| step | effect | parameters | gap before | gap after | evidence |\n|---|---|---|---|---|---|");
+    let flagged: Vec<String> =
+        o.steps.iter().filter(|st| !st.at_edge.is_empty()).map(|st| format!("`{}` ({})", st.effect.name(), st.at_edge.join(", "))).collect();
+    if !flagged.is_empty() {
+        let _ = writeln!(
+            s,
+            "**Warning: fitted at the edge of the search box:** {}. Each box was widened up to the effect's physical limits first; an effect still on the edge is only the closest one of the vocabulary, not the right one: read its parameters as a direction, not a measurement.\n",
+            flagged.join(", ")
+        );
+    }
+    let _ = writeln!(s, "## Steps\n\n| step | effect | parameters | at box edge | gap before | gap after | evidence |\n|---|---|---|---|---|---|---|");
     for (k, st) in o.steps.iter().enumerate() {
         let p: Vec<String> = st.effect.params().iter().map(|(n, v)| format!("{n} = {v:.4}")).collect();
-        let _ = writeln!(s, "| {} | `{}` | {} | {:.3} | {:.3} | {} |", k + 1, st.effect.name(), p.join(", "), st.gap_before, st.gap_after, st.evidence);
+        let edge = if st.at_edge.is_empty() { "no".to_string() } else { format!("**{}**", st.at_edge.join(", ")) };
+        let _ = writeln!(
+            s,
+            "| {} | `{}` | {} | {edge} | {:.3} | {:.3} | {} |",
+            k + 1,
+            st.effect.name(),
+            p.join(", "),
+            st.gap_before,
+            st.gap_after,
+            st.evidence
+        );
     }
     let _ = writeln!(s, "\nStopped: {}.\n", o.stop);
+    if !o.refits.is_empty() {
+        let _ = writeln!(s, "Re-fitted after naming, each with all other effects in place (the final model has these):\n");
+        for r in &o.refits {
+            let edge = if r.at_edge.is_empty() { String::new() } else { format!(" **at the edge of its box in {}**", r.at_edge.join(", ")) };
+            let _ = writeln!(s, "- {} -> {}{edge}: gap {:.3} -> {:.3}", r.before, r.after, r.gap_before, r.gap_after);
+        }
+        let _ = writeln!(s);
+    }
     if !o.steps.is_empty() {
         let _ = writeln!(s, "### Candidates at each step (share of the gap each removes on the fitting subsample)\n");
         for (k, st) in o.steps.iter().enumerate() {
             let r: Vec<String> = st.ranking.iter().map(|(e, f)| format!("{} {:.0}%", e.name(), 100.0 * f)).collect();
             let _ = writeln!(s, "{}. {}", k + 1, r.join(", "));
+            for (e, why) in &st.refused {
+                let _ = writeln!(s, "   - refused {e}: {why}");
+            }
         }
         let _ = writeln!(s);
     }

@@ -12,8 +12,10 @@
 //! | `missing` | fraction of cells missing | 0.02 |
 //! | `row-missing` | fraction of records with the whole row missing | 0.02 |
 //! | `shadow` | fraction of cells missing behind a drop: the nearest valid cell toward the sensor side (x = 0.1 m) is >= [`SHADOW_DROP`] taller than the nearest valid cell beyond | 0.01 |
+//! | `jump-missing` | fraction of cells missing, in a row not wholly missing, between valid cells of their column that differ by >= [`JUMP`] either way (holes at height jumps, shadows) | 0.01 |
+//! | `missing-pair` | fraction of across-robot neighbour pairs both missing, in rows not wholly missing (blobs against scattered cells) | 0.01 |
 //! | `height` | paired: mean residual D = h - h_sim on cells valid in both; unpaired: mean height | 0.005 m |
-//! | `spread-sd`, `spread-q50`, `spread-q90` (`spread-q99` paired) | paired: sd and quantiles of abs(D - mean D of the row); unpaired: of `abs(h[r,c] - h[r,c+1])` / sqrt 2 (the across-robot roughness) | 0.002 m |
+//! | `spread-sd`, `spread-q50`, `spread-q90` (`spread-q99` paired) | paired: sd (root mean square without the largest [`SD_TRIM`] of the samples) and quantiles of abs(D - mean D of the row); unpaired: of `abs(h[r,c] - h[r,c+1])` / sqrt 2 (the across-robot roughness) | 0.002 m |
 //! | `level-pairs` | fraction of across-robot neighbours with equal heights (within 0.1 mm) | 0.02 |
 //! | `edge-2cm`, `edge-steep`, `edge-10cm` | fraction of steps `abs(h[r+1,c] - h[r,c])` (row pairs 0..18) above 0.02, 0.05, 0.1 m: sharp edges against ramps | 0.01 |
 //! | `steps` | fraction of all neighbour pairs whose difference falls in each bin of [`STEP_BINS`] (0.1-1-3-10-30-100 mm; 5 numbers) | 0.01 |
@@ -21,7 +23,10 @@
 //! The gap between sets A (model(sim)) and B (real) is the sum over terms
 //! of the mean over their components of ln(1 + z^2), z = (a - b) / scale;
 //! a component is left out when either side has fewer than [`MIN_SUPPORT`]
-//! samples. Each term is 0 when the distributions match; the scale is the
+//! samples, unless one side has support and the other (per record) less
+//! than a quarter of it: then the component counts as a difference of
+//! [`UNSUPPORTED_Z`] scales, so a model cannot shrink the gap by hiding
+//! the cells the statistics are taken on. Each term is 0 when the distributions match; the scale is the
 //! difference that matters physically (2 % of cells, 5 mm of height, 2 mm
 //! of spread). ln(1 + z^2) is z^2 for small differences and grows slowly
 //! for large ones, so no single statistic (say the 99th percentile of the
@@ -38,6 +43,13 @@ pub const SHADOW_DROP: f64 = 0.08;
 pub const MIN_SUPPORT: usize = 30;
 /// x (m) that separates "toward the sensor" from "beyond" for shadows.
 const SHADOW_REF_X: f64 = 0.1;
+/// Height jump (m) around a missing cell that makes it a `jump-missing` cell.
+pub const JUMP: f64 = 0.05;
+/// Share of the largest spread samples left out of `spread-sd`.
+pub const SD_TRIM: f64 = 0.005;
+/// The difference, in scales, a component counts for when one side has the
+/// samples and the other has (next to) none.
+pub const UNSUPPORTED_Z: f64 = 10.0;
 
 /// Edges (m) of the bins of non-zero neighbour differences (`steps`).
 pub const STEP_BINS: [f64; 6] = [1e-4, 0.001, 0.003, 0.01, 0.03, 0.1];
@@ -73,6 +85,9 @@ struct Acc {
     miss: [usize; GRID_ROWS],
     full_row: [usize; GRID_ROWS],
     shadow: [usize; GRID_ROWS],
+    jump: [usize; GRID_ROWS],
+    pair_miss: [usize; GRID_ROWS],
+    partial: [usize; GRID_ROWS],
     level: [(usize, usize); GRID_ROWS],
     /// Paired: residuals D; unpaired: heights (for the mean).
     loc: Vec<Vec<f32>>,
@@ -98,9 +113,14 @@ impl Acc {
             let missing = (0..COLS).filter(|&c| !d.is_valid(r, c)).count();
             self.miss[r] += missing;
             self.full_row[r] += usize::from(missing == COLS);
+            if missing < COLS {
+                self.partial[r] += 1;
+                self.pair_miss[r] += (0..COLS - 1).filter(|&c| !d.is_valid(r, c) && !d.is_valid(r, c + 1)).count();
+            }
             for c in 0..COLS {
                 if !d.is_valid(r, c) {
                     self.shadow[r] += usize::from(in_shadow(d, r, c));
+                    self.jump[r] += usize::from(missing < COLS && at_jump(d, r, c));
                     continue;
                 }
                 let h = d.height(r, c);
@@ -141,6 +161,9 @@ impl Acc {
             self.miss[r] += o.miss[r];
             self.full_row[r] += o.full_row[r];
             self.shadow[r] += o.shadow[r];
+            self.jump[r] += o.jump[r];
+            self.pair_miss[r] += o.pair_miss[r];
+            self.partial[r] += o.partial[r];
             self.level[r].0 += o.level[r].0;
             self.level[r].1 += o.level[r].1;
         }
@@ -167,6 +190,17 @@ pub fn in_shadow(d: &Dem, r: usize, c: usize) -> bool {
     let far = if ahead { (r + 1..GRID_ROWS).find(|&k| d.is_valid(k, c)) } else { (0..r).rev().find(|&k| d.is_valid(k, c)) };
     match (near, far) {
         (Some(n), Some(f)) => (d.height(n, c) - d.height(f, c)) as f64 >= SHADOW_DROP,
+        _ => false,
+    }
+}
+
+/// True when missing cell `(r, c)` lies between valid cells of its column
+/// whose heights differ by at least [`JUMP`].
+pub fn at_jump(d: &Dem, r: usize, c: usize) -> bool {
+    let before = (0..r).rev().find(|&k| d.is_valid(k, c));
+    let after = (r + 1..GRID_ROWS).find(|&k| d.is_valid(k, c));
+    match (before, after) {
+        (Some(a), Some(b)) => ((d.height(a, c) - d.height(b, c)) as f64).abs() >= JUMP,
         _ => false,
     }
 }
@@ -215,15 +249,16 @@ fn summarise(mut a: Acc, paired: bool) -> Stats {
         Term { name: "missing", values: rate(&a.miss, COLS), support: vec![n * COLS; GRID_ROWS], scale: 0.02 },
         Term { name: "row-missing", values: rate(&a.full_row, 1), support: vec![n; GRID_ROWS], scale: 0.02 },
         Term { name: "shadow", values: rate(&a.shadow, COLS), support: vec![n * COLS; GRID_ROWS], scale: 0.01 },
+        Term { name: "jump-missing", values: rate(&a.jump, COLS), support: vec![n * COLS; GRID_ROWS], scale: 0.01 },
+        Term {
+            name: "missing-pair",
+            values: (0..GRID_ROWS).map(|r| a.pair_miss[r] as f64 / (a.partial[r] * (COLS - 1)).max(1) as f64).collect(),
+            support: a.partial.iter().map(|&p| p * (COLS - 1)).collect(),
+            scale: 0.01,
+        },
     ];
     let sup = |v: &[Vec<f32>]| v.iter().map(Vec::len).collect::<Vec<_>>();
     terms.push(Term { name: "height", values: a.loc.iter().map(|v| mean_sd(v).0).collect(), support: sup(&a.loc), scale: 0.005 });
-    let spread_sd = a
-        .spread
-        .iter()
-        .zip(&a.loc)
-        .map(|(s, l)| if paired { mean_sd(l).1 } else { (s.iter().map(|&x| (x as f64).powi(2)).sum::<f64>() / s.len().max(1) as f64).sqrt() })
-        .collect();
     if paired {
         // Spread about the row's mean residual, so an offset (bias) does
         // not pass for spread.
@@ -232,6 +267,19 @@ fn summarise(mut a: Acc, paired: bool) -> Stats {
             s.iter_mut().zip(l).for_each(|(x, &d)| *x = (d - m).abs());
         }
     }
+    // Root mean square of the spread samples without their top
+    // [`SD_TRIM`]: a handful of cells (a changed height at one step edge)
+    // must not carry the term; the tail has its own quantile terms.
+    let spread_sd = a
+        .spread
+        .iter()
+        .map(|s| {
+            let mut v = s.clone();
+            let cut = quantile(&mut v, 1.0 - SD_TRIM).unwrap_or(0.0);
+            let kept: Vec<f64> = s.iter().map(|&x| x as f64).filter(|&x| x <= cut).collect();
+            (kept.iter().map(|x| x * x).sum::<f64>() / kept.len().max(1) as f64).sqrt()
+        })
+        .collect();
     let spread_support = sup(&a.spread);
     terms.push(Term { name: "spread-sd", values: spread_sd, support: spread_support.clone(), scale: 0.002 });
     for (name, q) in [("spread-q50", 0.5), ("spread-q90", 0.9)] {
@@ -302,15 +350,47 @@ pub fn gap_terms(a: &Stats, b: &Stats) -> Vec<(&'static str, f64)> {
         .filter_map(|ta| {
             let tb = b.term(ta.name)?;
             let (mut s, mut n) = (0.0, 0usize);
+            let (ra, rb) = (a.records.max(1) as f64, b.records.max(1) as f64);
             for i in 0..ta.values.len().min(tb.values.len()) {
-                if ta.support[i] >= MIN_SUPPORT && tb.support[i] >= MIN_SUPPORT {
+                let (sa, sb) = (ta.support[i], tb.support[i]);
+                if sa >= MIN_SUPPORT && sb >= MIN_SUPPORT {
                     s += ((ta.values[i] - tb.values[i]) / ta.scale).powi(2).ln_1p();
                     n += 1;
+                } else if sa.max(sb) >= MIN_SUPPORT {
+                    // One side has the samples, the other (per record) few.
+                    let (pa, pb) = (sa as f64 / ra, sb as f64 / rb);
+                    if pa.min(pb) < 0.25 * pa.max(pb) {
+                        s += UNSUPPORTED_Z.powi(2).ln_1p();
+                        n += 1;
+                    }
                 }
             }
             Some((ta.name, if n > 0 { s / n as f64 } else { 0.0 }))
         })
         .collect()
+}
+
+/// Why a model that hides far more cells than real misses must not be
+/// accepted, or None: over all cells, model(sim) may miss at most
+/// 1.5 x real's rate + 3 %, and in no row more than real's rate + 30 %.
+pub fn hides_too_much(model: &Stats, real: &Stats) -> Option<String> {
+    let (m, r) = (model.mean_over("missing", 0..GRID_ROWS), real.mean_over("missing", 0..GRID_ROWS));
+    if m > 1.5 * r + 0.03 {
+        return Some(format!("it hides {:.1}% of cells where real misses {:.1}%", 100.0 * m, 100.0 * r));
+    }
+    let (tm, tr) = (model.term("missing")?, real.term("missing")?);
+    let worst = (0..GRID_ROWS.min(tm.values.len()).min(tr.values.len())).max_by(|&i, &j| {
+        (tm.values[i] - tr.values[i]).total_cmp(&(tm.values[j] - tr.values[j]))
+    })?;
+    let excess = tm.values[worst] - tr.values[worst];
+    (excess > 0.3).then(|| {
+        format!(
+            "it hides {:.1}% of row {worst} (x = {:.2} m) where real misses {:.1}%",
+            100.0 * tm.values[worst],
+            row_center_x(worst),
+            100.0 * tr.values[worst]
+        )
+    })
 }
 
 /// The gap number: the sum of [`gap_terms`].

@@ -16,6 +16,9 @@
 //! | `smoothing` | h = (w h + (1-w)/8 sum of valid 3x3 neighbours) / (w + (1-w)/8 n_valid) |
 //! | `bias` | h += b + t x |
 //! | `quantization` | h = q floor(h / q + 1/2) |
+//! | `startup` | rows whose centre x < e missing: e = x0 - v t for a record t seconds into its run (labels' `time`, v > 0); without a time, with probability p the record is a startup frame and e = x0 - u (x0 + 0.6), u uniform |
+//! | `patch-dropout` | blobs: each of [`PATCH_SLOTS`] slots holds a blob with probability n / slots, centred uniformly over the grid; cells whose square lies within r of a blob centre missing |
+//! | `edge-holes` | a valid cell whose valid 4-neighbour is higher by more than g is missing with probability p (the foot of a height jump) |
 
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
@@ -33,6 +36,10 @@ pub const NOISE_ORIGIN: (f64, f64) = (0.15, 0.45);
 pub const OCCLUSION_TOLERANCE: f64 = 0.01;
 /// Half the edge of a grid cell (m).
 const HALF: f64 = 0.05;
+/// Blob slots per record of `patch-dropout`: at most this many blobs.
+pub const PATCH_SLOTS: usize = 8;
+/// Back edge of the grid (m): where a startup frame's blind edge ends.
+const X_BACK: f64 = -0.6;
 
 /// One effect with its parameters. JSON: `{"effect": NAME, "params": {...}}`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -86,10 +93,47 @@ pub enum Effect {
         /// Step (m).
         q: f64,
     },
+    /// The first frames of a run: the map has not yet seen the ground
+    /// behind the nearest ray, and that blind edge recedes as the robot drives.
+    Startup {
+        /// Blind edge at the start of a run (m along x).
+        x0: f64,
+        /// Speed at which the blind edge recedes (m/s); 0: unknown.
+        v: f64,
+        /// Share of records that are startup frames (used without times).
+        p: f64,
+    },
+    /// Missing blobs (dark or reflective patches).
+    PatchDropout {
+        /// Expected blobs per record (0..PATCH_SLOTS).
+        n: f64,
+        /// Blob radius (m).
+        r: f64,
+    },
+    /// Holes at the foot of height jumps (stereo consistency check, mixed
+    /// heights in one map cell).
+    EdgeHoles {
+        /// Jump (m) above which the lower cell may be lost.
+        g: f64,
+        /// Probability that such a cell is lost.
+        p: f64,
+    },
 }
 
 /// Every effect name, in the vocabulary's order.
-pub const NAMES: [&str; 8] = ["noise", "dropout", "row-dropout", "occlusion", "fov", "smoothing", "bias", "quantization"];
+pub const NAMES: [&str; 11] = [
+    "noise",
+    "dropout",
+    "row-dropout",
+    "occlusion",
+    "fov",
+    "smoothing",
+    "bias",
+    "quantization",
+    "startup",
+    "patch-dropout",
+    "edge-holes",
+];
 
 impl Effect {
     /// The vocabulary name (`noise`, `row-dropout`, ...).
@@ -103,6 +147,9 @@ impl Effect {
             Effect::Smoothing { .. } => "smoothing",
             Effect::Bias { .. } => "bias",
             Effect::Quantization { .. } => "quantization",
+            Effect::Startup { .. } => "startup",
+            Effect::PatchDropout { .. } => "patch-dropout",
+            Effect::EdgeHoles { .. } => "edge-holes",
         }
     }
 
@@ -116,6 +163,9 @@ impl Effect {
             Effect::Smoothing { w } => vec![("w", w)],
             Effect::Bias { b, t } => vec![("b", b), ("t", t)],
             Effect::Quantization { q } => vec![("q", q)],
+            Effect::Startup { x0, v, p } => vec![("x0", x0), ("v", v), ("p", p)],
+            Effect::PatchDropout { n, r } => vec![("n", n), ("r", r)],
+            Effect::EdgeHoles { g, p } => vec![("g", g), ("p", p)],
         }
     }
 
@@ -131,23 +181,30 @@ impl Effect {
             "smoothing" => Effect::Smoothing { w: g(0)? },
             "bias" => Effect::Bias { b: g(0)?, t: g(1)? },
             "quantization" => Effect::Quantization { q: g(0)? },
+            "startup" => Effect::Startup { x0: g(0)?, v: g(1)?, p: g(2)? },
+            "patch-dropout" => Effect::PatchDropout { n: g(0)?, r: g(1)? },
+            "edge-holes" => Effect::EdgeHoles { g: g(0)?, p: g(1)? },
             _ => return None,
         })
     }
 
     /// Place in the physical chain: what the sensor can see (fov,
-    /// occlusion), how fusion shapes heights (smoothing, bias, noise,
-    /// quantization), what is lost at the end (dropout, row-dropout).
+    /// startup, occlusion), what the matcher rejects at jumps (edge-holes),
+    /// how fusion shapes heights (smoothing, bias, noise, quantization),
+    /// what is lost at the end (dropout, patch-dropout, row-dropout).
     pub fn stage(&self) -> u8 {
         match self {
             Effect::Fov { .. } => 0,
-            Effect::Occlusion { .. } => 1,
-            Effect::Smoothing { .. } => 2,
-            Effect::Bias { .. } => 3,
-            Effect::Noise { .. } => 4,
-            Effect::Quantization { .. } => 5,
-            Effect::Dropout { .. } => 6,
-            Effect::RowDropout { .. } => 7,
+            Effect::Startup { .. } => 1,
+            Effect::Occlusion { .. } => 2,
+            Effect::EdgeHoles { .. } => 3,
+            Effect::Smoothing { .. } => 4,
+            Effect::Bias { .. } => 5,
+            Effect::Noise { .. } => 6,
+            Effect::Quantization { .. } => 7,
+            Effect::Dropout { .. } => 8,
+            Effect::PatchDropout { .. } => 9,
+            Effect::RowDropout { .. } => 10,
         }
     }
 
@@ -159,9 +216,16 @@ impl Effect {
         }
         match *self {
             Effect::Noise { sigma0, k } if sigma0 < 0.0 || k < 0.0 => Err("sigma0 and k must be >= 0".into()),
-            Effect::Dropout { p } | Effect::RowDropout { p } if !(0.0..=1.0).contains(&p) => {
+            Effect::Dropout { p } | Effect::RowDropout { p } | Effect::Startup { p, .. } | Effect::EdgeHoles { p, .. }
+                if !(0.0..=1.0).contains(&p) =>
+            {
                 Err(format!("p = {p} is not a probability"))
             }
+            Effect::Startup { v, .. } if v < 0.0 => Err(format!("v = {v} must be >= 0")),
+            Effect::PatchDropout { n, r } if !(0.0..=PATCH_SLOTS as f64).contains(&n) || r < 0.0 => {
+                Err(format!("n = {n} must be in [0, {PATCH_SLOTS}] and r = {r} >= 0"))
+            }
+            Effect::EdgeHoles { g, .. } if g <= 0.0 => Err(format!("g = {g} must be > 0")),
             Effect::Occlusion { h, .. } if h <= 0.0 => Err(format!("sensor height h = {h} must be > 0")),
             Effect::Fov { x_min, x_max } if x_min >= x_max => Err(format!("x_min = {x_min} must be < x_max = {x_max}")),
             Effect::Smoothing { w } if !(w > 0.0 && w <= 1.0) => Err(format!("w = {w} must be in (0, 1]")),
@@ -172,8 +236,15 @@ impl Effect {
 
     /// Apply to one DEM with this effect's random stream for the record.
     /// Draws a fixed number of values whatever the parameters: 100 normals
-    /// (noise), 100 uniforms (dropout), 20 uniforms (row-dropout).
+    /// (noise), 100 uniforms (dropout, edge-holes), 20 uniforms
+    /// (row-dropout), 2 (startup), 3 per slot (patch-dropout).
     pub fn apply(&self, d: &mut Dem, rng: &mut ChaCha8Rng) {
+        self.apply_at(d, rng, None)
+    }
+
+    /// [`Effect::apply`] for a record `time` seconds into its run, when
+    /// known (only `startup` uses it).
+    pub fn apply_at(&self, d: &mut Dem, rng: &mut ChaCha8Rng, time: Option<f64>) {
         match *self {
             Effect::Noise { sigma0, k } => {
                 let (sx, sz) = NOISE_ORIGIN;
@@ -233,6 +304,56 @@ impl Effect {
                         if d.is_valid(r, c) {
                             let h = d.height(r, c) as f64;
                             d.set_valid(r, c, (q * (h / q + 0.5).floor()) as f32);
+                        }
+                    }
+                }
+            }
+            Effect::Startup { x0, v, p } => {
+                let (u1, u2): (f64, f64) = (rng.gen(), rng.gen());
+                let edge = match time {
+                    Some(t) if v > 0.0 => Some(x0 - v * t),
+                    _ => (u1 < p).then_some(x0 - u2 * (x0 - X_BACK)),
+                };
+                if let Some(e) = edge {
+                    for r in (0..GRID_ROWS).filter(|&r| row_center_x(r) < e) {
+                        (0..COLS).for_each(|c| d.set_missing(r, c));
+                    }
+                }
+            }
+            Effect::PatchDropout { n, r: radius } => {
+                let (ylo, yhi) = (col_center_y(COLS - 1) - HALF, col_center_y(0) + HALF);
+                let (xlo, xhi) = (row_center_x(0) - HALF, row_center_x(GRID_ROWS - 1) + HALF);
+                for _ in 0..PATCH_SLOTS {
+                    let (u, a, b): (f64, f64, f64) = (rng.gen(), rng.gen(), rng.gen());
+                    if u >= n / PATCH_SLOTS as f64 {
+                        continue;
+                    }
+                    // Centres anywhere a blob can touch the grid.
+                    let px = xlo - radius + a * (xhi - xlo + 2.0 * radius);
+                    let py = ylo - radius + b * (yhi - ylo + 2.0 * radius);
+                    for r in 0..GRID_ROWS {
+                        let dx = ((row_center_x(r) - px).abs() - HALF).max(0.0);
+                        for c in 0..COLS {
+                            let dy = ((col_center_y(c) - py).abs() - HALF).max(0.0);
+                            if dx * dx + dy * dy <= radius * radius {
+                                d.set_missing(r, c);
+                            }
+                        }
+                    }
+                }
+            }
+            Effect::EdgeHoles { g, p } => {
+                let z = heights(d);
+                for r in 0..GRID_ROWS {
+                    for c in 0..COLS {
+                        let u: f64 = rng.gen();
+                        let Some(zc) = z[r][c] else { continue };
+                        let jump = [(r.wrapping_sub(1), c), (r + 1, c), (r, c.wrapping_sub(1)), (r, c + 1)]
+                            .into_iter()
+                            .filter(|&(rr, cc)| rr < GRID_ROWS && cc < COLS)
+                            .any(|(rr, cc)| z[rr][cc].is_some_and(|zn| zn - zc > g));
+                        if jump && u < p {
+                            d.set_missing(r, c);
                         }
                     }
                 }

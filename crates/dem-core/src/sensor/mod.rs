@@ -95,19 +95,34 @@ impl SensorModel {
 
     /// Apply every effect to record number `index` of a stream, in order.
     pub fn apply(&self, d: &mut Dem, seed: u64, index: u64) {
+        self.apply_at(d, seed, index, None)
+    }
+
+    /// [`SensorModel::apply`] for a record `time` seconds into its run, when
+    /// known (labels' `time`; `startup` uses it).
+    pub fn apply_at(&self, d: &mut Dem, seed: u64, index: u64, time: Option<f64>) {
         let mut seen: Vec<&'static str> = Vec::with_capacity(self.effects.len());
         for e in &self.effects {
             let occurrence = seen.iter().filter(|n| **n == e.name()).count() as u64;
             seen.push(e.name());
             let mut rng = effect_rng(seed, e, occurrence, index);
-            e.apply(d, &mut rng);
+            e.apply_at(d, &mut rng, time);
         }
     }
 
     /// Apply the model to records whose stream indices start at `first`, in
     /// parallel (the result does not depend on the thread count).
     pub fn apply_all(&self, records: &mut [Dem], seed: u64, first: u64) {
-        records.par_iter_mut().enumerate().for_each(|(i, d)| self.apply(d, seed, first + i as u64));
+        self.apply_all_at(records, seed, first, None)
+    }
+
+    /// [`SensorModel::apply_all`] with each record's time in its run
+    /// (`times[i]` for `records[i]`; NaN where unknown).
+    pub fn apply_all_at(&self, records: &mut [Dem], seed: u64, first: u64, times: Option<&[f64]>) {
+        records
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(i, d)| self.apply_at(d, seed, first + i as u64, times.and_then(|t| t.get(i).copied()).filter(|t| t.is_finite())));
     }
 
     /// Names of the effects, comma-separated (`none` when empty).
@@ -122,8 +137,32 @@ impl SensorModel {
 /// Apply `model` to the NPY stream `input`, writing `output` (`-` for
 /// stdin/stdout), one chunk at a time. Returns the records written.
 pub fn apply_stream(model: &SensorModel, input: &str, output: &str, seed: u64, progress: impl Fn(u64)) -> Result<u64> {
+    apply_stream_at(model, input, output, seed, None, progress)
+}
+
+/// [`apply_stream`] with the time of each record in its run (`times[i]` for
+/// record i of the stream; from a labels CSV). A stream longer than
+/// `times` is refused.
+pub fn apply_stream_at(
+    model: &SensorModel,
+    input: &str,
+    output: &str,
+    seed: u64,
+    times: Option<(&str, &[f64])>,
+    progress: impl Fn(u64),
+) -> Result<u64> {
     let (_, written) = transform(input, output, |first, chunk| {
-        model.apply_all(chunk, seed, first);
+        let t = match times {
+            Some((path, t)) => {
+                let (a, b) = (first as usize, first as usize + chunk.len());
+                if b > t.len() {
+                    return Err(DemError::input(path, format!("{} labels, but the stream has more records ({b} so far)", t.len())));
+                }
+                Some(&t[a..b])
+            }
+            None => None,
+        };
+        model.apply_all_at(chunk, seed, first, t);
         progress(chunk.len() as u64);
         Ok(())
     })?;

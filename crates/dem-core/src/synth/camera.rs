@@ -185,15 +185,42 @@ impl Frame {
     }
 }
 
-/// One frame of the camera at `pose`: the points it measured.
+/// One frame of the camera at `pose`: the points it measured; hits that
+/// only a switched-off stage lets through draw from another stream of the
+/// same seed (see [`observe_with`]).
 pub fn observe(world: &World, pose: &Pose, cfg: &CameraConfig, stages: Stages, rng: &mut ChaCha8Rng) -> Vec<Hit> {
+    let mut aux = rng.clone();
+    aux.set_stream(rng.get_stream() ^ (1 << 63));
+    observe_with(world, pose, cfg, stages, rng, &mut aux)
+}
+
+/// One frame of the camera at `pose`: the points it measured.
+///
+/// Common random numbers across stages: `rng` gives the pixel jitter and
+/// the noise of exactly the hits the full emulator (all stages on) would
+/// measure, in the same order, whatever stages are off (with noise off,
+/// those draws are made and discarded); a hit only a stage switched off
+/// lets through (a second surface without occlusion, a pixel the stereo
+/// check would reject, a dark patch) draws its noise from `aux`. So
+/// switching one stage off changes only what that stage does: the other
+/// pixels and their noise stay the same, and a paired comparison against
+/// the full emulator shows that stage alone. (With the field of view off,
+/// the camera samples other points, so this holds for the other stages.)
+pub fn observe_with(
+    world: &World,
+    pose: &Pose,
+    cfg: &CameraConfig,
+    stages: Stages,
+    rng: &mut ChaCha8Rng,
+    aux: &mut ChaCha8Rng,
+) -> Vec<Hit> {
     let frame = Frame::new(pose, cfg);
     let mut hits = Vec::new();
     let mut ts = Vec::new();
     let mut sub = Vec::new();
+    let half_window = cfg.window_deg.to_radians() / 2.0;
     if stages.fov {
         let (hx, hy) = ((cfg.hfov_deg.to_radians() / 2.0).tan(), (cfg.vfov_deg.to_radians() / 2.0).tan());
-        let half_window = cfg.window_deg.to_radians() / 2.0;
         for j in 0..cfg.pixels_y {
             for i in 0..cfg.pixels_x {
                 let ty = hx * (1.0 - 2.0 * (i as f64 + rng.gen::<f64>()) / cfg.pixels_x as f64);
@@ -203,8 +230,17 @@ pub fn observe(world: &World, pose: &Pose, cfg: &CameraConfig, stages: Stages, r
                 crossings(world, frame.origin, d, t_max, stages.occlusion, &mut ts);
                 for (k, &t) in ts.iter().enumerate() {
                     let mut t = t;
+                    // What the full emulator makes of this crossing: the
+                    // first surface, after the stereo window, in range and
+                    // not dark; only then it draws from `rng`.
+                    let window = (k == 0).then(|| stereo_window(world, &frame, ty, tz, half_window, t, t_max, &mut sub)).flatten();
+                    let full = window.is_some_and(|tm| {
+                        let depth = tm * depth_per_t;
+                        let p = [frame.origin[0] + tm * d[0], frame.origin[1] + tm * d[1]];
+                        (cfg.range_min..=cfg.range_max).contains(&depth) && !world.is_dark(p[0], p[1])
+                    });
                     if stages.smoothing && k == 0 {
-                        match stereo_window(world, &frame, ty, tz, half_window, t, t_max, &mut sub) {
+                        match window {
                             Some(mean) => t = mean,
                             None => continue,
                         }
@@ -213,7 +249,8 @@ pub fn observe(world: &World, pose: &Pose, cfg: &CameraConfig, stages: Stages, r
                     if depth < cfg.range_min || depth > cfg.range_max {
                         continue;
                     }
-                    push_hit(world, frame.origin, d, t, depth, cfg, stages, rng, &mut hits);
+                    let r = if full { &mut *rng } else { &mut *aux };
+                    push_hit(world, frame.origin, d, t, depth, cfg, stages, full, r, &mut hits);
                 }
             }
         }
@@ -230,8 +267,19 @@ pub fn observe(world: &World, pose: &Pose, cfg: &CameraConfig, stages: Stages, r
                 let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
                 let d = [v[0] / len, v[1] / len, v[2] / len];
                 crossings(world, frame.origin, d, len + 0.02, stages.occlusion, &mut ts);
-                for &t in &ts {
-                    push_hit(world, frame.origin, d, t, t, cfg, stages, rng, &mut hits);
+                for (k, &t) in ts.iter().enumerate() {
+                    let mut t = t;
+                    if stages.smoothing && k == 0 {
+                        // The same stereo window, tilted about the ray's own
+                        // horizontal normal (there is no image plane here:
+                        // cells behind the camera are looked at too).
+                        let outer = tilted(d, half_window);
+                        match window_mean(world, frame.origin, outer, t, 1.5 * len + 0.1, &mut sub) {
+                            Some(mean) => t = mean,
+                            None => continue,
+                        }
+                    }
+                    push_hit(world, frame.origin, d, t, t, cfg, stages, false, rng, &mut hits);
                 }
             }
         }
@@ -247,10 +295,30 @@ pub fn observe(world: &World, pose: &Pose, cfg: &CameraConfig, stages: Stages, r
 /// consistency check fails and the pixel returns nothing: None.
 #[allow(clippy::too_many_arguments)]
 fn stereo_window(world: &World, frame: &Frame, ty: f64, tz: f64, half: f64, t: f64, t_max: f64, sub: &mut Vec<f64>) -> Option<f64> {
+    let dirs = [-half, half].map(|dz| frame.ray(ty, tz + dz).0);
+    window_mean(world, frame.origin, dirs, t, t_max, sub)
+}
+
+/// The unit ray `d` turned by -a and +a about its horizontal normal (down
+/// and up in its own vertical plane): the outer rays of a stereo window
+/// when there is no image plane to step in.
+fn tilted(d: [f64; 3], a: f64) -> [[f64; 3]; 2] {
+    let h = (d[0] * d[0] + d[1] * d[1]).sqrt().max(1e-9);
+    // u: in the vertical plane of d, perpendicular to it, pointing up.
+    let u = [-d[0] * d[2] / h, -d[1] * d[2] / h, h];
+    [-a, a].map(|s| {
+        let (sn, cs) = s.sin_cos();
+        [d[0] * cs + u[0] * sn, d[1] * cs + u[1] * sn, d[2] * cs + u[2] * sn]
+    })
+}
+
+/// The matcher over the pixel ray (range `t`) and the two outer rays
+/// `dirs`: their mean range, or None where inverse range departs from a
+/// plane across the window by more than [`JUMP`] (consistency check).
+fn window_mean(world: &World, origin: [f64; 3], dirs: [[f64; 3]; 2], t: f64, t_max: f64, sub: &mut Vec<f64>) -> Option<f64> {
     let mut outer = [0.0; 2];
-    for (k, dz) in [-half, half].into_iter().enumerate() {
-        let (d, _) = frame.ray(ty, tz + dz);
-        crossings(world, frame.origin, d, t_max, true, sub);
+    for (k, d) in dirs.into_iter().enumerate() {
+        crossings(world, origin, d, t_max, true, sub);
         outer[k] = *sub.first()?;
     }
     let (a, b) = (1.0 / outer[0], 1.0 / outer[1]);
@@ -273,6 +341,7 @@ fn push_hit(
     depth: f64,
     cfg: &CameraConfig,
     stages: Stages,
+    draw_always: bool,
     rng: &mut ChaCha8Rng,
     hits: &mut Vec<Hit>,
 ) {
@@ -281,6 +350,12 @@ fn push_hit(
     let mut p = [o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]];
     if stages.dropout && world.is_dark(p[0], p[1]) {
         return;
+    }
+    if !stages.noise && draw_always {
+        // The draws the full emulator makes for this hit, discarded.
+        for _ in 0..3 {
+            let _: f64 = StandardNormal.sample(rng);
+        }
     }
     if stages.noise {
         let nr: f64 = StandardNormal.sample(rng);

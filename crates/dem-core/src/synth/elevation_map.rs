@@ -140,7 +140,8 @@ impl ElevationMap {
     /// The 10 cm DEM around `pose`: each DEM cell is the mean of the map
     /// cells under its four quarter centres that are valid, when at least
     /// `min_cells` are; heights relative to C. `holes` applies the
-    /// maximum-variance rule.
+    /// maximum-variance rule and the `min_cells` rule; without it one valid
+    /// map cell of any variance is enough (a map that never leaves holes).
     pub fn dem(&self, pose: &Pose, holes: bool) -> Dem {
         let mut dem = empty_dem();
         let q = 0.25 * crate::format::CELL;
@@ -157,7 +158,7 @@ impl ElevationMap {
                         }
                     }
                 }
-                if n >= self.cfg.min_cells {
+                if n >= if holes { self.cfg.min_cells } else { 1 } {
                     dem.set_valid(r, c, (sum / n as f64 - pose.z) as f32);
                 }
             }

@@ -4,7 +4,7 @@
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use super::camera::{observe, CameraConfig, Stages};
+use super::camera::{observe_with, CameraConfig, Stages};
 use super::elevation_map::{ElevationMap, MapConfig};
 use super::pose::Pose;
 use super::terrain::World;
@@ -85,18 +85,22 @@ pub struct Sensor<'a> {
     cfg: &'a RunConfig,
     map: ElevationMap,
     rng: ChaCha8Rng,
+    /// Draws for hits only a switched-off stage lets through (see [`observe_with`]).
+    aux: ChaCha8Rng,
 }
 
 impl<'a> Sensor<'a> {
     /// A sensor with an empty map over world x in `[x_min, x_max]`, |y| < 3 m.
     pub fn new(cfg: &'a RunConfig, x_min: f64, x_max: f64, rng: ChaCha8Rng) -> Self {
-        Sensor { cfg, map: ElevationMap::new(cfg.map.clone(), x_min, x_max, -3.0, 3.0), rng }
+        let mut aux = ChaCha8Rng::from_seed(rng.get_seed());
+        aux.set_stream(rng.get_stream() ^ (1 << 63));
+        Sensor { cfg, map: ElevationMap::new(cfg.map.clone(), x_min, x_max, -3.0, 3.0), rng, aux }
     }
 
     /// One frame at `pose`: observe, fuse, and return the measured DEM.
     pub fn measure(&mut self, world: &World, pose: &Pose) -> Dem {
         self.map.begin_frame(pose);
-        for hit in observe(world, pose, &self.cfg.camera, self.cfg.stages, &mut self.rng) {
+        for hit in observe_with(world, pose, &self.cfg.camera, self.cfg.stages, &mut self.rng, &mut self.aux) {
             self.map.fuse(&hit);
         }
         let mut d = self.map.dem(pose, self.cfg.stages.holes);
