@@ -72,7 +72,8 @@ for case, label, st in cases:
     named = "; ".join(f"`{s['effect']}` ({', '.join(f'{k} {v:.3g}' for k, v in s['params'].items())})" for s in r["steps"]) or "nothing"
     first = r["steps"][0]["effect"] if r["steps"] else None
     right = "-" if st is None else ("yes" if first in expect.get(st, set()) else "**no**")
-    edges = "; ".join(f"{s['effect']}.{p}" for s in r["steps"] for p in s.get("at_edge", [])) or "none"
+    edges = "; ".join([f"{s['effect']}.{p}" for s in r["steps"] for p in s.get("at_edge", [])]
+                      + [f"{s['effect']}.{p} (re-fit)" for s in r.get("refits", []) for p in s.get("at_edge", [])]) or "none"
     g0, g1 = r["gap_initial"], r["gap_final"]
     print(f"| {label} | {named} | {right} | {edges} | {g0:.2f} | {g1:.2f} | {100 * (1 - g1 / g0) if g0 else 0:.0f}% |")
 PYEOF
