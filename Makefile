@@ -68,8 +68,8 @@ bench: build venv
 DEMO_RECORDS := 0,230,48,68,103,110,137,148,155,398,413,344
 STAGES := occlusion smoothing noise dropout fov
 TD := testdata
-# Epochs of the demo's G_Y (width 32, batch 64; ~15 s an epoch on 2 cores).
-DEMO_EPOCHS ?= 5
+# Epochs of the demo's G_Y (dem-train's default, 30: ~3 s an epoch on 2 cores).
+DEMO_EPOCHS ?= 30
 
 demo: build venv
 	@mkdir -p $(OUT)/prep
@@ -111,6 +111,7 @@ demo: build venv
 	$(BIN)/dem-train --sim $(OUT)/prep/sim.npy --real $(OUT)/prep/real.npy --pairs $(OUT)/prep/pairs_split.csv \
 	    --out $(OUT)/train --epochs $(DEMO_EPOCHS) --seed 1
 	$(BIN)/dem-train export $(OUT)/train -o $(OUT)/gy.onnx
+	$(BIN)/dem-train curves $(OUT)/train -o $(OUT)/curves.png
 	$(BIN)/dem-eval --sim $(OUT)/prep/sim.npy --real $(OUT)/prep/real.npy --pairs $(OUT)/prep/pairs_split.csv \
 	    --split val --identity --format csv -o $(OUT)/train/identity.csv
 	$(BIN)/dem-eval --sim $(OUT)/prep/sim.npy --real $(OUT)/prep/real.npy --pairs $(OUT)/prep/pairs_split.csv \
@@ -121,7 +122,13 @@ demo: build venv
 	$(BIN)/dem-render --compare $(OUT)/train/input.npy $(OUT)/train/closest.npy $(OUT)/train/pred.npy \
 	    --row-labels input,closest-real,generated --error-rows 2,1 --start 0 --count 12 \
 	    --title "G_Y on val keys: sim input, closest real, generated (eq. 7.1 pair error under each)" -o $(OUT)/generated.png
-	column -s, -t < $(OUT)/train/table.csv
+	$(BIN)/dem-eval --sim $(OUT)/prep/sim.npy --real $(OUT)/prep/real.npy --pairs $(OUT)/prep/pairs_split.csv \
+	    --split val --identity --name identity --format md -o $(OUT)/train/identity.md
+	$(BIN)/dem-eval --sim $(OUT)/prep/sim.npy --real $(OUT)/prep/real.npy --pairs $(OUT)/prep/pairs_split.csv \
+	    --split val --model $(OUT)/gy.onnx --name paired-data --format md -o $(OUT)/train/model.md
+	cat $(OUT)/train/identity.md <(tail -n +3 $(OUT)/train/model.md) | tee $(OUT)/train/table.md
+	@echo "== 4b. downstream: flipper regressor and terrain classifier trained on sim, G_Y(sim), sensor(sim), measured"
+	BIN=$(BIN) TD=$(TD) OUT=$(OUT)/transfer bash scripts/transfer.sh
 	@echo "== 5. CI guard: the validation table of a tiny model against testdata/eval_baseline.csv"
 	BIN=$(BIN) OUT=$(OUT)/eval_ci bash scripts/eval_ci.sh
 	@echo "== 6. dem-gap: name the sim-to-real gap, leaving one emulator stage out at a time"
@@ -129,6 +136,7 @@ demo: build venv
 	@echo
 	@echo "Pictures:"
 	@echo "  $(OUT)/generated.png         G_Y: sim input, closest real, generated, pair error under each"
+	@echo "  $(OUT)/curves.png            G_Y's training curves: losses per epoch, val pair error"
 	@echo "  $(OUT)/sim_vs_measured.png   sim and measured DEMs side by side (holes, shadows, smoothing, startup rows)"
 	@echo "  $(OUT)/effects.png           the same poses with each emulator stage switched off"
 	@echo "  $(OUT)/pallets_cleaned.png   sim pallets before and after dem-clean-pallet"
@@ -136,7 +144,8 @@ demo: build venv
 	@echo "Table: $(OUT)/effects.md (missing cells, residuals and Identity error per emulator stage)"
 	@echo "Data: $(OUT)/prep/ (sim keys, real, pairs.csv, cleaned and filled streams)"
 	@echo "Model: $(OUT)/gy.onnx (dem-apply --model $(OUT)/gy.onnx < sim.npy > realistic.npy); run: $(OUT)/train/"
-	@echo "Tables: $(OUT)/train/table.csv (Identity vs G_Y), $(OUT)/eval_ci/compare.txt (CI guard)"
+	@echo "Tables: $(OUT)/train/table.md (Identity vs G_Y: pair error, height error, roughness, gap), $(OUT)/eval_ci/compare.txt (CI guard)"
+	@echo "Transfer: $(OUT)/transfer/transfer.txt (flipper and terrain models trained on sim, G_Y(sim), sensor(sim), measured)"
 	@echo "Gap: $(OUT)/gap/summary.md (effects named per emulator stage left out), $(OUT)/gap/exact-paired/report.md (report with pictures)"
 
 # The committed test data set (see testdata/README.md).

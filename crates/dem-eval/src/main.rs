@@ -6,6 +6,7 @@ mod evaluate;
 mod inputs;
 mod model;
 mod report;
+mod transfer;
 
 use std::process::ExitCode;
 
@@ -45,6 +46,18 @@ struct Args {
 
 #[derive(Subcommand)]
 enum Cmd {
+    /// The downstream test: train small policy-like models (flipper angles
+    /// by ridge regression, terrain by a linear classifier) on each training
+    /// set, test all on measured DEMs of held-out runs; report each error and
+    /// the share of the sim -> measured drop each set between the first
+    /// (sim) and the last (measured, other runs) closes.
+    #[command(after_long_help = "Examples:
+  dem-eval transfer --test real_test.npy --test-labels real_test_labels.csv \\
+      --train sim sim.npy sim_labels.csv --train gy gy_sim.npy sim_labels.csv \\
+      --train measured real_train.npy real_train_labels.csv --by-terrain
+  dem-apply --model gy.onnx sim.npy -o gy_sim.npy     # G_Y(sim) has sim's labels
+  scripts/transfer.sh                                  # the whole test on testdata/")]
+    Transfer(transfer::TransferArgs),
     /// Compare a table against a baseline; exit 1 when a row got worse.
     ///
     /// Rows match by (method, terrain). A row is worse when CURRENT's mean or
@@ -96,6 +109,7 @@ fn main() -> ExitCode {
                 let tol = eval::Tolerances { pair: tolerance, height_cm: height_tolerance, rough_cm: rough_tolerance, gap: gap_tolerance };
                 compare::run(&baseline, &current, &tol, format)
             }
+            Some(Cmd::Transfer(t)) => transfer::run(t),
             None => evaluate::run(a.eval),
         }
     })

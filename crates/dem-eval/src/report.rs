@@ -27,9 +27,9 @@ pub enum Format {
 
 /// A grid of strings: column groups (text shows them on a line of their own),
 /// column names and rows.
-struct Grid {
-    cols: Vec<(&'static str, &'static str)>,
-    rows: Vec<Vec<String>>,
+pub(crate) struct Grid {
+    pub(crate) cols: Vec<(&'static str, &'static str)>,
+    pub(crate) rows: Vec<Vec<String>>,
 }
 
 impl Grid {
@@ -40,7 +40,7 @@ impl Grid {
         }
     }
 
-    fn write(&self, w: &mut impl Write, f: Format) -> std::io::Result<()> {
+    pub(crate) fn write(&self, w: &mut impl Write, f: Format) -> std::io::Result<()> {
         let n = self.cols.len();
         match f {
             Format::Csv | Format::Json => {
@@ -144,7 +144,7 @@ fn decimals(m: Measure) -> usize {
 }
 
 /// Write `body` to `path` (`-` for stdout), atomically for files.
-fn emit(path: &str, body: impl FnOnce(&mut AtomicOutput) -> std::io::Result<()>) -> anyhow::Result<()> {
+pub(crate) fn emit(path: &str, body: impl FnOnce(&mut AtomicOutput) -> std::io::Result<()>) -> anyhow::Result<()> {
     let mut out = AtomicOutput::create(path)?;
     body(&mut out).map_err(|e| DemError::io(path, e))?;
     Ok(out.commit()?)

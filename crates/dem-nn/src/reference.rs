@@ -4,7 +4,7 @@
 
 use dem_core::Dem;
 
-use crate::weights::{Conv2d, DiscriminatorWeights, GeneratorWeights, InstanceNorm, Linear, LEAK, NORM_EPS};
+use crate::weights::{Arch, CORRECTION_SCALE, GATE_SHARPNESS, Conv2d, DiscriminatorWeights, GeneratorWeights, InstanceNorm, Linear, LEAK, NORM_EPS};
 
 /// A feature map of one sample: `c` channels of `h x w`, NCHW order.
 #[derive(Clone, Debug)]
@@ -140,12 +140,19 @@ pub fn generator_grid(g: &GeneratorWeights, dem: &Dem) -> Vec<f64> {
     feat.extend_from_slice(&att);
     let o = linear(&feat, &g.fc);
     let mut out = vec![0.0; 200];
-    for c in 0..2 {
-        for r in 0..20 {
-            for col in 0..5 {
-                let v = o[(c * 20 + r) * 5 + col];
-                out[(r * 5 + col) * 2 + c] = if c == 1 { v.tanh() } else { v };
-            }
+    for r in 0..20 {
+        for col in 0..5 {
+            let (oh, om) = (o[r * 5 + col], o[(20 + r) * 5 + col]);
+            let m = om.tanh();
+            let h = match g.arch {
+                Arch::Thesis => oh,
+                Arch::Residual => {
+                    let gate = 1.0 / (1.0 + (-(GATE_SHARPNESS as f64) * om).exp());
+                    (dem[(r * 5 + col) * 2] as f64 + CORRECTION_SCALE as f64 * oh) * gate
+                }
+            };
+            out[(r * 5 + col) * 2] = h;
+            out[(r * 5 + col) * 2 + 1] = m;
         }
     }
     out

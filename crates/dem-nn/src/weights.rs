@@ -72,11 +72,63 @@ pub struct ResBlock {
     pub nb: InstanceNorm,
 }
 
+/// The residual head's height correction is `s o_h` with this `s` (metres per
+/// unit of the head's output). The head's outputs are of order 1 and move by
+/// ~lr per Adam step per feature; heights are of order 0.1 m and a measured
+/// DEM is smooth to a few millimetres, so without the scale every step
+/// jitters heights by centimetres (docs/training.md has the numbers).
+pub const CORRECTION_SCALE: f32 = 0.1;
+
+/// Slope `k` of the residual head's height gate `sigmoid(k o_m)`.
+pub const GATE_SHARPNESS: f32 = 20.0;
+
+/// Which generator head: how the fully connected head's 200 outputs
+/// `o = (o_h, o_m)` become the output grid (`x_h` is the input's height
+/// channel, `m` the output mask).
+///
+/// - [`Arch::Thesis`] (`spec/network.md`): `h = o_h`, `m = tanh(o_m)`. The
+///   head must produce every height from scratch, and nothing in the losses
+///   weighs a height error of centimetres against a mask error (equation 7.1
+///   prices 10 cm at 1e-4): its heights come out as +-20 cm speckle.
+/// - [`Arch::Residual`]: `m = tanh(o_m)`, `h = (x_h + s o_h) g` with
+///   `s =` [`CORRECTION_SCALE`] and the gate `g = sigmoid(k o_m)`,
+///   `k =` [`GATE_SHARPNESS`]. The head predicts a height *correction* over
+///   the input, which starts at zero (its height rows are initialised to 0),
+///   so an untrained G_Y keeps the terrain. The gate writes height ~0 where
+///   the cell is missing (`o_m << 0`, as the contract stores missing cells)
+///   and the full height where it is valid; it is smooth, so the export's
+///   check against tract cannot flip on a mask near 0, and sharp, so a cell
+///   the model calls valid with a mask of 0.25 already keeps 99 % of its
+///   height (a gate of `(1 + m) / 2` shrank 10 % of the valid cells by up to
+///   half and doubled the roughness; docs/training.md).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Arch {
+    /// The thesis's head (checkpoints without an `arch` are this).
+    #[default]
+    Thesis,
+    /// Heights as a gated correction over the input's heights.
+    Residual,
+}
+
+impl Arch {
+    /// The name used on the command line and in files.
+    pub fn name(self) -> &'static str {
+        match self {
+            Arch::Thesis => "thesis",
+            Arch::Residual => "residual",
+        }
+    }
+}
+
 /// Generator G_X or G_Y of width w: see the module docs and `spec/network.md`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct GeneratorWeights {
     /// Width w (channels of the first conv).
     pub width: usize,
+    /// The head's architecture.
+    #[serde(default)]
+    pub arch: Arch,
     /// Encoder convs 2 -> w -> 2w -> 2w (3x3, stride 1, pad 1).
     pub enc: Vec<Conv2d>,
     /// Norms after each encoder conv.
@@ -144,8 +196,16 @@ impl Linear {
 }
 
 impl GeneratorWeights {
-    /// A freshly initialised generator of width `w`.
+    /// A freshly initialised thesis generator of width `w`.
     pub fn init(rng: &mut impl Rng, w: usize) -> Self {
+        Self::init_arch(rng, w, Arch::Thesis)
+    }
+
+    /// A freshly initialised generator of width `w` and head `arch`: PyTorch's
+    /// default initialisation everywhere (the same random stream for both
+    /// heads), then for [`Arch::Residual`] the head's height rows (outputs
+    /// 0..100) and their biases set to 0, so the correction starts at zero.
+    pub fn init_arch(rng: &mut impl Rng, w: usize, arch: Arch) -> Self {
         let enc_ch = [2, w, 2 * w, 2 * w];
         let dec_ch = [2 * w, 2 * w, w, 2];
         let enc = (0..3).map(|i| Conv2d::init(rng, enc_ch[i], enc_ch[i + 1], 3, 1)).collect();
@@ -160,8 +220,12 @@ impl GeneratorWeights {
             .collect();
         let dec = (0..3).map(|i| Conv2d::init(rng, dec_ch[i], dec_ch[i + 1], 3, 1)).collect();
         let dec_norm = (0..2).map(|i| InstanceNorm::init(dec_ch[i + 1])).collect();
-        let fc = Linear::init(rng, 210, 200);
-        GeneratorWeights { width: w, enc, enc_norm, res, dec, dec_norm, fc }
+        let mut fc = Linear::init(rng, 210, 200);
+        if arch == Arch::Residual {
+            fc.weight[..100 * 210].fill(0.0);
+            fc.bias[..100].fill(0.0);
+        }
+        GeneratorWeights { width: w, arch, enc, enc_norm, res, dec, dec_norm, fc }
     }
 }
 

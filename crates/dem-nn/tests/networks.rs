@@ -5,7 +5,7 @@
 use dem_core::Dem;
 use dem_nn::net::{DiscScratch, DiscTape, Discriminator, GenScratch, GenTape, Generator};
 use dem_nn::reference;
-use dem_nn::weights::{Conv2d, DiscriminatorWeights, GeneratorWeights, InstanceNorm, Linear};
+use dem_nn::weights::{Arch, Conv2d, DiscriminatorWeights, GeneratorWeights, InstanceNorm, Linear};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -36,9 +36,15 @@ fn jitter_norms(rng: &mut ChaCha8Rng, n: &mut InstanceNorm) {
     n.beta.iter_mut().for_each(|b| *b = rng.gen_range(-0.3..0.3));
 }
 
-fn generator_weights(w: usize, seed: u64) -> GeneratorWeights {
+fn generator_weights(w: usize, seed: u64, arch: Arch) -> GeneratorWeights {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let mut g = GeneratorWeights::init(&mut rng, w);
+    let mut g = GeneratorWeights::init_arch(&mut rng, w, arch);
+    // The residual head starts its height correction at 0; give it one, so
+    // the test sees the correction's weights and the gate at work.
+    if arch == Arch::Residual {
+        g.fc.weight[..100 * 210].iter_mut().for_each(|v| *v = rng.gen_range(-0.05..0.05));
+        g.fc.bias[..100].iter_mut().for_each(|v| *v = rng.gen_range(-0.05..0.05));
+    }
     let norms = g.enc_norm.iter_mut().chain(g.dec_norm.iter_mut()).chain(g.res.iter_mut().flat_map(|r| [&mut r.na, &mut r.nb]));
     norms.for_each(|n| jitter_norms(&mut rng, n));
     g
@@ -54,9 +60,9 @@ fn disc_weights(seed: u64) -> DiscriminatorWeights {
 
 #[test]
 fn generator_forward_matches_the_reference() {
-    for w in [4, 32] {
-        let gw = generator_weights(w, 1);
-        let net = Generator::new(w);
+    for (w, arch) in [(4, Arch::Thesis), (32, Arch::Thesis), (4, Arch::Residual), (32, Arch::Residual)] {
+        let gw = generator_weights(w, 1, arch);
+        let net = Generator::new(w, arch);
         assert_eq!(net.save(&net.load(&gw)), gw, "load/save round trip");
         let p = net.load(&gw);
         let batch = records(9);
@@ -66,7 +72,7 @@ fn generator_forward_matches_the_reference() {
         for (i, d) in batch.iter().enumerate() {
             let want = reference::generator_grid(&gw, d);
             for (j, (a, b)) in tape.out[i * 200..][..200].iter().zip(&want).enumerate() {
-                assert!((*a as f64 - b).abs() < 1e-4, "width {w} record {i} value {j}: {a} vs {b}");
+                assert!((*a as f64 - b).abs() < 1e-4, "width {w} {arch:?} record {i} value {j}: {a} vs {b}");
             }
         }
     }
@@ -165,9 +171,18 @@ fn check(name: &str, analytic: f64, numeric: f64) -> bool {
 
 #[test]
 fn generator_gradients_match_finite_differences() {
+    generator_gradients(Arch::Thesis);
+}
+
+#[test]
+fn residual_generator_gradients_match_finite_differences() {
+    generator_gradients(Arch::Residual);
+}
+
+fn generator_gradients(arch: Arch) {
     let w = 4;
-    let gw = generator_weights(w, 3);
-    let net = Generator::new(w);
+    let gw = generator_weights(w, 3, arch);
+    let net = Generator::new(w, arch);
     let p = net.load(&gw);
     let batch = records(3);
     let (grid, att) = split(&batch);

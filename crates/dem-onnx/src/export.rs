@@ -12,6 +12,7 @@
 //!     -> Flatten (N,200), feature c*100 + r*5 + col
 //! Concat(that, Flatten(att) (N,10), feature 200 + c*5 + col) (N,210)
 //!     -> Gemm(transB = 1) 210 -> 200 -> [heights 0..100 | Tanh(masks 100..200)]
+//!     -> residual head only: heights = (Flatten(img channel 0) + 0.1 heights) * Sigmoid(20 masks_raw)
 //!     -> Reshape (N,2,20,5) -> Concat(., att, axis rows) (N,2,21,5)
 //!     -> Transpose[0,2,3,1] -> dem_out (N,21,5,2)
 //! ```
@@ -20,7 +21,7 @@
 
 use dem_core::output::write_atomic;
 use dem_core::{Dem, DemError};
-use dem_nn::weights::{Conv2d, GeneratorWeights, InstanceNorm, LEAK, NORM_EPS};
+use dem_nn::weights::{Arch, CORRECTION_SCALE, GATE_SHARPNESS, Conv2d, GeneratorWeights, InstanceNorm, LEAK, NORM_EPS};
 use prost::Message;
 use std::io::Write;
 use tract_onnx::pb;
@@ -176,7 +177,7 @@ pub fn generator_model(w: &GeneratorWeights, name: &str) -> pb::ModelProto {
     let nchw = g.node("Transpose", &[INPUT], vec![attr_ints("perm", &[0, 3, 1, 2])], "nchw");
     let img = g.slice(&nchw, 2, 0, 20, "grid");
     let att = g.slice(&nchw, 2, 20, 21, "attitude");
-    let mut h = img;
+    let mut h = img.clone();
     for (i, (c, n)) in w.enc.iter().zip(&w.enc_norm).enumerate() {
         let x = g.conv(&h, c, &format!("enc{i}"));
         let x = g.norm(&x, n, &format!("enc{i}.norm"));
@@ -205,8 +206,23 @@ pub fn generator_model(w: &GeneratorWeights, name: &str) -> pb::ModelProto {
     let fb = g.f32s("fc.bias", &[200], &w.fc.bias);
     let o = g.node("Gemm", &[&feat, &fw, &fb], vec![attr_int("transB", 1)], "fc");
     let heights = g.slice(&o, 1, 0, 100, "heights");
-    let masks = g.slice(&o, 1, 100, 200, "masks_raw");
-    let masks = g.node("Tanh", &[&masks], vec![], "masks");
+    let masks_raw = g.slice(&o, 1, 100, 200, "masks_raw");
+    let masks = g.node("Tanh", &[&masks_raw], vec![], "masks");
+    let heights = match w.arch {
+        Arch::Thesis => heights,
+        Arch::Residual => {
+            // (x_h + o_h) * (1 + m) / 2, x_h the input's height channel.
+            let xh = g.slice(&img, 1, 0, 1, "input_heights");
+            let xh = g.node("Flatten", &[&xh], vec![attr_int("axis", 1)], "input_heights_flat");
+            let scale = g.f32s("correction.scale", &[1], &[CORRECTION_SCALE]);
+            let c = g.node("Mul", &[&heights, &scale], vec![], "correction");
+            let a = g.node("Add", &[&c, &xh], vec![], "heights_ungated");
+            let k = g.f32s("gate.sharpness", &[1], &[GATE_SHARPNESS]);
+            let gate = g.node("Mul", &[&masks_raw, &k], vec![], "gate_logit");
+            let gate = g.node("Sigmoid", &[&gate], vec![], "gate");
+            g.node("Mul", &[&a, &gate], vec![], "heights_gated")
+        }
+    };
     let o = g.node("Concat", &[&heights, &masks], vec![attr_int("axis", 1)], "head");
     let shape = g.i64s("head.shape", &[-1, 2, 20, 5]);
     let o = g.node("Reshape", &[&o, &shape], vec![], "head_nchw");
@@ -218,8 +234,9 @@ pub fn generator_model(w: &GeneratorWeights, name: &str) -> pb::ModelProto {
         producer_name: "dem-onnx".into(),
         producer_version: env!("CARGO_PKG_VERSION").into(),
         doc_string: format!(
-            "Generator of spec/network.md, width {}: {INPUT} float32 (N,21,5,2) -> {OUTPUT} float32 (N,21,5,2), \
+            "Generator of spec/network.md, {} head, width {}: {INPUT} float32 (N,21,5,2) -> {OUTPUT} float32 (N,21,5,2), \
              row 20 (attitude) passed through",
+            w.arch.name(),
             w.width
         ),
         graph: Some(pb::GraphProto {

@@ -9,7 +9,7 @@
 use dem_core::format::{at, ATTITUDE_ROW};
 use dem_core::Dem;
 use dem_nn::reference;
-use dem_nn::weights::GeneratorWeights;
+use dem_nn::weights::{Arch, GeneratorWeights};
 use dem_onnx::{export_checked, generator_model, pb, OnnxModel, TOLERANCE};
 use dem_testkit::{arg, py, tempdir, testdata};
 use prost::Message;
@@ -18,6 +18,17 @@ use rand_chacha::ChaCha8Rng;
 
 fn generator(width: usize, seed: u64) -> GeneratorWeights {
     GeneratorWeights::init(&mut ChaCha8Rng::seed_from_u64(seed), width)
+}
+
+/// A residual-head generator whose height correction is not zero (a fresh
+/// one starts at zero, which would hide a wrong correction path).
+fn residual(width: usize, seed: u64) -> GeneratorWeights {
+    use rand::Rng;
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut w = GeneratorWeights::init_arch(&mut rng, width, Arch::Residual);
+    w.fc.weight[..100 * 210].iter_mut().for_each(|v| *v = rng.gen_range(-0.05..0.05));
+    w.fc.bias[..100].iter_mut().for_each(|v| *v = rng.gen_range(-0.05..0.05));
+    w
 }
 
 /// `n` records: sim records (full grids) and measured ones (missing cells),
@@ -73,6 +84,25 @@ fn tract_matches_the_reference_at_width_32() {
 }
 
 #[test]
+fn tract_matches_the_reference_with_the_residual_head() {
+    for (width, n) in [(4, 40), (32, 12)] {
+        let w = residual(width, 20 + width as u64);
+        let input = records(n);
+        let got = tract_model(&w).run(&input).unwrap();
+        let d = max_diff(&got, &reference_outputs(&w, &input));
+        assert!(d <= TOLERANCE, "width {width}: max |tract - reference| = {d}");
+        // Where the output mask says missing, the gate writes a height near 0.
+        for o in &got {
+            for k in 0..100 {
+                if o[2 * k + 1] < -0.5 {
+                    assert!(o[2 * k].abs() < 1e-2, "a missing cell keeps height {}", o[2 * k]);
+                }
+            }
+        }
+    }
+}
+
+#[test]
 fn the_attitude_row_passes_through_and_masks_stay_in_range() {
     let w = generator(8, 3);
     let input = records(10);
@@ -118,9 +148,9 @@ fn threads_can_share_one_model() {
 #[test]
 fn onnxruntime_and_the_onnx_checker_accept_the_export() {
     let dir = tempdir();
-    for width in [4, 32] {
-        let w = generator(width, 10 + width as u64);
-        let input = records(if width == 4 { 60 } else { 12 });
+    for (width, arch) in [(4, Arch::Thesis), (32, Arch::Thesis), (8, Arch::Residual)] {
+        let w = if arch == Arch::Thesis { generator(width, 10 + width as u64) } else { residual(width, 30) };
+        let input = records(if width == 32 { 12 } else { 60 });
         let want = reference_outputs(&w, &input);
         let model = arg(dir.path(), &format!("g{width}.onnx"));
         let report = export_checked(&w, &input, &want, &model).unwrap();
@@ -153,7 +183,7 @@ print("ok")
         assert_eq!(said.trim(), "ok");
         let got = dem_core::npy::read_all(&out).unwrap();
         let d = max_diff(&got, &want);
-        assert!(d <= TOLERANCE, "width {width}: max |onnxruntime - reference| = {d}");
+        assert!(d <= TOLERANCE, "width {width} {arch:?}: max |onnxruntime - reference| = {d}");
     }
 }
 

@@ -1,6 +1,8 @@
 //! dem-train: train G_Y (sim -> real) as a Cycle GAN with paired data, and
 //! export a trained generator to ONNX.
 
+mod curves;
+
 use std::process::ExitCode;
 
 use clap::{Args, Parser, Subcommand};
@@ -24,6 +26,7 @@ use dem_nn::train::{AdamConfig, CycleGan, GanConfig, Sampler, TrainData};
   dem-train --sim sim.npy --real real.npy --pairs pairs.csv --out run/ --epochs 20
   dem-train --out run/ --epochs 40 --resume             # go on to 40 epochs
   dem-train export run/ -o gy.onnx
+  dem-train curves run/ -o curves.png                   # losses and val error per epoch
   dem-apply --model gy.onnx < sim.npy > realistic.npy")]
 struct Cli {
     #[command(subcommand)]
@@ -36,6 +39,15 @@ struct Cli {
 enum Command {
     /// Export a run's generator to ONNX, checked against the trainer.
     Export(ExportArgs),
+    /// Draw a run's training curves (losses per epoch, val pair error) as a PNG.
+    #[command(after_long_help = "Example:\n  dem-train curves run/ -o run/curves.png")]
+    Curves {
+        /// Run directory made by dem-train.
+        run: String,
+        /// Output PNG.
+        #[arg(short, long)]
+        output: String,
+    },
 }
 
 #[derive(Args)]
@@ -57,7 +69,7 @@ struct TrainArgs {
     #[arg(long)]
     out: Option<String>,
     /// Epochs in all (one epoch = ceil(sims / batch) steps).
-    #[arg(long, default_value_t = 10)]
+    #[arg(long, default_value_t = 30)]
     epochs: u64,
     /// Stop after this many steps in all (e.g. tiny CI runs).
     #[arg(long)]
@@ -68,13 +80,27 @@ struct TrainArgs {
     /// Generator width w [default: 32].
     #[arg(long)]
     width: Option<usize>,
+    /// Generator head: `residual` predicts a height correction over the sim
+    /// input and is trained with the paired height term; `thesis` is
+    /// spec/network.md's network and losses, to reproduce the thesis's rows
+    /// [default: residual].
+    #[arg(long, value_enum)]
+    arch: Option<ArchArg>,
+    /// Weight of the paired height term (mean abs height error in cm on the
+    /// cells valid in the paired real) [default: 3 with residual, 0 with thesis].
+    #[arg(long)]
+    lambda_height: Option<f32>,
+    /// Share of the epochs at the full learning rate; over the rest it falls
+    /// linearly to 0 [default: 0.5 with residual, 1 (constant) with thesis].
+    #[arg(long)]
+    decay_from: Option<f32>,
     /// Adam learning rate [default: 2e-4].
     #[arg(long)]
     lr: Option<f32>,
     /// Weight of the cycle terms [default: 10].
     #[arg(long)]
     lambda_cyc: Option<f32>,
-    /// Weight of the paired terms [default: 10].
+    /// Weight of the paired terms [default: 30 with residual, 10 with thesis].
     #[arg(long)]
     lambda_pair: Option<f32>,
     /// Share of each batch drawn from train pairs [default: 0.5].
@@ -95,6 +121,12 @@ struct TrainArgs {
     resume: bool,
 }
 
+#[derive(Clone, Copy, PartialEq, clap::ValueEnum)]
+enum ArchArg {
+    Thesis,
+    Residual,
+}
+
 #[derive(Args)]
 struct ExportArgs {
     /// Run directory made by dem-train.
@@ -112,6 +144,7 @@ fn main() -> ExitCode {
         let c = Cli::parse();
         match c.command {
             Some(Command::Export(e)) => export(&e),
+            Some(Command::Curves { run, output }) => curves::run(&run, &output),
             None => train(c.train),
         }
     })
@@ -152,6 +185,12 @@ fn train(a: TrainArgs) -> anyhow::Result<()> {
     let opts = RunOptions { dir: dir.clone(), epochs: a.epochs, max_steps: a.max_steps, checkpoint_every: a.checkpoint_every };
     if a.batch == Some(0) || a.width == Some(0) {
         return Err(cli::usage("--batch and --width must be at least 1"));
+    }
+    if a.decay_from.is_some_and(|v| !(0.0..=1.0).contains(&v)) {
+        return Err(cli::usage("--decay-from must be in 0..1"));
+    }
+    if a.lambda_height.is_some_and(|v| !(v.is_finite() && v >= 0.0)) {
+        return Err(cli::usage("--lambda-height must be a number >= 0"));
     }
     if a.paired_fraction.is_some_and(|f| !(0.0..=1.0).contains(&f)) {
         return Err(cli::usage("--paired-fraction must be in 0..1"));
@@ -199,11 +238,18 @@ fn train(a: TrainArgs) -> anyhow::Result<()> {
             (meta, gan)
         }
         None => {
+            let base = match a.arch {
+                Some(ArchArg::Thesis) => GanConfig::thesis(),
+                _ => GanConfig::default(),
+            };
             let config = GanConfig {
-                width: a.width.unwrap_or(32),
-                adam: AdamConfig { lr: a.lr.unwrap_or(2e-4), ..AdamConfig::default() },
-                lambda_cyc: a.lambda_cyc.unwrap_or(10.0),
-                lambda_pair: a.lambda_pair.unwrap_or(10.0),
+                width: a.width.unwrap_or(base.width),
+                adam: AdamConfig { lr: a.lr.unwrap_or(base.adam.lr), ..base.adam },
+                lambda_cyc: a.lambda_cyc.unwrap_or(base.lambda_cyc),
+                lambda_pair: a.lambda_pair.unwrap_or(base.lambda_pair),
+                lambda_height: a.lambda_height.unwrap_or(base.lambda_height),
+                decay_from: a.decay_from.unwrap_or(base.decay_from),
+                ..base
             };
             let batch = a.batch.unwrap_or(64);
             let gan = CycleGan::new(config, seed);
@@ -216,11 +262,12 @@ fn train(a: TrainArgs) -> anyhow::Result<()> {
     };
     let sampler = Sampler { seed: meta.seed, batch: meta.batch, paired_fraction: meta.paired_fraction };
     cli::log(format!(
-        "{} sims, {} reals, {} train keys, {} val keys; width {}, batch {} ({} paired rows), {} steps per epoch, {} threads",
+        "{} sims, {} reals, {} train keys, {} val keys; {} head, width {}, batch {} ({} paired rows), {} steps per epoch, {} threads",
         data.sim.len(),
         data.real.len(),
         data.train.len(),
         data.val.len(),
+        meta.config.arch.name(),
         meta.config.width,
         meta.batch,
         sampler.paired_rows(&data),
@@ -243,6 +290,9 @@ fn check_same(a: &TrainArgs, m: &Meta) -> anyhow::Result<()> {
         ("--lr", a.lr.is_some_and(|v| v != c.adam.lr)),
         ("--lambda-cyc", a.lambda_cyc.is_some_and(|v| v != c.lambda_cyc)),
         ("--lambda-pair", a.lambda_pair.is_some_and(|v| v != c.lambda_pair)),
+        ("--lambda-height", a.lambda_height.is_some_and(|v| v != c.lambda_height)),
+        ("--decay-from", a.decay_from.is_some_and(|v| v != c.decay_from)),
+        ("--arch", a.arch.is_some_and(|v| (v == ArchArg::Thesis) != (c.arch == dem_nn::weights::Arch::Thesis))),
         ("--paired-fraction", a.paired_fraction.is_some_and(|v| v != m.paired_fraction)),
         ("--seed", a.seed.is_some_and(|v| v != m.seed)),
     ];

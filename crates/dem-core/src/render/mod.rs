@@ -19,6 +19,7 @@ pub mod canvas;
 pub mod colormap;
 pub mod font;
 pub mod layout;
+pub mod plot;
 pub mod select;
 pub mod tile;
 

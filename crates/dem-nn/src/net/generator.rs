@@ -2,15 +2,16 @@
 //!
 //! Input: the grid `[n, 20, 5, 2]` (rows 0..19 of each record, which is
 //! already channels-last) and the attitude `[n, 10]` (row 20, in record
-//! order). Output: the grid `[n, 20, 5, 2]` with tanh on the mask channel;
-//! the caller copies row 20 through. Shapes inside: `[n, 100, c]`.
+//! order). Output: the grid `[n, 20, 5, 2]` with tanh on the mask channel
+//! and, for [`Arch::Residual`], heights `(x_h + s o_h) sigmoid(k o_m)` (see
+//! [`Arch`]); the caller copies row 20 through. Shapes inside: `[n, 100, c]`.
 
 use super::params::{channels_first, Alloc, ConvLayer, DenseLayer, NormLayer};
 use crate::layers::conv::ConvGeom;
 use crate::layers::winograd::{self, WinoCache, WinoScratch};
 use crate::layers::dense;
 use crate::layers::norm::{self, Act, NormCache};
-use crate::weights::{GeneratorWeights, ResBlock};
+use crate::weights::{Arch, GeneratorWeights, ResBlock, CORRECTION_SCALE, GATE_SHARPNESS};
 
 /// Grid values of one record (rows 0..19).
 pub const GRID: usize = 200;
@@ -23,6 +24,8 @@ const POS: usize = 100;
 pub struct Generator {
     /// Width w.
     pub width: usize,
+    /// The head.
+    pub arch: Arch,
     /// 3 encoder, 6 residual (a, b per block), 3 decoder convs, in order.
     convs: Vec<ConvLayer>,
     /// 3 encoder, 6 residual, 2 decoder norms, in order.
@@ -50,6 +53,10 @@ pub struct GenTape {
     feat: Vec<f32>,
     /// Output grid `[n, 200]` (after tanh on the mask).
     pub out: Vec<f32>,
+    /// [`Arch::Residual`]: the ungated height `x_h + s o_h` of each cell `[n, 100]`.
+    ungated: Vec<f32>,
+    /// [`Arch::Residual`]: the gate `sigmoid(k o_m)` of each cell `[n, 100]`.
+    gate: Vec<f32>,
 }
 
 /// Scratch buffers of a backward pass.
@@ -66,8 +73,8 @@ const RES: usize = 3;
 const DEC: usize = 9;
 
 impl Generator {
-    /// The layout of a generator of width `w`.
-    pub fn new(w: usize) -> Self {
+    /// The layout of a generator of width `w` with head `arch`.
+    pub fn new(w: usize, arch: Arch) -> Self {
         let mut a = Alloc::default();
         let (h, wd) = (20, 5);
         let enc = [2, w, 2 * w, 2 * w];
@@ -90,12 +97,12 @@ impl Generator {
         }
         let torch_in = channels_first(POS, 2).chain(channels_first(5, 2).map(|t| GRID + t)).collect();
         let fc = DenseLayer::new(&mut a, torch_in, channels_first(POS, 2).collect());
-        Generator { width: w, convs, norms, fc, len: a.len() }
+        Generator { width: w, arch, convs, norms, fc, len: a.len() }
     }
 
     /// Flat parameters from PyTorch-layout weights.
     pub fn load(&self, t: &GeneratorWeights) -> Vec<f32> {
-        assert_eq!(t.width, self.width, "generator width");
+        assert_eq!((t.width, t.arch), (self.width, self.arch), "generator width and head");
         let mut p = vec![0.0; self.len];
         let convs = t.enc.iter().chain(t.res.iter().flat_map(|r| [&r.a, &r.b])).chain(&t.dec);
         let norms = t.enc_norm.iter().chain(t.res.iter().flat_map(|r| [&r.na, &r.nb])).chain(&t.dec_norm);
@@ -119,6 +126,7 @@ impl Generator {
             .collect();
         GeneratorWeights {
             width: self.width,
+            arch: self.arch,
             enc: c[ENC..RES].to_vec(),
             enc_norm: n[ENC..RES].to_vec(),
             res,
@@ -185,7 +193,21 @@ impl Generator {
             t.feat.extend_from_slice(a);
         }
         dense::forward(&p[self.fc.w.clone()], &p[self.fc.b.clone()], &t.feat, GRID + ATT, &mut t.out);
-        t.out.iter_mut().skip(1).step_by(2).for_each(|m| *m = m.tanh());
+        match self.arch {
+            Arch::Thesis => t.out.iter_mut().skip(1).step_by(2).for_each(|m| *m = m.tanh()),
+            Arch::Residual => {
+                t.ungated.clear();
+                t.gate.clear();
+                for (o, x) in t.out.chunks_exact_mut(2).zip(grid.chunks_exact(2)) {
+                    let g = 1.0 / (1.0 + (-GATE_SHARPNESS * o[1]).exp());
+                    let a = x[0] + CORRECTION_SCALE * o[0];
+                    t.ungated.push(a);
+                    t.gate.push(g);
+                    o[0] = a * g;
+                    o[1] = o[1].tanh();
+                }
+            }
+        }
     }
 
     /// Backward of the last [`forward`] on `t`: `dout [n, 200]` is the loss
@@ -202,7 +224,24 @@ impl Generator {
         s: &mut GenScratch,
     ) -> Option<Vec<f32>> {
         let mut u = dout.to_vec();
-        u.iter_mut().zip(&t.out).skip(1).step_by(2).for_each(|(d, m)| *d *= 1.0 - m * m);
+        let mut skip = Vec::new();
+        match self.arch {
+            Arch::Thesis => u.iter_mut().zip(&t.out).skip(1).step_by(2).for_each(|(d, m)| *d *= 1.0 - m * m),
+            Arch::Residual => {
+                // h = a g with a = x_h + s o_h, g = sigmoid(k o_m): dL/da = dh g
+                // (the input height's gradient, kept in `skip`), dL/do_h = s dL/da,
+                // dL/do_m = dm (1 - m^2) + dh a k g (1 - g).
+                skip.clear();
+                let cells = u.chunks_exact_mut(2).zip(t.out.chunks_exact(2)).zip(t.ungated.iter().zip(&t.gate));
+                for ((d, o), (a, g)) in cells {
+                    let dh = d[0];
+                    let da = dh * g;
+                    skip.push(da);
+                    d[0] = CORRECTION_SCALE * da;
+                    d[1] = d[1] * (1.0 - o[1] * o[1]) + dh * a * GATE_SHARPNESS * g * (1.0 - g);
+                }
+            }
+        }
         let (gw, gb) = split2(grads, &self.fc.w, &self.fc.b);
         dense::backward(&p[self.fc.w.clone()], &t.feat, GRID + ATT, &u, Some((gw, gb)), Some(&mut s.dfeat));
         s.dh.clear();
@@ -236,7 +275,14 @@ impl Generator {
             self.conv_bwd(j, t, &dh, grads, wants.then_some(&mut next), s);
             std::mem::swap(&mut dh, &mut next);
         }
-        let out = want_input.then(|| dh.clone());
+        let out = want_input.then(|| {
+            let mut dx = dh.clone();
+            if self.arch == Arch::Residual {
+                // The skip connection of the input heights.
+                dx.iter_mut().step_by(2).zip(&skip).for_each(|(d, g)| *d += g);
+            }
+            dx
+        });
         s.dh = dh;
         out
     }

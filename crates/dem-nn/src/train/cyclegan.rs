@@ -8,7 +8,12 @@
 //! L_G = BCE(D_Y(fy), 0.9) + BCE(D_X(fx), 0.9)
 //!     + lambda_cyc (|G_X(fy) - x|_1 + |G_Y(fx) - y|_1)
 //!     + lambda_pair (mean_i<P min_k e(y_i,k, fy_i) + mean_i<P |fx_i - x_i|^2 / 100)
+//!     + lambda_height mean_i<P H(y_i,k*, fy_i)
 //! ```
+//! where k* is the real of the minimum and `H` the mean absolute height
+//! error in centimetres on the cells valid in y ([`loss::height_l1`]):
+//! equation 7.1 prices a 10 cm height error at 1e-4 against 0.04 for a wrong
+//! mask, so without `H` nothing holds the generated heights to the terrain.
 //! then the discriminators' update `BCE(D(real), 0.9) + BCE(D(fake), 0)`.
 //!
 //! The paired terms reuse fy and fx (the PyTorch peer runs G_Y(x) a second
@@ -26,7 +31,7 @@ use serde::{Deserialize, Serialize};
 use super::adam::{Adam, AdamConfig};
 use super::loss;
 use crate::net::{DiscScratch, DiscTape, Discriminator, GenScratch, GenTape, Generator};
-use crate::weights::{DiscriminatorWeights, GeneratorWeights};
+use crate::weights::{Arch, DiscriminatorWeights, GeneratorWeights};
 
 /// What defines a model and its training.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -39,11 +44,54 @@ pub struct GanConfig {
     pub lambda_cyc: f32,
     /// Weight of the paired terms.
     pub lambda_pair: f32,
+    /// The generators' head (runs saved before it existed are the thesis's).
+    #[serde(default)]
+    pub arch: Arch,
+    /// Weight of the paired height term (0 in runs saved before it existed).
+    #[serde(default)]
+    pub lambda_height: f32,
+    /// Share of the run's epochs trained at the full learning rate; over the
+    /// rest it falls linearly to 0 (the Cycle GAN paper's schedule). 1: a
+    /// constant rate, as the thesis (and runs saved before it existed).
+    #[serde(default = "constant_rate")]
+    pub decay_from: f32,
+}
+
+fn constant_rate() -> f32 {
+    1.0
 }
 
 impl Default for GanConfig {
+    /// The toolkit's default: the residual head with the paired height term
+    /// (docs/training.md has the measurements that chose it).
     fn default() -> Self {
-        GanConfig { width: 32, adam: AdamConfig::default(), lambda_cyc: 10.0, lambda_pair: 10.0 }
+        GanConfig { arch: Arch::Residual, lambda_pair: 30.0, lambda_height: 3.0, decay_from: 0.5, ..GanConfig::thesis() }
+    }
+}
+
+impl GanConfig {
+    /// The thesis's network and losses (`spec/network.md`).
+    pub fn thesis() -> Self {
+        GanConfig {
+            width: 32,
+            adam: AdamConfig::default(),
+            lambda_cyc: 10.0,
+            lambda_pair: 10.0,
+            arch: Arch::Thesis,
+            lambda_height: 0.0,
+            decay_from: 1.0,
+        }
+    }
+
+    /// The learning rate at `step` of a run planned for `total` steps: `lr`
+    /// until `decay_from * total`, then falling linearly to 0 at `total`.
+    pub fn lr_at(&self, step: u64, total: u64) -> f32 {
+        let start = (self.decay_from as f64 * total as f64).floor();
+        let lr = self.adam.lr as f64;
+        if (step as f64) < start || total as f64 <= start {
+            return self.adam.lr;
+        }
+        (lr * (total as f64 - step as f64) / (total as f64 - start)).max(0.0) as f32
     }
 }
 
@@ -83,6 +131,8 @@ pub struct Losses {
     pub pair_y: f32,
     /// Weighted paired G_X term.
     pub pair_x: f32,
+    /// Weighted paired height term of G_Y.
+    pub height: f32,
     /// Discriminators' loss.
     pub disc: f32,
 }
@@ -90,7 +140,7 @@ pub struct Losses {
 impl Losses {
     /// The generators' total.
     pub fn generator(&self) -> f32 {
-        self.gan + self.cycle + self.pair_y + self.pair_x
+        self.gan + self.cycle + self.pair_y + self.pair_x + self.height
     }
 }
 
@@ -170,7 +220,12 @@ impl Chunk {
         for i in r.start..r.end.min(np) {
             let weight = cfg.lambda_pair / np as f32;
             let k = (i - r.start) * 200..(i - r.start + 1) * 200;
-            l.pair_y += loss::paired_min(&s.b.pairs[i], &ta.out[k.clone()], weight, &mut dfy[k.clone()]).0;
+            let (e, best) = loss::paired_min(&s.b.pairs[i], &ta.out[k.clone()], weight, &mut dfy[k.clone()]);
+            l.pair_y += e;
+            if cfg.lambda_height > 0.0 {
+                let w = cfg.lambda_height / np as f32;
+                l.height += loss::height_l1(s.b.pairs[i][best], &ta.out[k.clone()], w, &mut dfy[k.clone()]);
+            }
             l.pair_x += loss::paired_sq(&xg[k.clone()], &tb.out[k.clone()], weight, &mut dfx[k]);
         }
         gen.backward(pgy, ta, &dfy, ggy, false, &mut self.gs);
@@ -244,11 +299,11 @@ impl CycleGan {
     /// Fresh networks, initialised as PyTorch does, from `seed`.
     pub fn new(cfg: GanConfig, seed: u64) -> Self {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        let gen = Generator::new(cfg.width);
+        let gen = Generator::new(cfg.width, cfg.arch);
         let disc = Discriminator::new();
         let params = [
-            gen.load(&GeneratorWeights::init(&mut rng, cfg.width)),
-            gen.load(&GeneratorWeights::init(&mut rng, cfg.width)),
+            gen.load(&GeneratorWeights::init_arch(&mut rng, cfg.width, cfg.arch)),
+            gen.load(&GeneratorWeights::init_arch(&mut rng, cfg.width, cfg.arch)),
             disc.load(&DiscriminatorWeights::init(&mut rng)),
             disc.load(&DiscriminatorWeights::init(&mut rng)),
         ];
@@ -284,6 +339,11 @@ impl CycleGan {
         out
     }
 
+    /// Set the learning rate of all four optimisers (a schedule's value).
+    pub fn set_lr(&mut self, lr: f32) {
+        self.opts.iter_mut().for_each(|o| o.cfg.lr = lr);
+    }
+
     /// One generators' update and one discriminators' update.
     pub fn step(&mut self, b: &Batch) -> Losses {
         let n = b.x_grid.len() / 200;
@@ -310,7 +370,32 @@ impl CycleGan {
             cycle: a.cycle + c.losses.cycle,
             pair_y: a.pair_y + c.losses.pair_y,
             pair_x: a.pair_x + c.losses.pair_x,
+            height: a.height + c.losses.height,
             disc: a.disc + c.losses.disc,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_rate_is_constant_then_falls_linearly_to_zero() {
+        let c = GanConfig { decay_from: 0.5, ..GanConfig::default() };
+        let lr = c.adam.lr;
+        assert_eq!(c.lr_at(0, 100), lr);
+        assert_eq!(c.lr_at(49, 100), lr);
+        assert_eq!(c.lr_at(50, 100), lr);
+        assert!((c.lr_at(75, 100) - lr / 2.0).abs() < 1e-9);
+        assert!(c.lr_at(99, 100) > 0.0 && c.lr_at(99, 100) < lr / 49.0);
+        assert_eq!(c.lr_at(100, 100), 0.0);
+        let thesis = GanConfig::thesis();
+        assert!((0..100).all(|s| thesis.lr_at(s, 100) == thesis.adam.lr));
+        // Runs saved before the schedule existed read as constant-rate runs.
+        let mut old = serde_json::to_value(thesis).unwrap();
+        old.as_object_mut().unwrap().retain(|k, _| !["arch", "lambda_height", "decay_from"].contains(&k.as_str()));
+        let back: GanConfig = serde_json::from_value(old).unwrap();
+        assert_eq!(back, thesis);
     }
 }

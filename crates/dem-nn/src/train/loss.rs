@@ -9,6 +9,11 @@
 //! - Paired G_Y term: mean over paired sims of `min_i e(y_i, G_Y(x))`, the
 //!   equation 7.1 error of `spec/dem-format.md` (height error only where y_i
 //!   is valid, mask error everywhere, sum over the 100 cells / 100).
+//! - Paired height term: `H(y, p) = mean over cells valid in y of
+//!   |y_h - p_h| / 0.01 m`, the mean absolute height error in centimetres;
+//!   subgradient `sign(p_h - y_h) / (valid * 0.01)`. L1, not squared: a
+//!   2 cm error must still pull, and a stair edge off by one cell must not
+//!   dominate.
 //! - Paired G_X term: mean over pairs of the squared error between G_X(y)
 //!   and x over both channels (sum over cells / 100, the scale of e).
 
@@ -74,6 +79,28 @@ pub fn paired_min(reals: &[&[f32]], p: &[f32], weight: f32, grad: &mut [f32]) ->
     (weight * e, best)
 }
 
+/// Centimetres per metre: the height term's unit.
+pub const HEIGHT_UNIT: f32 = 0.01;
+
+/// Paired height term for one sim: `weight * H(y, p)` (see the module docs);
+/// adds `weight * dH/dp` to `grad`. 0 when y has no valid cell.
+pub fn height_l1(y: &[f32], p: &[f32], weight: f32, grad: &mut [f32]) -> f32 {
+    let valid = y.chunks_exact(2).filter(|c| c[1] > 0.0).count();
+    if valid == 0 {
+        return 0.0;
+    }
+    let scale = weight / (valid as f32 * HEIGHT_UNIT);
+    let mut s = 0.0f32;
+    for ((g, yc), pc) in grad.chunks_exact_mut(2).zip(y.chunks_exact(2)).zip(p.chunks_exact(2)) {
+        if yc[1] > 0.0 {
+            let d = pc[0] - yc[0];
+            s += d.abs();
+            g[0] += scale * d.signum() * (d != 0.0) as u8 as f32;
+        }
+    }
+    s * scale
+}
+
 /// Paired G_X term for one pair: `weight * sum (p - x)^2 / 100`; adds the gradient.
 pub fn paired_sq(x: &[f32], p: &[f32], weight: f32, grad: &mut [f32]) -> f32 {
     let mut s = 0.0f32;
@@ -130,6 +157,25 @@ mod tests {
         let mut p3 = y.clone();
         p3[0] = -0.09;
         assert!((error71(&y, &p3) - 0.000004).abs() < 1e-9);
+    }
+
+    #[test]
+    fn height_l1_is_centimetres_on_valid_cells() {
+        let mut y: Vec<f32> = (0..100).flat_map(|_| [-0.07, 1.0]).collect();
+        y[2] = 0.0;
+        y[3] = -1.0; // cell 1 missing in y: not scored
+        let mut p = y.clone();
+        p[0] = -0.05; // +2 cm
+        p[2] = 0.5; // under a missing cell
+        p[4] = -0.08; // -1 cm
+        let mut g = vec![0.0; 200];
+        let h = height_l1(&y, &p, 2.0, &mut g);
+        assert!((h - 2.0 * 3.0 / 99.0).abs() < 1e-5, "{h}");
+        let unit = 2.0 / (99.0 * HEIGHT_UNIT);
+        assert!((g[0] - unit).abs() < 1e-4 && (g[4] + unit).abs() < 1e-4);
+        assert_eq!((g[1], g[2], g[6]), (0.0, 0.0, 0.0));
+        let none: Vec<f32> = (0..100).flat_map(|_| [0.0, -1.0]).collect();
+        assert_eq!(height_l1(&none, &p, 1.0, &mut g), 0.0);
     }
 
     #[test]

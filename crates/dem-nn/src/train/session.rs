@@ -2,7 +2,7 @@
 //! per-step losses, the per-epoch validation table, checkpoints, and the
 //! exact continuation of an interrupted run.
 //!
-//! `RUN/losses.csv`: `step,epoch,gan,cycle,pair_y,pair_x,generator,disc`;
+//! `RUN/losses.csv`: `step,epoch,gan,cycle,pair_y,pair_x,generator,disc,height`;
 //! `RUN/val.csv`: `epoch,step,count,lowest,highest,mean,median` (pair error
 //! of G_Y over the val split, equation 7.1); `RUN/checkpoint.bin`;
 //! `RUN/check_sim.npy`, `RUN/check_real.npy`: the records an export is
@@ -128,14 +128,17 @@ pub fn resume(opts: &RunOptions) -> Result<(Meta, CycleGan)> {
 }
 
 fn fmt_losses(l: &Losses) -> String {
-    format!("G {:.3} (gan {:.3} cyc {:.3} pair {:.3}) D {:.3}", l.generator(), l.gan, l.cycle, l.pair_y + l.pair_x, l.disc)
+    format!("G {:.3} (gan {:.3} cyc {:.3} pair {:.3} height {:.3}) D {:.3}", l.generator(), l.gan, l.cycle, l.pair_y + l.pair_x, l.height, l.disc)
 }
 
 /// Train from `meta.step` to the end of the run; returns the last table.
 pub fn run(gan: &mut CycleGan, data: &TrainData, sampler: Sampler, mut meta: Meta, opts: &RunOptions) -> Result<Option<Stats>> {
     let spe = meta.steps_per_epoch;
-    let total = (opts.epochs * spe).min(opts.max_steps.unwrap_or(u64::MAX));
-    let mut losses = append(&path(&opts.dir, "losses.csv"), "step,epoch,gan,cycle,pair_y,pair_x,generator,disc")?;
+    // The schedule is planned over the epochs; --max-steps only cuts it short,
+    // so a run stopped early and resumed equals one that was not.
+    let planned = opts.epochs * spe;
+    let total = planned.min(opts.max_steps.unwrap_or(u64::MAX));
+    let mut losses = append(&path(&opts.dir, "losses.csv"), "step,epoch,gan,cycle,pair_y,pair_x,generator,disc,height")?;
     let mut val = append(&path(&opts.dir, "val.csv"), "epoch,step,count,lowest,highest,mean,median")?;
     let bar = cli::progress(total, "steps");
     bar.set_position(meta.step);
@@ -144,10 +147,11 @@ pub fn run(gan: &mut CycleGan, data: &TrainData, sampler: Sampler, mut meta: Met
     while meta.step < total {
         let step = meta.step;
         let batch = sampler.batch(data, step, spe);
+        gan.set_lr(gan.cfg.lr_at(step, planned));
         let l = gan.step(&batch);
         meta.step += 1;
         let epoch = step / spe + 1;
-        writeln!(losses, "{},{epoch},{},{},{},{},{},{}", meta.step, l.gan, l.cycle, l.pair_y, l.pair_x, l.generator(), l.disc)?;
+        writeln!(losses, "{},{epoch},{},{},{},{},{},{},{}", meta.step, l.gan, l.cycle, l.pair_y, l.pair_x, l.generator(), l.disc, l.height)?;
         let rate = (meta.step - s0) as f64 * sampler.batch as f64 / t0.elapsed().as_secs_f64();
         bar.set_position(meta.step);
         bar.set_message(format!("epoch {epoch} {} {rate:.0} samples/s", fmt_losses(&l)));

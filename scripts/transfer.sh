@@ -1,0 +1,84 @@
+#!/usr/bin/env bash
+# The downstream transfer test (issue 11): does a policy-like model trained on
+# G_Y(sim) do better on measured DEMs than one trained on sim?
+#
+#   measured runs are split: TEST_RUNS (held out, the test set) and the rest
+#   (the oracle's training data and G_Y's / dem-gap's real data);
+#   sim records of every run not held out are the training inputs.
+#   1. G_Y: dem-filter -> dem-pair (by content, val split) -> dem-train -> export,
+#      on the non-held-out runs only (the generator never sees a test run);
+#   2. dem-gap names the gap on the same data; dem-sensor applies its model;
+#   3. dem-eval transfer trains the flipper regressor and terrain classifier on
+#      sim, G_Y(sim), sensor(sim) and measured, tests all on the held-out runs.
+#
+# Environment (all optional):
+#   BIN=target/release  TD=testdata  OUT=out/transfer
+#   TEST_RUNS="10 11 12 13 14 15 16 17 18 19"   measured runs held out
+#   TRAIN_ARGS="--seed 1"                       dem-train options (defaults otherwise)
+#   MODEL=gy.onnx                               use this G_Y instead of training one
+#   SEED=1
+set -euo pipefail
+BIN=${BIN:-target/release}
+TD=${TD:-testdata}
+OUT=${OUT:-out/transfer}
+TEST_RUNS=${TEST_RUNS:-10 11 12 13 14 15 16 17 18 19}
+SEED=${SEED:-1}
+TRAIN_ARGS=${TRAIN_ARGS:---seed $SEED}
+mkdir -p "$OUT"
+
+# index_where LABELS KEEP: an index CSV of the records whose `sequence` is (KEEP=in)
+# or is not (KEEP=out) one of TEST_RUNS; the column is found by its header name.
+index_where() {
+    awk -F, -v runs="$TEST_RUNS" -v keep="$2" '
+        BEGIN { n = split(runs, r, " "); for (i = 1; i <= n; i++) held[r[i]] = 1; print "index" }
+        NR == 1 { for (i = 1; i <= NF; i++) if ($i == "sequence") col = i
+                  if (!col) { print "transfer.sh: " FILENAME " has no sequence column" > "/dev/stderr"; exit 2 }
+                  next }
+        { if ((($col in held) && keep == "in") || (!($col in held) && keep == "out")) print $1 }' "$1"
+}
+
+index_where "$TD/real_labels.csv" in > "$OUT/test_index.csv"
+index_where "$TD/real_labels.csv" out > "$OUT/real_index.csv"
+index_where "$TD/sim_labels.csv" out > "$OUT/sim_index.csv"
+"$BIN/dem-filter" --index "$OUT/test_index.csv" --labels "$TD/real_labels.csv" "$TD/real.npy" \
+    -o "$OUT/test.npy" --emit-labels "$OUT/test_labels.csv"
+"$BIN/dem-filter" --index "$OUT/real_index.csv" --labels "$TD/real_labels.csv" "$TD/real.npy" \
+    -o "$OUT/real.npy" --emit-labels "$OUT/real_labels.csv"
+"$BIN/dem-filter" --index "$OUT/sim_index.csv" --labels "$TD/sim_labels.csv" "$TD/sim.npy" \
+    -o "$OUT/sim.npy" --emit-labels "$OUT/sim_labels.csv"
+
+# 1. G_Y from the non-held-out runs, as make demo prepares its data.
+model=${MODEL:-}
+if [[ -z "$model" ]]; then
+    mkdir -p "$OUT/prep"
+    "$BIN/dem-filter" --labels "$OUT/sim_labels.csv" --drop-other --unique "$OUT/sim.npy" -o "$OUT/prep/sim.npy" \
+        --emit-labels "$OUT/prep/sim_labels.csv"
+    "$BIN/dem-filter" --labels "$OUT/real_labels.csv" --drop-other "$OUT/real.npy" -o "$OUT/prep/real.npy"
+    "$BIN/dem-pair" --by content --sim "$OUT/prep/sim.npy" --real "$OUT/prep/real.npy" \
+        --sim-labels "$OUT/prep/sim_labels.csv" --k 3 --val-fraction 0.2 --seed "$SEED" -o "$OUT/prep/pairs.csv"
+    rm -rf "$OUT/train"
+    # shellcheck disable=SC2086  # TRAIN_ARGS is a list of options
+    "$BIN/dem-train" --sim "$OUT/prep/sim.npy" --real "$OUT/prep/real.npy" --pairs "$OUT/prep/pairs.csv" \
+        --out "$OUT/train" $TRAIN_ARGS
+    "$BIN/dem-train" export "$OUT/train" -o "$OUT/gy.onnx"
+    model=$OUT/gy.onnx
+fi
+"$BIN/dem-apply" --model "$model" "$OUT/sim.npy" -o "$OUT/gy_sim.npy"
+
+# 2. dem-gap's sensor model of the same gap, applied to the same sims.
+rm -rf "$OUT/gap"
+"$BIN/dem-gap" --sim "$OUT/sim.npy" --real "$OUT/real.npy" --out "$OUT/gap" --seed "$SEED" 2> "$OUT/gap.log" \
+    || { cat "$OUT/gap.log" >&2; exit 1; }
+"$BIN/dem-sensor" apply --model "$OUT/gap/sensor.json" --seed "$SEED" "$OUT/sim.npy" -o "$OUT/sensor_sim.npy"
+
+# 3. The transfer table.
+for fmt in text csv md; do
+    ext=$([[ $fmt == text ]] && echo txt || echo "$fmt")
+    "$BIN/dem-eval" transfer --test "$OUT/test.npy" --test-labels "$OUT/test_labels.csv" \
+        --train sim "$OUT/sim.npy" "$OUT/sim_labels.csv" \
+        --train gy "$OUT/gy_sim.npy" "$OUT/sim_labels.csv" \
+        --train sensor "$OUT/sensor_sim.npy" "$OUT/sim_labels.csv" \
+        --train measured "$OUT/real.npy" "$OUT/real_labels.csv" \
+        --by-terrain --seed "$SEED" --format "$fmt" -o "$OUT/transfer.$ext"
+done
+cat "$OUT/transfer.txt"
