@@ -45,6 +45,7 @@ declare -A LABEL=(
     [other-sensor]="$other_label"
     [pallets-cleaned]="Pallets cleaned, no model"
     [paired-data]="Paired data"
+    [paired-data-thesis]="Paired data, thesis network (--arch thesis)"
     [fixing-pallet]="Fixing pallet"
     [removing-nans]="Removing NaNs"
 )
@@ -100,17 +101,20 @@ model_row() {
 }
 echo "== models" >&2
 model_row paired-data PAIRED_MODEL "$DATA/sim.npy" "$DATA/sim.npy" "$DATA/real.npy"
+# The thesis's own network and losses (spec/network.md), for its row.
+TRAIN_ARGS="$TRAIN_ARGS --arch thesis" model_row paired-data-thesis THESIS_MODEL "$DATA/sim.npy" "$DATA/sim.npy" "$DATA/real.npy"
 model_row fixing-pallet PALLET_MODEL "$DATA/sim_clean.npy" "$DATA/sim_clean.npy" "$DATA/real.npy"
 model_row removing-nans NANS_MODEL "$DATA/sim_clean.npy" "$DATA/sim_clean.npy" "$DATA/real_filled.npy"
 
 echo "== tables" >&2
 join_rows "${rows[@]}" > "$OUT/table.csv"
 {
-    echo "| method | count | lowest | highest | mean | median |"
-    echo "|---|---|---|---|---|---|"
+    echo "| method | count | lowest | highest | mean | median | height error (cm) | roughness across / along (cm) | real's (cm) | gap |"
+    echo "|---|---|---|---|---|---|---|---|---|---|"
     for r in "${rows[@]}"; do
         awk -F, -v label="${LABEL[$r]}" 'NR > 1 && $2 == "all" {
-            printf "| %s | %d | %.3f | %.3f | %.3f | %.3f |\n", label, $3, $4, $5, $6, $7 }' "$ROWS/$r.csv"
+            printf "| %s | %d | %.3f | %.3f | %.3f | %.3f | %.2f | %.2f / %.2f | %.2f / %.2f | %.1f |\n",
+                label, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13 }' "$ROWS/$r.csv"
     done
 } > "$OUT/table.md"
 # The same rows split by terrain (mean / median (count) per terrain).

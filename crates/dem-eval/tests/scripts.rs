@@ -71,6 +71,7 @@ onnx.save(helper.make_model(g, opset_imports=[helper.make_opsetid("", 13)]), "ha
     let model = arg(dir.path(), "half.onnx");
     let mut c = script("thesis_table.sh", &bin, &out);
     c.env("OTHER_SENSOR", "none").env("PAIRED_MODEL", &model).env("PALLET_MODEL", &model).env("NANS_MODEL", &model);
+    c.env("THESIS_MODEL", &model);
     let o = run_cmd(&mut c, None);
     let md = String::from_utf8_lossy(ok(&o)).into_owned();
     for row in ["Identity (sim as is)", "Pallets cleaned, no model", "Paired data", "Fixing pallet", "Removing NaNs"] {
@@ -81,5 +82,10 @@ onnx.save(helper.make_model(g, opset_imports=[helper.make_opsetid("", 13)]), "ha
         assert_eq!(&png[1..4], b"PNG");
     }
     let by = std::fs::read_to_string(out.join("table_by_terrain.md")).unwrap();
-    assert_eq!(by.lines().count(), 2 + 5, "{by}");
+    assert_eq!(by.lines().count(), 2 + 6, "{by}");
+    // The measures that see heights, beside equation 7.1 (identity: sim as is, ~1.5 cm).
+    let identity = md.lines().find(|l| l.starts_with("| Identity")).unwrap();
+    let cells: Vec<&str> = identity.split('|').map(str::trim).collect();
+    let height: f64 = cells[7].parse().unwrap();
+    assert!(height > 0.5 && height < 3.0, "{identity}");
 }

@@ -16,7 +16,8 @@ fn main() {
     // Every row paired with one real, as the peer's paired term.
     let pairs: Vec<Vec<&[f32]>> = yp.iter().map(|d| vec![&d[..200]]).collect();
     let batch = Batch::new(&xs.iter().collect::<Vec<_>>(), &ys.iter().collect::<Vec<_>>(), pairs);
-    let mut gan = CycleGan::new(GanConfig { width: w, ..GanConfig::default() }, 0);
+    // The thesis network and losses: what the PyTorch peer builds.
+    let mut gan = CycleGan::new(GanConfig { width: w, ..GanConfig::thesis() }, 0);
     for _ in 0..3 {
         gan.step(&batch);
     }
