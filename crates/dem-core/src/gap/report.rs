@@ -28,6 +28,7 @@ use crate::error::{DemError, Result};
 use crate::format::{row_center_x, Dem, GRID_ROWS};
 use crate::render::canvas::{Canvas, Rgb, BLACK, GRID, TEXT, WHITE};
 use crate::render::font::{draw_text, draw_text_centered, text_height, text_width};
+use crate::render::plot::line;
 use crate::render::{self, Captions, Pick, RenderConfig, Selection, TileStyle};
 use crate::{npy, output};
 
@@ -214,7 +215,7 @@ pub fn line_plot(title: &str, xlabel: &str, xs: &[f64], series: &[(String, Rgb, 
     for (k, (name, color, v)) in series.iter().enumerate() {
         let pts: Vec<(i64, i64)> = xs.iter().zip(v).filter(|(_, y)| y.is_finite()).map(|(&x, &y)| (px(x), py(y))).collect();
         for p in pts.windows(2) {
-            line(&mut c, p[0], p[1], *color);
+            line(&mut c, p[0], p[1], *color, 3);
         }
         for &(x, y) in &pts {
             c.fill_rect(x - 3, y - 3, 7, 7, *color);
@@ -224,28 +225,6 @@ pub fn line_plot(title: &str, xlabel: &str, xs: &[f64], series: &[(String, Rgb, 
         draw_text(&mut c, w - r + 42, ly, name, 1, TEXT);
     }
     c
-}
-
-/// A 3-pixel-wide line (Bresenham, thickened).
-fn line(c: &mut Canvas, (x0, y0): (i64, i64), (x1, y1): (i64, i64), color: Rgb) {
-    let (dx, dy) = ((x1 - x0).abs(), -(y1 - y0).abs());
-    let (sx, sy) = (if x0 < x1 { 1 } else { -1 }, if y0 < y1 { 1 } else { -1 });
-    let (mut x, mut y, mut err) = (x0, y0, dx + dy);
-    loop {
-        c.fill_rect(x - 1, y - 1, 3, 3, color);
-        if x == x1 && y == y1 {
-            break;
-        }
-        let e2 = 2 * err;
-        if e2 >= dy {
-            err += dy;
-            x += sx;
-        }
-        if e2 <= dx {
-            err += dx;
-            y += sy;
-        }
-    }
 }
 
 /// The Markdown report.

@@ -71,7 +71,7 @@ pub fn line_plot(title: &str, xlabel: &str, xs: &[f64], series: &[Series], log_y
         let pts: Vec<(i64, i64)> =
             xs.iter().zip(v).map(|(&x, &y)| (x, ty(y))).filter(|(_, y)| y.is_finite()).map(|(x, y)| (px(x), py(y))).collect();
         for p in pts.windows(2) {
-            line(&mut c, p[0], p[1], *color);
+            line(&mut c, p[0], p[1], *color, 2);
         }
         let ly = t + 10 + k as i64 * (text_height(2) as i64 + 8);
         c.fill_rect(w - r + 15, ly + 2, 20, 10, *color);
@@ -97,13 +97,13 @@ pub fn stack(plots: &[Canvas]) -> Canvas {
     out
 }
 
-/// A 2-pixel-wide line (Bresenham, thickened).
-fn line(c: &mut Canvas, (x0, y0): (i64, i64), (x1, y1): (i64, i64), color: Rgb) {
+/// A line `width` pixels wide (Bresenham, each point a width x width square).
+pub fn line(c: &mut Canvas, (x0, y0): (i64, i64), (x1, y1): (i64, i64), color: Rgb, width: i64) {
     let (dx, dy) = ((x1 - x0).abs(), -(y1 - y0).abs());
     let (sx, sy) = (if x0 < x1 { 1 } else { -1 }, if y0 < y1 { 1 } else { -1 });
     let (mut x, mut y, mut err) = (x0, y0, dx + dy);
     loop {
-        c.fill_rect(x, y, 2, 2, color);
+        c.fill_rect(x - (width - 1) / 2, y - (width - 1) / 2, width, width, color);
         if x == x1 && y == y1 {
             break;
         }
