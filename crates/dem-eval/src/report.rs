@@ -116,7 +116,7 @@ fn signed(v: f64, f: Format) -> String {
 
 /// A measure that may be absent, with `decimals` for people (`-` when absent;
 /// an empty CSV field).
-fn opt(v: Option<f64>, decimals: usize, sign: bool, f: Format) -> String {
+pub(crate) fn opt(v: Option<f64>, decimals: usize, sign: bool, f: Format) -> String {
     match (v, f) {
         (None, Format::Csv) => String::new(),
         (None, _) => "-".into(),

@@ -11,6 +11,7 @@ use dem_core::{cli, npy, table};
 use dem_nn::train::checkpoint::{self, Meta};
 use dem_nn::train::session::{self, RunOptions};
 use dem_nn::train::{AdamConfig, CycleGan, GanConfig, Sampler, TrainData};
+use dem_nn::weights::Arch;
 
 /// Train the virtual sensor network of spec/network.md: G_Y turns sim DEMs
 /// into the DEMs a real sensor + elevation mapping gives, learned from many
@@ -121,10 +122,19 @@ struct TrainArgs {
     resume: bool,
 }
 
-#[derive(Clone, Copy, PartialEq, clap::ValueEnum)]
+#[derive(Clone, Copy, clap::ValueEnum)]
 enum ArchArg {
     Thesis,
     Residual,
+}
+
+impl ArchArg {
+    fn arch(self) -> Arch {
+        match self {
+            ArchArg::Thesis => Arch::Thesis,
+            ArchArg::Residual => Arch::Residual,
+        }
+    }
 }
 
 #[derive(Args)]
@@ -292,7 +302,7 @@ fn check_same(a: &TrainArgs, m: &Meta) -> anyhow::Result<()> {
         ("--lambda-pair", a.lambda_pair.is_some_and(|v| v != c.lambda_pair)),
         ("--lambda-height", a.lambda_height.is_some_and(|v| v != c.lambda_height)),
         ("--decay-from", a.decay_from.is_some_and(|v| v != c.decay_from)),
-        ("--arch", a.arch.is_some_and(|v| (v == ArchArg::Thesis) != (c.arch == dem_nn::weights::Arch::Thesis))),
+        ("--arch", a.arch.is_some_and(|v| v.arch() != c.arch)),
         ("--paired-fraction", a.paired_fraction.is_some_and(|v| v != m.paired_fraction)),
         ("--seed", a.seed.is_some_and(|v| v != m.seed)),
     ];

@@ -50,6 +50,15 @@ fn a_short_run_lowers_the_losses_and_writes_the_run_files() {
     let row: Vec<&str> = val.lines().nth(1).expect("a val row").split(',').collect();
     assert_eq!(row[2], "322", "{val}");
     assert!(stderr(&out).contains("samples/s"));
+    // The run's curves as a picture; a folder without a run is refused.
+    let png = arg(d.path(), "curves.png");
+    ok(&run("dem-train", &["curves", &r, "-o", &png], None));
+    assert_eq!(&std::fs::read(&png).unwrap()[1..4], b"PNG");
+    let none = arg(d.path(), "none");
+    let out = run("dem-train", &["curves", &none, "-o", &arg(d.path(), "x.png")], None);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("losses.csv") && stderr(&out).lines().count() == 1, "{}", stderr(&out));
+    assert!(!Path::new(&arg(d.path(), "x.png")).exists());
 }
 
 #[test]

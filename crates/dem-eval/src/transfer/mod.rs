@@ -221,9 +221,8 @@ pub fn run(a: TransferArgs) -> anyhow::Result<()> {
 }
 
 fn write(path: &str, rows: &[Row], f: Format) -> anyhow::Result<()> {
-    let machine = matches!(f, Format::Csv | Format::Json);
-    let num = |v: f64, d: usize| if machine { format!("{v}") } else { format!("{v:.d$}") };
-    let opt = |v: Option<f64>| v.map_or_else(|| if machine { String::new() } else { "-".into() }, |v| num(v, 2));
+    let num = |v: f64, d: usize| report::opt(Some(v), d, false, f);
+    let opt = |v: Option<f64>| report::opt(v, 2, false, f);
     if f == Format::Json {
         let js: Vec<serde_json::Value> = rows
             .iter()
