@@ -9,7 +9,7 @@ BIN := target/release
 OUT := out
 comma := ,
 
-.PHONY: all build venv venv-torch test demo bench clean testdata eval-ci eval-baseline thesis-table
+.PHONY: all build venv venv-torch test demo bench clean testdata eval-ci eval-baseline thesis-table fuzz
 
 all: build
 
@@ -26,6 +26,15 @@ $(VENV)/.stamp: scripts/requirements.txt
 
 test: venv
 	DEM_PYTHON=$(abspath $(PY)) $(CARGO) test --workspace
+
+# Longer runs of the readers' property tests, then the cargo-fuzz targets in
+# fuzz/ (nightly toolchain; cargo-fuzz is installed if missing).
+FUZZ_SECONDS ?= 60
+FUZZ_TARGETS := npy_reader csv_tables sensor_json
+fuzz:
+	PROPTEST_CASES=20000 $(CARGO) test --release -p dem-core --test properties
+	command -v cargo-fuzz >/dev/null || $(CARGO) install cargo-fuzz --locked
+	for t in $(FUZZ_TARGETS); do $(CARGO) +nightly fuzz run $$t -- -max_total_time=$(FUZZ_SECONDS) || exit 1; done
 
 # PyTorch (CPU) for the training benchmark only: large, kept out of the tests.
 TORCH_VENV := .venv-torch

@@ -5,7 +5,7 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use clap::Parser;
-use dem_core::cli;
+use dem_core::{cli, output};
 use dem_onnx::apply::apply;
 use dem_onnx::OnnxModel;
 
@@ -36,6 +36,10 @@ struct Args {
     /// Records per model call.
     #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
     batch: u32,
+    /// Refuse a model that changes row 20 (the attitude, which must pass
+    /// through); without it, such a model gets a warning.
+    #[arg(long)]
+    strict: bool,
     /// Worker threads (default: one per core).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
     threads: Option<u32>,
@@ -43,7 +47,8 @@ struct Args {
 
 fn main() -> ExitCode {
     cli::run(|| {
-        let a = Args::parse();
+        let a: Args = cli::parse();
+        output::check_outputs(&[&a.input, &a.model], &[&a.output])?;
         let mut pool = rayon::ThreadPoolBuilder::new();
         if let Some(n) = a.threads {
             pool = pool.num_threads(n as usize);
@@ -53,12 +58,15 @@ fn main() -> ExitCode {
         let start = Instant::now();
         let bar = cli::progress(estimate_records(&a.input), "records");
         let stats = pool.install(|| {
-            apply(&model, &a.input, &a.output, a.batch as usize, |done| {
+            apply(&model, &a.input, &a.output, a.batch as usize, a.strict, |done| {
                 bar.set_length(bar.length().unwrap_or(0).max(done));
                 bar.set_position(done);
             })
         })?;
         bar.finish_and_clear();
+        if let Some(w) = stats.attitude.warning(&a.model, &a.input) {
+            cli::log(w);
+        }
         let secs = start.elapsed().as_secs_f64();
         cli::log(format_args!(
             "{} records in {secs:.2} s ({:.0} records/s), {} threads, batch {}",

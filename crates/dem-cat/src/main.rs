@@ -3,7 +3,7 @@
 use std::process::ExitCode;
 
 use clap::Parser;
-use dem_core::{cli, npy};
+use dem_core::{cli, npy, output};
 
 /// Concatenate NPY streams of DEMs into one stream.
 ///
@@ -27,8 +27,9 @@ struct Args {
 
 fn main() -> ExitCode {
     cli::run(|| {
-        let args = Args::parse();
+        let args: Args = cli::parse();
         let inputs = if args.inputs.is_empty() { vec!["-".to_string()] } else { args.inputs };
+        output::check_outputs(&inputs.iter().map(String::as_str).collect::<Vec<_>>(), &[&args.output])?;
         let mut out = npy::create(&args.output)?;
         let mut chunk = Vec::with_capacity(npy::CHUNK_RECORDS);
         let (mut total, mut nans) = (0, 0);

@@ -189,55 +189,82 @@ for v in (2, 3):
 #[test]
 fn float64_is_converted_as_numpy_converts() {
     let dir = tempdir();
-    // Values that round, underflow to f32 subnormals or zero, and overflow to inf.
+    // Values that round, underflow to f32 subnormals or zero, and the largest float32.
     numpy(dir.path(), "\
 a = rng.standard_normal((5, 21, 5, 2))
-a.flat[:8] = [0.1, 1/3, 1e-40, 1e-50, -0.0, 1e300, -1e300, 3.4028235677973366e38]
+a.flat[:7] = [0.1, 1/3, 1e-40, 1e-50, -0.0, 3.4028234663852886e38, -3.4028234663852886e38]
 np.save('f8.npy', a)
-np.save('want.npy', a.astype('<f4'))");
+np.save('want.npy', a.astype('<f4'))
+b = a.copy()
+b[3, 4, 1, 0] = 1e300
+np.save('big.npy', b)");
     let out = arg(dir.path(), "out.npy");
     ok(&dem_cat(&[&arg(dir.path(), "f8.npy"), "-o", &out], None));
     assert_eq!(read(&out), read(dir.path().join("want.npy")));
     // The same from stdin.
     let piped = dem_cat(&[], Some(read(dir.path().join("f8.npy"))));
     assert_eq!(ok(&piped), read(dir.path().join("want.npy")).as_slice());
+    // A float64 beyond float32's range would become an infinity: refused,
+    // naming the record and the cell, and no output file appears.
+    let out2 = arg(dir.path(), "out2.npy");
+    let run = dem_cat(&[&arg(dir.path(), "big.npy"), "-o", &out2], None);
+    assert_eq!(run.status.code(), Some(2));
+    let e = stderr(&run);
+    assert!(e.contains("record 3") && e.contains("inf in the height at row 4, column 1"), "{e}");
+    assert!(!std::path::Path::new(&out2).exists());
 }
 
 #[test]
 fn nan_heights_read_as_missing_and_all_else_stays_bit_identical() {
     let dir = tempdir();
     // NaN heights (quiet, negative and payload-carrying NaNs) in records 1
-    // and 3, a NaN mask in record 5; elsewhere -0.0, infinities, subnormals
-    // and arbitrary bit patterns that must come through untouched.
+    // and 3; elsewhere -0.0, the largest floats, subnormals and arbitrary
+    // bit patterns that must come through untouched.
     numpy(dir.path(), "\
 a = dems(8)
 bits = a.view('<u4')
-bits[0, 0, :, 0] = [0x80000000, 0x7f800000, 0xff800000, 0x00000001, 0x007fffff]
+bits[0, 0, :, 0] = [0x80000000, 0x7f7fffff, 0xff7fffff, 0x00000001, 0x007fffff]
 bits[1, 2, 3, 0] = 0x7fc00000
 bits[1, 19, 4, 0] = 0xffc00001
 bits[3, 0, 0, 0] = 0x7f800001
-bits[5, 7, 2, 1] = 0x7fc00000
 np.save('nan.npy', a)
 want = a.copy()
 grid = want[:, :20]
-missing = np.isnan(grid[..., 0]) | np.isnan(grid[..., 1])
+missing = np.isnan(grid[..., 0])
 grid[..., 0][missing] = 0.0
 grid[..., 1][missing] = -1.0
-assert missing.sum() == 4
+assert missing.sum() == 3
 np.save('want.npy', want)
-np.save('f8.npy', a.astype('<f8'))");
+np.save('f8.npy', a.astype('<f8'))
+for name, (r, row, col, ch), v in [('inf.npy', (2, 0, 1, 0), 0x7f800000), ('ninf.npy', (4, 3, 3, 1), 0xff800000),
+                                   ('nanmask.npy', (5, 7, 2, 1), 0x7fc00000), ('nanatt.npy', (6, 20, 3, 1), 0x7fc00000)]:
+    b = a.copy()
+    b.view('<u4')[r, row, col, ch] = v
+    np.save(name, b)");
     let out = arg(dir.path(), "out.npy");
     let run = dem_cat(&[&arg(dir.path(), "nan.npy"), "-o", &out], None);
     ok(&run);
     assert_eq!(read(&out), read(dir.path().join("want.npy")));
-    assert!(stderr(&run).contains("3 had NaN heights"), "{}", stderr(&run));
+    assert!(stderr(&run).contains("2 had NaN heights"), "{}", stderr(&run));
     let check = numpy(dir.path(), "\
 b = np.load('out.npy')
-print(np.isnan(b).any(), b[1, 2, 3].tolist(), b[5, 7, 2].tolist())");
+print(np.isnan(b).any(), b[1, 2, 3].tolist(), b[3, 0, 0].tolist())");
     assert_eq!(check.trim(), "False [0.0, -1.0] [0.0, -1.0]");
     // Through float64 the NaN rule is the same.
     ok(&dem_cat(&[&arg(dir.path(), "f8.npy"), "-o", &out], None));
     assert_eq!(read(&out), read(dir.path().join("want.npy")), "via float64");
+    // The contract refuses an infinity anywhere and a NaN in a mask or in
+    // row 20's channel 1: exit 2, naming the record and the cell.
+    for (file, says) in [
+        ("inf.npy", "record 2, byte 1808: inf in the height at row 0, column 1, channel 0"),
+        ("ninf.npy", "record 4, byte 3488: -inf in the mask at row 3, column 3, channel 1"),
+        ("nanmask.npy", "record 5, byte 4328: NaN in the mask at row 7, column 2, channel 1"),
+        ("nanatt.npy", "record 6, byte 5168: NaN in the attitude mask at row 20, column 3, channel 1"),
+    ] {
+        let run = dem_cat(&[&arg(dir.path(), file), "-o", &out], None);
+        assert_eq!(run.status.code(), Some(2), "{file}");
+        assert!(stderr(&run).contains(says), "{file}: {}", stderr(&run));
+    }
 }
 
 #[test]

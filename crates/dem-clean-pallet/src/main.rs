@@ -4,8 +4,9 @@ use std::process::ExitCode;
 
 use clap::Parser;
 use dem_core::prep::pallet::{fill_gaps, gap_cells, looks_like_pallet, StripeRule};
-use dem_core::prep::stream::transform;
-use dem_core::{cli, table, DemError, Terrain};
+use dem_core::prep::stream::transform_checked;
+use dem_core::cli::{self, value};
+use dem_core::{output, table, DemError, Terrain};
 
 /// Make sim pallets solid (the thesis's section 6.3): a simulated pallet
 /// sampled at cell centres shows the gaps between its top boards as stripes
@@ -31,13 +32,13 @@ struct Args {
     #[arg(long)]
     labels: Option<String>,
     /// Boards either side of a gap differ by at most this (m).
-    #[arg(long, default_value_t = 0.02)]
+    #[arg(long, default_value_t = 0.02, value_parser = value::non_negative::<f32>)]
     level_tol: f32,
     /// A gap is at least this much below the boards (m).
-    #[arg(long, default_value_t = 0.05)]
+    #[arg(long, default_value_t = 0.05, value_parser = value::positive::<f32>)]
     min_depth: f32,
     /// ... and at most this much (m).
-    #[arg(long, default_value_t = 0.2)]
+    #[arg(long, default_value_t = 0.2, value_parser = value::positive::<f32>)]
     max_depth: f32,
     /// Without --labels: gap cells in one row that make a record a pallet.
     #[arg(long, default_value_t = 3)]
@@ -46,14 +47,16 @@ struct Args {
 
 fn main() -> ExitCode {
     cli::run(|| {
-        let a = Args::parse();
+        let a: Args = cli::parse();
+        let inputs: Vec<&str> = [Some(&a.input), a.labels.as_ref()].into_iter().flatten().map(String::as_str).collect();
+        output::check_outputs(&inputs, &[&a.output])?;
         let rule = StripeRule { level_tol: a.level_tol, min_depth: a.min_depth, max_depth: a.max_depth, min_row_cells: a.min_row_cells };
         if !(rule.min_depth > 0.0 && rule.min_depth <= rule.max_depth && rule.level_tol >= 0.0) || rule.min_row_cells > 5 {
             return Err(cli::usage("need 0 < --min-depth <= --max-depth, --level-tol >= 0, --min-row-cells <= 5"));
         }
         let labels = a.labels.as_deref().map(table::read_labels).transpose()?;
         let (mut pallets, mut changed, mut cells) = (0u64, 0u64, 0u64);
-        let (read, _) = transform(&a.input, &a.output, |first, chunk| {
+        let (read, _) = transform_checked(&a.input, &a.output, |first, chunk| {
             for (k, d) in chunk.iter_mut().enumerate() {
                 let index = first + k as u64;
                 let gaps = gap_cells(d, &rule);
@@ -74,12 +77,12 @@ fn main() -> ExitCode {
                 }
             }
             Ok(())
-        })?;
-        if let (Some(l), Some(path)) = (&labels, &a.labels) {
-            if l.len() as u64 != read {
-                return Err(DemError::input(path.as_str(), format!("has {} rows but {} has {read} records", l.len(), a.input)).into());
+        }, |read| match (&labels, &a.labels) {
+            (Some(l), Some(path)) if l.len() as u64 != read => {
+                Err(DemError::input(path.as_str(), format!("has {} rows but {} has {read} records", l.len(), a.input)))
             }
-        }
+            _ => Ok(()),
+        })?;
         let how = if labels.is_some() { "labelled" } else { "found by shape" };
         cli::log(format_args!("{pallets} of {read} records are pallets ({how}); cleaned {changed}, filling {cells} gap cells"));
         Ok(())

@@ -30,10 +30,22 @@ pub fn exit_code(e: &anyhow::Error) -> u8 {
         .map_or(1, DemError::exit_code)
 }
 
+/// A closed stdout anywhere in the chain, also when a CSV or JSON writer
+/// wrapped the I/O error into its own.
 fn is_broken_pipe(e: &anyhow::Error) -> bool {
     e.chain().any(|c| {
-        c.downcast_ref::<io::Error>().is_some_and(|io| io.kind() == io::ErrorKind::BrokenPipe)
+        let io = c.downcast_ref::<io::Error>();
+        io.is_some_and(|io| io.kind() == io::ErrorKind::BrokenPipe || io.get_ref().is_some_and(|inner| wraps_broken_pipe(inner)))
+            || wraps_broken_pipe(c)
     })
+}
+
+fn wraps_broken_pipe(e: &(dyn std::error::Error + 'static)) -> bool {
+    let csv_pipe = e
+        .downcast_ref::<csv::Error>()
+        .is_some_and(|c| matches!(c.kind(), csv::ErrorKind::Io(io) if io.kind() == io::ErrorKind::BrokenPipe));
+    let json_pipe = e.downcast_ref::<serde_json::Error>().is_some_and(|j| j.io_error_kind() == Some(io::ErrorKind::BrokenPipe));
+    csv_pipe || json_pipe
 }
 
 /// The binary's name, for messages.
@@ -65,4 +77,98 @@ pub fn progress(len: u64, unit: &str) -> ProgressBar {
 /// Usage error (exit 2) with a message.
 pub fn usage(msg: impl Into<String>) -> anyhow::Error {
     DemError::Usage(msg.into()).into()
+}
+
+/// Parse the command line; a usage error is one line naming the tool
+/// (`dem-pair: error: invalid value 'nan' for '--max-distance <M>': ...`),
+/// exit 2. `--help` and `--version` print as clap does, exit 0.
+pub fn parse<A: clap::Parser>() -> A {
+    let parsed = negative_values(A::command()).try_get_matches().and_then(|m| A::from_arg_matches(&m));
+    match parsed {
+        Ok(a) => a,
+        Err(e) => exit_on_clap_error(e),
+    }
+}
+
+/// Let every option take a value that starts with `-` and a digit, so
+/// `--seed -1` is refused as a bad value of `--seed`, not as an unknown
+/// argument `-1` that names no flag.
+fn negative_values(cmd: clap::Command) -> clap::Command {
+    cmd.mut_args(|a| {
+        let takes_values = a.get_action().takes_values() && a.get_num_args().is_none_or(|n| n.takes_values());
+        if takes_values {
+            a.allow_negative_numbers(true)
+        } else {
+            a
+        }
+    })
+    .mut_subcommands(negative_values)
+}
+
+fn exit_on_clap_error(e: clap::Error) -> ! {
+    use clap::error::ErrorKind;
+    if matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand) {
+        e.exit()
+    }
+    let _ = writeln!(io::stderr(), "{}: error: {} (see --help)", program(), clap_one_line(&e.render().to_string()));
+    std::process::exit(2)
+}
+
+/// The first paragraph of clap's rendered error, on one line, without its
+/// `error:` prefix (the tips and usage that follow are left out).
+fn clap_one_line(rendered: &str) -> String {
+    let first: Vec<&str> = rendered.lines().take_while(|l| !l.trim().is_empty()).map(str::trim).collect();
+    let text = first.join(" ");
+    text.strip_prefix("error: ").unwrap_or(&text).to_string()
+}
+
+/// clap value parsers for numbers that must make sense: finite (no `nan`,
+/// `inf`), and inside the range a tool can use. Each error says what is
+/// expected, so clap's message reads "invalid value 'nan' for '--lr <LR>':
+/// must be a finite number > 0".
+pub mod value {
+    use std::str::FromStr;
+
+    fn number<T: FromStr + Copy + Into<f64>>(s: &str, ok: impl Fn(f64) -> bool, what: &str) -> Result<T, String> {
+        let v: T = s.trim().parse().map_err(|_| format!("not a number, expected {what}"))?;
+        let x: f64 = v.into();
+        if x.is_finite() && ok(x) {
+            Ok(v)
+        } else {
+            Err(format!("must be {what}"))
+        }
+    }
+
+    /// Any finite number.
+    pub fn finite<T: FromStr + Copy + Into<f64>>(s: &str) -> Result<T, String> {
+        number(s, |_| true, "a finite number")
+    }
+
+    /// A finite number > 0.
+    pub fn positive<T: FromStr + Copy + Into<f64>>(s: &str) -> Result<T, String> {
+        number(s, |x| x > 0.0, "a finite number > 0")
+    }
+
+    /// A finite number >= 0.
+    pub fn non_negative<T: FromStr + Copy + Into<f64>>(s: &str) -> Result<T, String> {
+        number(s, |x| x >= 0.0, "a finite number >= 0")
+    }
+
+    /// A fraction in 0..=1.
+    pub fn fraction<T: FromStr + Copy + Into<f64>>(s: &str) -> Result<T, String> {
+        number(s, |x| (0.0..=1.0).contains(&x), "a fraction in 0..1")
+    }
+
+    /// A count of at least 1 (threads, runs, epochs, steps, batch sizes).
+    pub fn at_least_one<T: FromStr + PartialOrd + From<u8>>(s: &str) -> Result<T, String> {
+        match s.trim().parse::<T>() {
+            Ok(v) if v >= T::from(1) => Ok(v),
+            _ => Err("must be a whole number >= 1".into()),
+        }
+    }
+
+    /// A finite number in `lo..=hi`, for flags with a physical range.
+    pub fn within(s: &str, lo: f64, hi: f64) -> Result<f64, String> {
+        number(s, |x| (lo..=hi).contains(&x), &format!("a finite number in {lo}..={hi}"))
+    }
 }

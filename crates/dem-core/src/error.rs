@@ -59,6 +59,17 @@ pub enum DemError {
     /// Arguments that make no sense together.
     #[error("{0}")]
     Usage(String),
+    /// A record about to be written breaks the contract (a NaN or an
+    /// infinity): a defect of the tool or of a model it ran, never written.
+    #[error("{path}: record {record} not written: {reason}")]
+    Unwritable {
+        /// The output path as the user gave it.
+        path: String,
+        /// Zero-based index of the record in the output.
+        record: u64,
+        /// What is wrong.
+        reason: String,
+    },
 }
 
 impl DemError {
@@ -66,7 +77,7 @@ impl DemError {
     /// internal or I/O failure.
     pub fn exit_code(&self) -> u8 {
         match self {
-            DemError::Io { .. } => 1,
+            DemError::Io { .. } | DemError::Unwritable { .. } => 1,
             _ => 2,
         }
     }

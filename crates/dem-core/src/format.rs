@@ -118,33 +118,51 @@ pub fn empty_dem() -> Dem {
     d
 }
 
-/// Apply the contract's input rule: a NaN height (or mask) is a missing
-/// cell, stored as height 0 and mask -1. A NaN in the attitude row reads as
-/// 0 ("not recorded"), its mask channel as 1, so tools never write NaN.
+/// Apply the contract's input rule: a NaN height is a missing cell, stored
+/// as height 0 and mask -1; a NaN attitude reads as 0 ("not recorded").
 /// Everything else is kept bit for bit, so tools that do not touch a record
 /// pass it through unchanged.
 ///
-/// Returns true when the record had a NaN.
-pub fn canonicalize(d: &mut Dem) -> bool {
+/// Returns whether the record had a NaN height or attitude, or the reason it
+/// is bad input: an infinite value anywhere, a NaN in a mask or in row 20's
+/// channel 1 (the contract refuses these; nothing may guess what they meant).
+pub fn canonicalize(d: &mut Dem) -> Result<bool, String> {
+    if let Some(bad) = first_unreadable(d) {
+        return Err(bad);
+    }
     let mut changed = false;
     for c in 0..COLS {
-        for (ch, fill) in [(0, 0.0), (1, 1.0)] {
-            let v = &mut d[at(ATTITUDE_ROW, c, ch)];
-            if v.is_nan() {
-                *v = fill;
-                changed = true;
-            }
+        let v = &mut d[at(ATTITUDE_ROW, c, 0)];
+        if v.is_nan() {
+            *v = 0.0;
+            changed = true;
         }
     }
     for i in 0..GRID_CELLS {
         let (h, m) = (i * 2, i * 2 + 1);
-        if d[h].is_nan() || d[m].is_nan() {
+        if d[h].is_nan() {
             d[h] = 0.0;
             d[m] = MISSING;
             changed = true;
         }
     }
-    changed
+    Ok(changed)
+}
+
+/// Where a record breaks the contract's value rule, said as a reason.
+fn first_unreadable(d: &Dem) -> Option<String> {
+    let (j, v) = d.iter().enumerate().find(|&(j, v)| v.is_infinite() || (v.is_nan() && j % 2 == 1))?;
+    let (row, col, ch) = (j / (COLS * CHANNELS), j % (COLS * CHANNELS) / CHANNELS, j % CHANNELS);
+    let what = if ch == 0 { "height" } else if row == ATTITUDE_ROW { "attitude mask" } else { "mask" };
+    Some(format!("{v} in the {what} at row {row}, column {col}, channel {ch} (the contract allows no infinite value, and NaN only as a height)"))
+}
+
+/// Where a record about to be written holds a value the contract forbids on
+/// output (NaN or infinity), said as a reason; None when it is writable.
+pub fn unwritable(d: &Dem) -> Option<String> {
+    let j = d.iter().position(|v| !v.is_finite())?;
+    let (row, col, ch) = (j / (COLS * CHANNELS), j % (COLS * CHANNELS) / CHANNELS, j % CHANNELS);
+    Some(format!("{} at row {row}, column {col}, channel {ch}: tools never write NaN or infinity", d[j]))
 }
 
 /// Terrain classes of the labels CSV.
@@ -227,7 +245,7 @@ mod tests {
     fn nan_height_reads_as_missing() {
         let mut d = empty_dem();
         d.set_valid(3, 2, f32::NAN);
-        canonicalize(&mut d);
+        assert_eq!(canonicalize(&mut d), Ok(true));
         assert_eq!(d.height(3, 2), 0.0);
         assert_eq!(d.mask(3, 2), MISSING);
     }
@@ -236,9 +254,26 @@ mod tests {
     fn nan_attitude_reads_as_not_recorded() {
         let mut d = empty_dem();
         d[at(ATTITUDE_ROW, 2, 0)] = f32::NAN;
-        d[at(ATTITUDE_ROW, 3, 1)] = f32::NAN;
-        assert!(canonicalize(&mut d));
+        assert_eq!(canonicalize(&mut d), Ok(true));
         assert_eq!(d, empty_dem());
+    }
+
+    #[test]
+    fn infinities_and_nan_masks_are_refused_naming_the_cell() {
+        for (j, v, says) in [
+            (at(3, 2, 0), f32::INFINITY, "inf in the height at row 3, column 2"),
+            (at(4, 1, 1), f32::NEG_INFINITY, "-inf in the mask at row 4, column 1"),
+            (at(5, 0, 1), f32::NAN, "NaN in the mask at row 5, column 0"),
+            (at(ATTITUDE_ROW, 3, 1), f32::NAN, "NaN in the attitude mask at row 20, column 3"),
+            (at(ATTITUDE_ROW, 1, 0), f32::INFINITY, "inf in the height at row 20, column 1"),
+        ] {
+            let mut d = empty_dem();
+            d[j] = v;
+            let e = canonicalize(&mut d).unwrap_err();
+            assert!(e.contains(says), "{e}");
+            assert!(unwritable(&d).is_some());
+        }
+        assert_eq!(unwritable(&empty_dem()), None);
     }
 
     #[test]

@@ -33,7 +33,9 @@ pub fn resolve(path: &str) -> PathBuf {
 }
 
 /// A temp file beside `path` (beside its target, for a symlink), named
-/// `.NAME.XXXX.tmp`.
+/// `.NAME.HOST-PID.XXXXXX.tmp`. Temp files of that naming left by a killed
+/// run of this host (their process is gone) are removed first, with a log
+/// line: a `kill -9` costs no disk for longer than the next run.
 pub fn temp_beside(path: &str) -> Result<tempfile::NamedTempFile> {
     let resolved = resolve(path);
     let target = resolved.as_path();
@@ -42,14 +44,114 @@ pub fn temp_beside(path: &str) -> Result<tempfile::NamedTempFile> {
         _ => Path::new("."),
     };
     let name = target.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    remove_stale_temps(dir, &name);
     // 0o666 minus the umask, like any file a tool creates; tempfile's
     // default 0o600 would hide outputs from the rest of a team.
     tempfile::Builder::new()
         .permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666))
-        .prefix(&format!(".{name}."))
+        .prefix(&format!(".{name}.{}-{}.", host(), std::process::id()))
         .suffix(".tmp")
         .tempfile_in(dir)
         .map_err(|source| DemError::Open { path: path.into(), source })
+}
+
+/// This machine's name, so a folder shared over the network never loses a
+/// temp file another machine is still writing.
+fn host() -> String {
+    std::fs::read_to_string("/proc/sys/kernel/hostname")
+        .map(|h| h.trim().replace(['/', '.'], "_"))
+        .ok()
+        .filter(|h| !h.is_empty())
+        .unwrap_or_else(|| "host".into())
+}
+
+/// The pid in a temp file name of ours for `name` written by this host.
+fn temp_owner(file: &str, name: &str, host: &str) -> Option<u32> {
+    let rest = file.strip_prefix(&format!(".{name}."))?.strip_suffix(".tmp")?;
+    let (owner, _random) = rest.rsplit_once('.')?;
+    let (h, pid) = owner.rsplit_once('-')?;
+    (h == host).then(|| pid.parse().ok()).flatten()
+}
+
+fn remove_stale_temps(dir: &Path, name: &str) {
+    let Ok(entries) = std::fs::read_dir(dir) else { return };
+    let host = host();
+    for entry in entries.flatten() {
+        let file = entry.file_name().to_string_lossy().into_owned();
+        let Some(pid) = temp_owner(&file, name, &host) else { continue };
+        // Without /proc we cannot tell a live writer from a dead one: keep it.
+        if !Path::new("/proc/self").exists() || Path::new(&format!("/proc/{pid}")).exists() {
+            continue;
+        }
+        if std::fs::remove_file(entry.path()).is_ok() {
+            crate::cli::log(format_args!(
+                "removed {}, a temp file left by a killed run (pid {pid})",
+                entry.path().display()
+            ));
+        }
+    }
+}
+
+/// Check, before any work, the outputs a tool is about to write: each can be
+/// created (its folder exists and takes files, it is not a folder), none is
+/// one of the inputs (also through a link, or as a redirected stdout: `-`
+/// stands for stdin among inputs and stdout among outputs), and no two are
+/// the same file. Refusals are usage errors (exit 2), naming both paths.
+pub fn check_outputs(inputs: &[&str], outputs: &[&str]) -> Result<()> {
+    use std::os::unix::fs::MetadataExt;
+    let id = |path: &str, is_output: bool| -> Option<(u64, u64)> {
+        let meta = if path == "-" {
+            let fd = if is_output { std_fd(1) } else { std_fd(0) }?;
+            fd.metadata().ok()?
+        } else {
+            std::fs::metadata(path).ok()?
+        };
+        // Devices and FIFOs (`/dev/null`) are written in place, never replaced.
+        meta.is_file().then(|| (meta.dev(), meta.ino()))
+    };
+    let name = |path: &str, is_output: bool| match (path, is_output) {
+        ("-", true) => "stdout".to_string(),
+        ("-", false) => "stdin".to_string(),
+        (p, _) => p.to_string(),
+    };
+    for (k, &out) in outputs.iter().enumerate() {
+        if out != "-" {
+            if Path::new(out).is_dir() {
+                return Err(DemError::Usage(format!("output {out} is a folder, not a file")));
+            }
+            if !is_special(out) {
+                drop(temp_beside(out)?);
+            }
+        }
+        let Some(out_id) = id(out, true) else { continue };
+        if let Some(i) = inputs.iter().find(|&&i| id(i, false) == Some(out_id)) {
+            return Err(DemError::Usage(format!(
+                "output {} would overwrite the input {}",
+                name(out, true),
+                name(i, false)
+            )));
+        }
+        if let Some(o) = outputs[..k].iter().find(|&&o| id(o, true) == Some(out_id) || (o == out && o != "-")) {
+            return Err(DemError::Usage(format!("two outputs are the same file: {} and {out}", name(o, true))));
+        }
+    }
+    // Outputs that do not exist yet can still collide by name.
+    for (k, &out) in outputs.iter().enumerate() {
+        if out != "-" && outputs[..k].contains(&out) {
+            return Err(DemError::Usage(format!("the output {out} is given twice")));
+        }
+    }
+    Ok(())
+}
+
+/// A duplicate of stdin (0) or stdout (1) as a `File`, for its metadata.
+fn std_fd(fd: i32) -> Option<std::fs::File> {
+    use std::os::fd::AsFd;
+    let owned = match fd {
+        0 => io::stdin().as_fd().try_clone_to_owned().ok()?,
+        _ => io::stdout().as_fd().try_clone_to_owned().ok()?,
+    };
+    Some(std::fs::File::from(owned))
 }
 
 enum Target {
@@ -127,4 +229,55 @@ pub fn write_atomic(path: &str, body: impl FnOnce(&mut AtomicOutput) -> io::Resu
 /// True when `path` names an existing file (used to refuse clobbering inputs).
 pub fn exists(path: &str) -> bool {
     path != "-" && Path::new(path).exists()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn temp_names_carry_host_and_pid_and_parse_back() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("x.npy").to_string_lossy().into_owned();
+        let t = temp_beside(&out).unwrap();
+        let file = t.path().file_name().unwrap().to_string_lossy().into_owned();
+        assert_eq!(temp_owner(&file, "x.npy", &host()), Some(std::process::id()));
+        assert_eq!(temp_owner(&file, "y.npy", &host()), None);
+        assert_eq!(temp_owner(&file, "x.npy", "elsewhere"), None);
+    }
+
+    #[test]
+    fn stale_temps_of_dead_processes_go_live_ones_stay() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("x.npy").to_string_lossy().into_owned();
+        // pid 4194304 is above Linux's pid_max, so never alive.
+        let dead = dir.path().join(format!(".x.npy.{}-4194304.abc123.tmp", host()));
+        let alive = dir.path().join(format!(".x.npy.{}-{}.def456.tmp", host(), std::process::id()));
+        let other_host = dir.path().join(".x.npy.far_away-4194304.ghi789.tmp");
+        for p in [&dead, &alive, &other_host] {
+            std::fs::write(p, b"partial").unwrap();
+        }
+        drop(temp_beside(&out).unwrap());
+        assert!(!dead.exists());
+        assert!(alive.exists() && other_host.exists());
+    }
+
+    #[test]
+    fn outputs_never_name_an_input_or_each_other() {
+        let dir = tempfile::tempdir().unwrap();
+        let a = dir.path().join("a.npy").to_string_lossy().into_owned();
+        let b = dir.path().join("b.npy").to_string_lossy().into_owned();
+        std::fs::write(&a, b"x").unwrap();
+        let link = dir.path().join("l.npy");
+        std::os::unix::fs::symlink(&a, &link).unwrap();
+        let link = link.to_string_lossy().into_owned();
+        assert!(check_outputs(&[&a], &[&b]).is_ok());
+        assert!(check_outputs(&[&a], &[&a]).unwrap_err().to_string().contains("would overwrite the input"));
+        assert!(check_outputs(&[&a], &[&link]).is_err());
+        assert!(check_outputs(&[], &[&b, &b]).unwrap_err().to_string().contains("twice"));
+        let d = dir.path().to_string_lossy().into_owned();
+        assert!(check_outputs(&[], &[&d]).unwrap_err().to_string().contains("folder"));
+        let missing = dir.path().join("no/such/x.npy").to_string_lossy().into_owned();
+        assert_eq!(check_outputs(&[], &[&missing]).unwrap_err().exit_code(), 2);
+    }
 }

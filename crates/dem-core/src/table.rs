@@ -114,13 +114,48 @@ pub fn read_rows<T: DeserializeOwned>(path: &str, required: &[&str]) -> Result<V
 
 /// Write rows as CSV to `path` (`-` for stdout), atomically for files.
 pub fn write_rows<T: Serialize>(path: &str, rows: &[T]) -> Result<()> {
-    let out = AtomicOutput::create(path)?;
-    let mut w = csv::Writer::from_writer(out);
+    let mut w = RowWriter::create(path)?;
     for row in rows {
-        w.serialize(row).map_err(|e| DemError::io(path, std::io::Error::other(e)))?;
+        w.write(row)?;
     }
-    let out = w.into_inner().map_err(|e| DemError::io(path, e.into_error()))?;
-    out.commit()
+    w.commit()
+}
+
+/// A CSV written a row at a time to `path` (`-` for stdout): memory stays
+/// one row, and a named file appears, whole, on [`RowWriter::commit`] only.
+pub struct RowWriter {
+    w: csv::Writer<AtomicOutput>,
+    path: String,
+}
+
+impl RowWriter {
+    /// Start writing `path`.
+    pub fn create(path: &str) -> Result<Self> {
+        Ok(RowWriter { w: csv::Writer::from_writer(AtomicOutput::create(path)?), path: path.into() })
+    }
+
+    /// Append one row (the header goes before the first).
+    pub fn write<T: Serialize>(&mut self, row: &T) -> Result<()> {
+        self.w.serialize(row).map_err(|e| DemError::io(self.path.as_str(), csv_io(e)))
+    }
+
+    /// Flush and move the file into place.
+    pub fn commit(self) -> Result<()> {
+        let out = self.w.into_inner().map_err(|e| DemError::io(self.path.as_str(), e.into_error()))?;
+        out.commit()
+    }
+}
+
+/// The I/O error inside a CSV writer's error (so a closed pipe stays a
+/// closed pipe), or the CSV error itself.
+fn csv_io(e: csv::Error) -> std::io::Error {
+    if matches!(e.kind(), csv::ErrorKind::Io(_)) {
+        if let csv::ErrorKind::Io(io) = e.into_kind() {
+            return io;
+        }
+        unreachable!("checked above");
+    }
+    std::io::Error::other(e)
 }
 
 /// Read a labels CSV; rows must be indexed 0, 1, 2, ... in order.

@@ -62,8 +62,12 @@ pub struct EvalArgs {
     /// Write the closest real record of each evaluated record to this NPY.
     #[arg(long, value_name = "FILE")]
     emit_closest: Option<String>,
+    /// With --model: refuse a model that changes row 20 (the attitude,
+    /// which must pass through); without it, such a model gets a warning.
+    #[arg(long, requires = "model")]
+    strict: bool,
     /// Records per model call with --model.
-    #[arg(long, default_value_t = 512)]
+    #[arg(long, default_value_t = 512, value_parser = cli::value::at_least_one::<usize>)]
     batch: usize,
 }
 
@@ -98,9 +102,17 @@ pub fn run(a: EvalArgs) -> anyhow::Result<()> {
     if to_stdout.iter().filter(|p| p.is_some_and(|p| p == "-")).count() > 1 {
         return Err(cli::usage("only one output can be `-` (stdout); give the table a file with -o"));
     }
-    if a.batch == 0 {
-        return Err(cli::usage("--batch must be at least 1"));
-    }
+    let method_file = match &method {
+        Method::Pred(p) | Method::Model(p) => Some(p),
+        Method::Identity => None,
+    };
+    let inputs: Vec<&str> = [a.sim.as_ref(), a.real.as_ref(), a.pairs.as_ref(), a.labels_sim.as_ref(), method_file]
+        .into_iter()
+        .flatten()
+        .map(String::as_str)
+        .collect();
+    let outputs: Vec<&str> = to_stdout.into_iter().flatten().map(String::as_str).collect();
+    dem_core::output::check_outputs(&inputs, &outputs)?;
     let q = Request {
         sim: need(a.sim, "--sim")?,
         real: need(a.real, "--real")?,
@@ -112,6 +124,7 @@ pub fn run(a: EvalArgs) -> anyhow::Result<()> {
         labels_sim: a.labels_sim,
         method,
         batch: a.batch,
+        strict: a.strict,
         keep: a.emit_input.is_some() || a.emit_pred.is_some() || a.emit_closest.is_some(),
     };
     let ev = inputs::run(&q)?;

@@ -36,6 +36,8 @@ pub struct Request {
     pub method: Method,
     /// Records per model call.
     pub batch: usize,
+    /// Refuse a model that changes row 20.
+    pub strict: bool,
     /// Keep the input, prediction and closest real record of each result.
     pub keep: bool,
 }
@@ -105,7 +107,9 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
     if stdin_users > 1 {
         return Err(cli::usage("only one input can be `-` (stdin)"));
     }
-    let mut pairs = table::read_pairs(&q.pairs)?;
+    // Every row is range-checked, also those of the split not evaluated.
+    let all_pairs = table::read_pairs(&q.pairs)?;
+    let mut pairs = all_pairs.clone();
     if let Some(s) = q.split {
         if pairs.iter().all(|p| p.split.is_none()) {
             return Err(DemError::input(q.pairs.as_str(), "has no split column for --split (dem-pair writes one)").into());
@@ -120,9 +124,9 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
     let sims: BTreeSet<u64> = sel.keys().copied().collect();
     let reals: BTreeSet<u64> = sel.values().flatten().copied().collect();
     let (n_sim, sim) = read_selected(&q.sim, &sims)?;
-    check_range(&q.pairs, &pairs, n_sim, &q.sim, false)?;
+    check_range(&q.pairs, &all_pairs, n_sim, &q.sim, false)?;
     let (n_real, real) = read_selected(&q.real, &reals)?;
-    check_range(&q.pairs, &pairs, n_real, &q.real, true)?;
+    check_range(&q.pairs, &all_pairs, n_real, &q.real, true)?;
     let labels = match &q.labels_sim {
         Some(path) => {
             let l = table::read_labels(path)?;
@@ -142,7 +146,7 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
             }
             pred
         }
-        Method::Model(path) => crate::model::predict(path, &sim, q.batch)?,
+        Method::Model(path) => crate::model::predict(path, &sim, &q.sim, q.batch, q.strict)?,
     };
     let terrain = |i: u64| -> Option<Terrain> { labels.as_ref().map(|l| l[i as usize].terrain) };
     let results = eval::evaluate(&sel, |i| &pred[&i], |j| &real[&j], terrain);

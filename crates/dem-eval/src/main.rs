@@ -84,16 +84,16 @@ enum Cmd {
         /// Current table (CSV or JSON written by dem-eval).
         current: String,
         /// Largest allowed growth of the mean and of the median pair error (absolute).
-        #[arg(long, default_value_t = 0.02)]
+        #[arg(long, default_value_t = 0.02, value_parser = cli::value::non_negative::<f64>)]
         tolerance: f64,
         /// Largest allowed growth of height_cm (cm).
-        #[arg(long, default_value_t = 0.5)]
+        #[arg(long, default_value_t = 0.5, value_parser = cli::value::non_negative::<f64>)]
         height_tolerance: f64,
         /// Largest allowed growth of |rough - real_rough|, across or along (cm).
-        #[arg(long, default_value_t = 0.5)]
+        #[arg(long, default_value_t = 0.5, value_parser = cli::value::non_negative::<f64>)]
         rough_tolerance: f64,
         /// Largest allowed growth of the gap.
-        #[arg(long, default_value_t = eval::DEFAULT_GAP_TOLERANCE)]
+        #[arg(long, default_value_t = eval::DEFAULT_GAP_TOLERANCE, value_parser = cli::value::non_negative::<f64>)]
         gap_tolerance: f64,
         /// Output format.
         #[arg(long, value_enum, default_value = "text")]
@@ -103,7 +103,7 @@ enum Cmd {
 
 fn main() -> ExitCode {
     cli::run(|| {
-        let a = Args::parse();
+        let a: Args = cli::parse();
         match a.cmd {
             Some(Cmd::Compare { baseline, current, tolerance, height_tolerance, rough_tolerance, gap_tolerance, format }) => {
                 let tol = eval::Tolerances { pair: tolerance, height_cm: height_tolerance, rough_cm: rough_tolerance, gap: gap_tolerance };

@@ -6,12 +6,15 @@
 use std::collections::HashMap;
 
 use dem_core::{Dem, DemError};
+use dem_onnx::apply::{check_outputs, AttitudeCheck};
 use dem_onnx::OnnxModel;
 use rayon::prelude::*;
 
 /// Predictions of the model at `path` for `sim` (index -> record), `batch`
-/// records per model call.
-pub fn predict(path: &str, sim: &HashMap<u64, Dem>, batch: usize) -> anyhow::Result<HashMap<u64, Dem>> {
+/// records per model call. A NaN or infinite output is refused naming the
+/// record (never scored as a missing cell); a model that changes row 20 gets
+/// a warning, and is refused when `strict`.
+pub fn predict(path: &str, sim: &HashMap<u64, Dem>, sim_path: &str, batch: usize, strict: bool) -> anyhow::Result<HashMap<u64, Dem>> {
     let model = OnnxModel::load(path)?;
     let mut keys: Vec<u64> = sim.keys().copied().collect();
     keys.sort_unstable();
@@ -21,9 +24,12 @@ pub fn predict(path: &str, sim: &HashMap<u64, Dem>, batch: usize) -> anyhow::Res
     if outputs.len() != keys.len() {
         return Err(DemError::input(path, format!("gave {} outputs for {} inputs", outputs.len(), keys.len())).into());
     }
-    // The contract's input rule applies to what a model hands back too.
-    Ok(keys.into_iter().zip(outputs).map(|(k, mut d)| (k, {
-        dem_core::format::canonicalize(&mut d);
-        d
-    })).collect())
+    let mut attitude = AttitudeCheck::default();
+    for (k, (x, y)) in keys.iter().zip(inputs.iter().zip(&outputs)) {
+        check_outputs(std::slice::from_ref(x), std::slice::from_ref(y), *k, sim_path, path, strict, &mut attitude)?;
+    }
+    if let Some(w) = attitude.warning(path, sim_path) {
+        dem_core::cli::log(w);
+    }
+    Ok(keys.into_iter().zip(outputs).collect())
 }

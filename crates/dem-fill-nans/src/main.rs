@@ -6,7 +6,8 @@ use std::process::ExitCode;
 use clap::Parser;
 use dem_core::prep::fill::{fill_from_own_heights, missing_fraction, record_uniform};
 use dem_core::prep::stream::transform;
-use dem_core::{cli, npy};
+use dem_core::cli::{self, value};
+use dem_core::{npy, output};
 
 /// Fill the missing cells of records with a large missing area (the thesis's
 /// section 6.4): such records (a run's first frames, before the map has seen
@@ -31,10 +32,10 @@ struct Args {
     output: String,
     /// A record has a large missing area when at least this fraction of its
     /// 100 grid cells is missing.
-    #[arg(long, default_value_t = 0.3)]
+    #[arg(long, default_value_t = 0.3, value_parser = value::fraction::<f64>)]
     min_missing: f64,
     /// Keep this fraction of the large-missing records unfilled (chosen at random).
-    #[arg(long, default_value_t = 0.2, conflicts_with = "keep")]
+    #[arg(long, default_value_t = 0.2, conflicts_with = "keep", value_parser = value::fraction::<f64>)]
     keep_fraction: f64,
     /// Keep exactly this many large-missing records unfilled (chosen at
     /// random; reads the input twice, so it must be a file).
@@ -47,10 +48,8 @@ struct Args {
 
 fn main() -> ExitCode {
     cli::run(|| {
-        let a = Args::parse();
-        if !(0.0..=1.0).contains(&a.min_missing) || !(0.0..=1.0).contains(&a.keep_fraction) {
-            return Err(cli::usage("--min-missing and --keep-fraction are fractions in 0..1"));
-        }
+        let a: Args = cli::parse();
+        output::check_outputs(&[&a.input], &[&a.output])?;
         let large = |d: &dem_core::Dem| missing_fraction(d) >= a.min_missing - 1e-9;
         // --keep N: rank the large-missing records by their random key and keep the N lowest.
         let kept_set: Option<HashSet<u64>> = match a.keep {

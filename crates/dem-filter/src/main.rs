@@ -3,10 +3,12 @@
 use std::process::ExitCode;
 
 use clap::Parser;
+
 use dem_core::prep::filter::{Filter, FilterRules, RowRule};
-use dem_core::prep::stream::transform;
+use dem_core::prep::stream::transform_checked;
 use dem_core::table::{self, IndexRow, Label};
-use dem_core::{cli, Terrain};
+use dem_core::cli::{self, value};
+use dem_core::{output, Terrain};
 
 /// Keep the records of an NPY stream that pass every rule given, in order.
 ///
@@ -43,7 +45,7 @@ struct Args {
     #[arg(long, requires = "index")]
     invert: bool,
     /// Keep records with at least this fraction (0..1) of grid cells valid.
-    #[arg(long)]
+    #[arg(long, value_parser = value::fraction::<f64>)]
     min_valid: Option<f64>,
     /// Region of grid rows A..B (0-based, B excluded) for --min-rows.
     #[arg(long, value_parser = parse_rows)]
@@ -73,20 +75,25 @@ fn parse_rows(s: &str) -> Result<std::ops::Range<usize>, String> {
 
 fn main() -> ExitCode {
     cli::run(|| {
-        let a = Args::parse();
-        if a.min_valid.is_some_and(|f| !(0.0..=1.0).contains(&f)) {
-            return Err(cli::usage("--min-valid must be a fraction in 0..1"));
-        }
+        let a: Args = cli::parse();
         if (a.terrain.is_some() || a.drop_other) && a.labels.is_none() {
             return Err(cli::usage("--terrain and --drop-other need --labels"));
         }
+        let inputs: Vec<&str> = [Some(&a.input), a.labels.as_ref(), a.index.as_ref()].into_iter().flatten().map(String::as_str).collect();
+        let outputs: Vec<&str> = [Some(&a.output), a.emit_index.as_ref(), a.emit_labels.as_ref()].into_iter().flatten().map(String::as_str).collect();
+        output::check_outputs(&inputs, &outputs)?;
         let labels = a.labels.as_deref().map(|p| table::read_labels(p).map(|l| (p.to_string(), l))).transpose()?;
         let rows = a.rows.map(|rows| RowRule { min_rows: a.min_rows.unwrap_or(rows.len()), rows });
         if rows.as_ref().is_some_and(|r| r.min_rows > r.rows.len()) {
             return Err(cli::usage("--min-rows is larger than the --rows region"));
         }
-        let index = a.index.as_deref().map(table::read_index).transpose()?.map(|v| v.into_iter().collect());
-        let mut filter = Filter::new(FilterRules {
+        let index = a.index.as_deref().map(|p| table::read_index(p).map(|rows| (p.to_string(), rows))).transpose()?;
+        // Kept indices and labels are written as they are decided, so memory
+        // does not grow with the stream; the files appear only on success.
+        let mut emit_index = a.emit_index.as_deref().map(table::RowWriter::create).transpose()?;
+        let mut emit_labels = a.emit_labels.as_deref().map(table::RowWriter::create).transpose()?;
+        // Borrowed by the chunk loop and by the end-of-stream check.
+        let filter = std::cell::RefCell::new(Filter::new(FilterRules {
             labels,
             terrains: a.terrain,
             drop_other: a.drop_other,
@@ -95,39 +102,55 @@ fn main() -> ExitCode {
             min_valid: a.min_valid,
             rows,
             unique: a.unique,
-        });
-        let mut kept = Vec::new();
-        transform(&a.input, &a.output, |first, chunk| {
+        }));
+        let mut kept = 0u64;
+        transform_checked(&a.input, &a.output, |first, chunk| {
             let mut i = first;
             let mut err = None;
             chunk.retain(|d| {
-                let keep = err.is_none() && filter.keep(&a.input, i, d).unwrap_or_else(|e| {
-                    err = Some(e);
-                    false
-                });
-                if keep {
-                    kept.push(i);
-                }
+                let mut filter = filter.borrow_mut();
+                let keep = err.is_none()
+                    && filter.keep(&a.input, i, d).and_then(|keep| {
+                        if keep {
+                            emit(&mut emit_index, &mut emit_labels, &filter, i, kept)?;
+                            kept += 1;
+                        }
+                        Ok(keep)
+                    })
+                    .unwrap_or_else(|e| {
+                        err = Some(e);
+                        false
+                    });
                 i += 1;
                 keep
             });
             err.map_or(Ok(()), Err)
-        })?;
-        filter.finish(&a.input)?;
-        if let Some(path) = &a.emit_index {
-            table::write_rows(path, &kept.iter().map(|&index| IndexRow { index }).collect::<Vec<_>>())?;
+        }, |_| filter.borrow().finish(&a.input))?;
+        for w in [emit_index, emit_labels].into_iter().flatten() {
+            w.commit()?;
         }
-        if let (Some(path), Some(labels)) = (&a.emit_labels, a.labels.as_deref()) {
-            let all = table::read_labels(labels)?;
-            let out: Vec<Label> =
-                kept.iter().enumerate().map(|(n, &i)| Label { index: n as u64, ..all[i as usize].clone() }).collect();
-            table::write_rows(path, &out)?;
-        }
-        let c = &filter.counts;
+        let c = &filter.borrow().counts;
         cli::log(format_args!(
             "kept {} of {} records (dropped: {} terrain, {} index, {} valid cells, {} rows, {} duplicates)",
             c.kept, c.read, c.terrain, c.index, c.valid, c.rows, c.duplicate
         ));
         Ok(())
     })
+}
+
+/// Write kept record `i` (the `n`-th kept) to the index and labels outputs.
+fn emit(
+    index: &mut Option<table::RowWriter>,
+    labels: &mut Option<table::RowWriter>,
+    filter: &Filter,
+    i: u64,
+    n: u64,
+) -> dem_core::Result<()> {
+    if let Some(w) = index {
+        w.write(&IndexRow { index: i })?;
+    }
+    if let (Some(w), Some(all)) = (labels, filter.labels()) {
+        w.write(&Label { index: n, ..all[i as usize].clone() })?;
+    }
+    Ok(())
 }

@@ -6,7 +6,8 @@ use std::process::ExitCode;
 use clap::Parser;
 use dem_core::gap::{self, report, GapConfig};
 use dem_core::sensor::SensorModel;
-use dem_core::cli;
+use dem_core::cli::{self, value};
+use dem_core::{output, DemError};
 
 /// Measure the gap between model(sim) and real, name the effect that
 /// closes most of it (noise, dropout, row-dropout, occlusion, fov,
@@ -50,7 +51,7 @@ struct Args {
     #[arg(long)]
     out: String,
     /// Most effects to add.
-    #[arg(long, default_value_t = 8)]
+    #[arg(long, default_value_t = 8, value_parser = value::at_least_one::<usize>)]
     max_steps: usize,
     /// Seed of the model's random effects and of the fitting subsample.
     #[arg(long, default_value_t = 0)]
@@ -59,15 +60,15 @@ struct Args {
     #[arg(long, default_value_t = 1000)]
     fit_records: usize,
     /// Smallest fraction of the gap an added effect must remove.
-    #[arg(long, default_value_t = 0.05)]
+    #[arg(long, default_value_t = 0.05, value_parser = value::fraction::<f64>)]
     min_gain: f64,
 }
 
 fn main() -> ExitCode {
     cli::run(|| {
-        let a = Args::parse();
-        if !(0.0..1.0).contains(&a.min_gain) {
-            return Err(cli::usage("--min-gain must be a fraction in 0..1"));
+        let a: Args = cli::parse();
+        if a.min_gain >= 1.0 {
+            return Err(cli::usage("--min-gain must be a fraction in 0..1 (below 1)"));
         }
         if a.fit_records < 50 {
             return Err(cli::usage("--fit-records must be at least 50"));
@@ -75,6 +76,27 @@ fn main() -> ExitCode {
         if a.sim == "-" || a.real == "-" {
             return Err(cli::usage("--sim and --real are read more than once; give files, not `-`"));
         }
+        // Check the folder and every file the report will write before the
+        // analysis, which takes minutes.
+        if std::path::Path::new(&a.out).exists() && !std::path::Path::new(&a.out).is_dir() {
+            return Err(cli::usage(format!("--out {} is a file, not a folder", a.out)));
+        }
+        // Made to probe it, and removed again until there is a report to put
+        // in it: a refused input leaves no folder.
+        let made = !std::path::Path::new(&a.out).exists();
+        std::fs::create_dir_all(&a.out).map_err(|source| DemError::Open { path: a.out.clone(), source })?;
+        let inputs: Vec<&str> =
+            [Some(&a.sim), Some(&a.real), a.pairs.as_ref(), a.labels_sim.as_ref(), a.labels_real.as_ref(), a.model.as_ref()]
+                .into_iter()
+                .flatten()
+                .map(String::as_str)
+                .collect();
+        let outputs: Vec<String> = report::FILES.iter().map(|f| std::path::Path::new(&a.out).join(f).to_string_lossy().into_owned()).collect();
+        let checked = output::check_outputs(&inputs, &outputs.iter().map(String::as_str).collect::<Vec<_>>());
+        if made {
+            let _ = std::fs::remove_dir(&a.out);
+        }
+        checked?;
         let start = a.model.as_deref().map(SensorModel::read).transpose()?.unwrap_or_default();
         let cfg = GapConfig {
             sim: a.sim,

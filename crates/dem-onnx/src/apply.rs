@@ -20,6 +20,8 @@ pub const GROUP_BATCHES: usize = 4;
 pub struct ApplyStats {
     /// Records read and written.
     pub records: u64,
+    /// Records whose attitude row the model changed.
+    pub attitude: AttitudeCheck,
 }
 
 /// Run `model` over every record of `input` (`-` for stdin) and write the
@@ -27,14 +29,17 @@ pub struct ApplyStats {
 /// batches of `batch` records (`>= 1`). `progress` gets the records done so
 /// far after each group. A non-finite output value (the model made a NaN or
 /// an infinity) is an error naming the record; a named output file is then
-/// not written.
+/// not written. A model that changes row 20 (the attitude) is counted in
+/// the stats, and refused when `strict`.
 pub fn apply(
     model: &OnnxModel,
     input: &str,
     output: &str,
     batch: usize,
+    strict: bool,
     mut progress: impl FnMut(u64),
 ) -> Result<ApplyStats, DemError> {
+    let mut attitude = AttitudeCheck::default();
     assert!(batch >= 1, "batch must be at least 1");
     let mut reader = npy::open(input)?;
     let mut writer = npy::create(output)?;
@@ -53,31 +58,74 @@ pub fn apply(
             break;
         }
         let outs: Vec<Vec<Dem>> = chunk.par_chunks(batch).map(|c| model.run(c)).collect::<Result<_, _>>()?;
-        for (k, out) in outs.iter().enumerate() {
-            check_finite(out, first + (k * batch) as u64, input, model.name())?;
+        for (k, (inp, out)) in chunk.chunks(batch).zip(&outs).enumerate() {
+            check_outputs(inp, out, first + (k * batch) as u64, input, model.name(), strict, &mut attitude)?;
             writer.write(out)?;
         }
         progress(reader.records_read());
     }
     let records = writer.records_written();
     writer.finish()?;
-    Ok(ApplyStats { records })
+    Ok(ApplyStats { records, attitude })
 }
 
-/// Refuse a NaN or infinite output value: tools never write NaN.
-fn check_finite(out: &[Dem], first: u64, input: &str, model: &str) -> Result<(), DemError> {
-    for (i, d) in out.iter().enumerate() {
+/// What a model did with row 20 (the attitude, which spec/network.md says
+/// passes through): how many records it changed, and the first.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct AttitudeCheck {
+    /// Records whose output row 20 differs from the input's.
+    pub changed: u64,
+    /// The first such record (index in the input stream).
+    pub first: Option<u64>,
+}
+
+impl AttitudeCheck {
+    /// The warning to print, when some record's attitude was changed.
+    pub fn warning(&self, model: &str, input: &str) -> Option<String> {
+        self.first.map(|f| {
+            format!(
+                "warning: {model} does not pass row 20 (the attitude) through: {} record(s) of {input} changed, first record {f} (--strict refuses such a model)",
+                self.changed
+            )
+        })
+    }
+}
+
+/// Check a model's outputs `out` for the inputs `inp` (records `first..` of
+/// `input`): a NaN or infinite value is refused naming the record (tools
+/// never write one); an attitude row that does not pass through is counted
+/// in `att`, and refused when `strict`.
+pub fn check_outputs(
+    inp: &[Dem],
+    out: &[Dem],
+    first: u64,
+    input: &str,
+    model: &str,
+    strict: bool,
+    att: &mut AttitudeCheck,
+) -> Result<(), DemError> {
+    for (i, (x, d)) in inp.iter().zip(out).enumerate() {
+        let record = first + i as u64;
         if let Some(j) = d.iter().position(|v| !v.is_finite()) {
             let (row, col, ch) = (j / 10, j % 10 / 2, j % 2);
             debug_assert!(j < RECORD_LEN);
             return Err(DemError::input(
                 model,
-                format!(
-                    "the model's output for record {} of {input} is {} at row {row}, column {col}, channel {ch}",
-                    first + i as u64,
-                    d[j]
-                ),
+                format!("the model's output for record {record} of {input} is {} at row {row}, column {col}, channel {ch}", d[j]),
             ));
+        }
+        let row20 = RECORD_LEN - 10..RECORD_LEN;
+        // Exact: the attitude is copied, never computed (a PyTorch export
+        // that writes zeros there is what this catches).
+        if x[row20.clone()] != d[row20] {
+            att.changed += 1;
+            att.first.get_or_insert(record);
+            if strict {
+                return Err(DemError::input(
+                    model,
+                    format!("--strict: the model's output for record {record} of {input} changes row 20 (the attitude), which must pass through"),
+                ));
+            }
         }
     }
     Ok(())

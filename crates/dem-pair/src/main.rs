@@ -6,7 +6,8 @@ use std::process::ExitCode;
 use clap::{Parser, ValueEnum};
 use dem_core::prep::pair::{by_content, by_pose, first_occurrence, split_of, PoseRule};
 use dem_core::table::{self, Pair, Split};
-use dem_core::{cli, npy, DemError};
+use dem_core::cli::{self, value};
+use dem_core::{npy, output, DemError};
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
 enum Method {
@@ -44,22 +45,22 @@ struct Args {
     #[arg(long)]
     real_labels: Option<String>,
     /// Pose: largest position distance (m).
-    #[arg(long, default_value_t = 0.05)]
+    #[arg(long, default_value_t = 0.05, value_parser = value::non_negative::<f64>)]
     max_dist: f64,
     /// Pose: largest heading difference (rad).
-    #[arg(long, default_value_t = 0.1)]
+    #[arg(long, default_value_t = 0.1, value_parser = value::non_negative::<f64>)]
     max_yaw: f64,
     /// Pose: pair only within the same sequence (run).
     #[arg(long)]
     same_sequence: bool,
     /// Content: sim keys per real record.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, value_parser = value::at_least_one::<usize>)]
     k: usize,
-    /// Content: largest distance (equation 7.1 height part).
-    #[arg(long, default_value_t = f64::INFINITY)]
-    max_distance: f64,
+    /// Content: largest distance (equation 7.1 height part; default: no limit).
+    #[arg(long, value_parser = value::non_negative::<f64>)]
+    max_distance: Option<f64>,
     /// Fraction of sim keys in the val split.
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(long, default_value_t = 0.5, value_parser = value::fraction::<f64>)]
     val_fraction: f64,
     /// Seed of the split.
     #[arg(long, default_value_t = 0)]
@@ -75,10 +76,9 @@ fn need<'a>(v: &'a Option<String>, flag: &str, by: &str) -> anyhow::Result<&'a s
 
 fn main() -> ExitCode {
     cli::run(|| {
-        let a = Args::parse();
-        if !(0.0..=1.0).contains(&a.val_fraction) || a.k == 0 {
-            return Err(cli::usage("--val-fraction must be in 0..1 and --k at least 1"));
-        }
+        let a: Args = cli::parse();
+        let inputs: Vec<&str> = [&a.sim, &a.real, &a.sim_labels, &a.real_labels].into_iter().flatten().map(String::as_str).collect();
+        output::check_outputs(&inputs, &[&a.output])?;
         let sim = a.sim.as_deref().map(npy::read_all).transpose()?;
         let sim_labels = a.sim_labels.as_deref().map(table::read_labels).transpose()?;
         let real_labels = a.real_labels.as_deref().map(table::read_labels).transpose()?;
@@ -99,12 +99,15 @@ fn main() -> ExitCode {
             }
             Method::Content => {
                 let (sim, keys) = (sim.as_deref().ok_or_else(|| cli::usage("--by content needs --sim"))?, keys.as_deref().unwrap_or_default());
-                let real = npy::read_all(need(&a.real, "--real", "content")?)?;
-                if sim.is_empty() || real.is_empty() {
-                    return Err(cli::usage("--sim and --real must hold records to pair"));
+                let real_path = need(&a.real, "--real", "content")?;
+                let real = npy::read_all(real_path)?;
+                for (path, n) in [(need(&a.sim, "--sim", "content")?, sim.len()), (real_path, real.len())] {
+                    if n == 0 {
+                        return Err(DemError::input(path, "holds no records: --by content needs records to pair").into());
+                    }
                 }
                 let unique: Vec<u64> = keys.iter().enumerate().filter(|&(i, &k)| i as u64 == k).map(|(_, &k)| k).collect();
-                by_content(sim, &unique, &real, a.k, a.max_distance)
+                by_content(sim, &unique, &real, a.k, a.max_distance.unwrap_or(f64::INFINITY))
             }
         };
         // Map every sim index to its key and drop repeated (key, real) pairs.

@@ -5,7 +5,7 @@ use std::process::ExitCode;
 
 use clap::Parser;
 use dem_core::render::{self, Captions, Pick, RenderConfig, Selection, TileStyle};
-use dem_core::cli;
+use dem_core::cli::{self, value};
 
 /// Draw DEMs as a PNG: jet over heights with a colour bar in metres, missing
 /// cells white, the robot at the top facing down (a triangle marks its
@@ -54,10 +54,10 @@ struct Args {
     #[arg(long)]
     title: Option<String>,
     /// Height (m) drawn dark blue [default: the lowest valid height shown].
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_negative_numbers = true, value_parser = value::finite::<f32>)]
     vmin: Option<f32>,
     /// Height (m) drawn dark red [default: the highest valid height shown].
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_negative_numbers = true, value_parser = value::finite::<f32>)]
     vmax: Option<f32>,
     /// With --compare: labels left of the rows, comma-separated [default: file names].
     #[arg(long, value_delimiter = ',', requires = "compare")]
@@ -117,7 +117,15 @@ impl Args {
 
 fn main() -> ExitCode {
     cli::run(|| {
-        let cfg = Args::parse().into_config()?;
+        let cfg = cli::parse::<Args>().into_config()?;
+        let mut inputs: Vec<&str> = cfg.inputs.iter().map(String::as_str).collect();
+        if let Pick::IndexCsv(p) = &cfg.pick {
+            inputs.push(p);
+        }
+        if let Captions::Csv { path, .. } = &cfg.captions {
+            inputs.push(path);
+        }
+        dem_core::output::check_outputs(&inputs, &[&cfg.output])?;
         let s = render::render(&cfg)?;
         let target = if cfg.output == "-" { "PNG to stdout" } else { cfg.output.as_str() };
         let rows = if cfg.compare { format!("{} files x ", s.rows) } else { String::new() };

@@ -59,11 +59,10 @@ enum Command {
 }
 
 fn main() -> ExitCode {
-    cli::run(|| match Args::parse().command {
+    cli::run(|| match cli::parse::<Args>().command {
         Command::Apply { model, input, output, seed, labels } => {
-            if output != "-" && output == input {
-                return Err(cli::usage(format!("-o {output} would overwrite the input")));
-            }
+            let inputs: Vec<&str> = [Some(&input), Some(&model), labels.as_ref()].into_iter().flatten().map(String::as_str).collect();
+            dem_core::output::check_outputs(&inputs, &[&output])?;
             let m = SensorModel::read(&model)?;
             let times = match &labels {
                 Some(p) => Some(dem_core::table::read_labels(p)?.iter().map(|l| l.time.unwrap_or(f64::NAN)).collect::<Vec<f64>>()),

@@ -4,7 +4,8 @@ use std::process::ExitCode;
 
 use clap::Parser;
 use dem_core::synth::{self, CameraConfig, DatasetConfig, MapConfig, RunConfig, Stages};
-use dem_core::{cli, Terrain};
+use dem_core::cli::{self, value};
+use dem_core::Terrain;
 
 /// Simulate robot runs across flat ground, stairs, pallets and other terrain,
 /// and write for every step the exact sim DEM and, for the first
@@ -26,7 +27,7 @@ struct Args {
     #[arg(long)]
     out: std::path::PathBuf,
     /// Runs in all; each gives sim DEMs.
-    #[arg(long, default_value_t = 400)]
+    #[arg(long, default_value_t = 400, value_parser = value::at_least_one::<u64>)]
     runs: u64,
     /// The first this many runs are measured too (real DEMs).
     #[arg(long, default_value_t = 20)]
@@ -35,28 +36,28 @@ struct Args {
     #[arg(long, value_delimiter = ',', default_value = "flat,stairs-up,stairs-down,pallet,other")]
     terrains: Vec<Terrain>,
     /// Seconds between DEMs.
-    #[arg(long, default_value_t = 0.4)]
+    #[arg(long, default_value_t = 0.4, value_parser = |s: &str| value::within(s, 1e-3, 60.0))]
     dt: f64,
     /// Seed of every random choice.
     #[arg(long, default_value_t = 0)]
     seed: u64,
     /// Worker threads (default: all cores).
-    #[arg(long)]
+    #[arg(long, value_parser = value::at_least_one::<usize>)]
     threads: Option<usize>,
     /// Dark or reflective patches per square metre.
-    #[arg(long, default_value_t = 0.4)]
+    #[arg(long, default_value_t = 0.4, value_parser = |s: &str| value::within(s, 0.0, 100.0))]
     dark_patches: f64,
-    /// Camera height above C (m).
-    #[arg(long, default_value_t = 0.45)]
+    /// Camera height above C (m, 0.05..=5).
+    #[arg(long, default_value_t = 0.45, value_parser = |s: &str| value::within(s, 0.05, 5.0))]
     camera_height: f64,
-    /// Camera offset ahead of C (m).
-    #[arg(long, default_value_t = 0.15)]
+    /// Camera offset ahead of C (m, -1..=1).
+    #[arg(long, default_value_t = 0.15, allow_negative_numbers = true, value_parser = |s: &str| value::within(s, -1.0, 1.0))]
     camera_forward: f64,
-    /// Camera tilt below the body axis (degrees).
-    #[arg(long, default_value_t = 35.0)]
+    /// Camera tilt below the body axis (degrees, 0..=90: level to straight down).
+    #[arg(long, default_value_t = 35.0, value_parser = |s: &str| value::within(s, 0.0, 90.0))]
     camera_tilt: f64,
     /// Map cells whose height variance exceeds this become holes (m^2).
-    #[arg(long, default_value_t = 4e-4)]
+    #[arg(long, default_value_t = 4e-4, value_parser = value::positive::<f64>)]
     max_variance: f64,
     /// Switch off the field of view and depth cutoffs (see every DEM cell).
     #[arg(long)]
@@ -81,12 +82,9 @@ struct Args {
 
 fn main() -> ExitCode {
     cli::run(|| {
-        let a = Args::parse();
+        let a: Args = cli::parse();
         if a.real_runs > a.runs {
             return Err(cli::usage(format!("--real-runs {} is more than --runs {}", a.real_runs, a.runs)));
-        }
-        if a.dt.is_nan() || a.dt <= 0.0 || a.dark_patches < 0.0 || a.max_variance.is_nan() || a.max_variance <= 0.0 {
-            return Err(cli::usage("--dt and --max-variance must be > 0, --dark-patches >= 0"));
         }
         if let Some(n) = a.threads {
             rayon::ThreadPoolBuilder::new().num_threads(n).build_global()?;

@@ -7,7 +7,8 @@ use std::process::ExitCode;
 
 use clap::{Args, Parser, Subcommand};
 use dem_core::sensor::SensorModel;
-use dem_core::{cli, npy, table};
+use dem_core::cli::{self, value};
+use dem_core::{npy, output, table};
 use dem_nn::train::checkpoint::{self, Meta};
 use dem_nn::train::session::{self, RunOptions};
 use dem_nn::train::{AdamConfig, CycleGan, GanConfig, Sampler, TrainData};
@@ -70,16 +71,16 @@ struct TrainArgs {
     #[arg(long)]
     out: Option<String>,
     /// Epochs in all (one epoch = ceil(sims / batch) steps).
-    #[arg(long, default_value_t = 30)]
+    #[arg(long, default_value_t = 30, value_parser = value::at_least_one::<u64>)]
     epochs: u64,
     /// Stop after this many steps in all (e.g. tiny CI runs).
-    #[arg(long)]
+    #[arg(long, value_parser = value::at_least_one::<u64>)]
     max_steps: Option<u64>,
     /// Records per batch [default: 64].
-    #[arg(long)]
+    #[arg(long, value_parser = value::at_least_one::<usize>)]
     batch: Option<usize>,
     /// Generator width w [default: 32].
-    #[arg(long)]
+    #[arg(long, value_parser = value::at_least_one::<usize>)]
     width: Option<usize>,
     /// Generator head: `residual` predicts a height correction over the sim
     /// input and is trained with the paired height term; `thesis` is
@@ -89,33 +90,33 @@ struct TrainArgs {
     arch: Option<ArchArg>,
     /// Weight of the paired height term (mean abs height error in cm on the
     /// cells valid in the paired real) [default: 3 with residual, 0 with thesis].
-    #[arg(long)]
+    #[arg(long, value_parser = value::non_negative::<f32>)]
     lambda_height: Option<f32>,
     /// Share of the epochs at the full learning rate; over the rest it falls
     /// linearly to 0 [default: 0.5 with residual, 1 (constant) with thesis].
-    #[arg(long)]
+    #[arg(long, value_parser = value::fraction::<f32>)]
     decay_from: Option<f32>,
     /// Adam learning rate [default: 2e-4].
-    #[arg(long)]
+    #[arg(long, value_parser = value::positive::<f32>)]
     lr: Option<f32>,
     /// Weight of the cycle terms [default: 10].
-    #[arg(long)]
+    #[arg(long, value_parser = value::non_negative::<f32>)]
     lambda_cyc: Option<f32>,
     /// Weight of the paired terms [default: 30 with residual, 10 with thesis].
-    #[arg(long)]
+    #[arg(long, value_parser = value::non_negative::<f32>)]
     lambda_pair: Option<f32>,
     /// Share of each batch drawn from train pairs [default: 0.5].
-    #[arg(long)]
+    #[arg(long, value_parser = value::fraction::<f64>)]
     paired_fraction: Option<f64>,
     /// Seed of initialisation, sampling and the sensor model [default: 0].
     #[arg(long)]
     seed: Option<u64>,
     /// Worker threads (default: all cores). Results depend on the seed only,
     /// not on the thread count.
-    #[arg(long)]
+    #[arg(long, value_parser = value::at_least_one::<usize>)]
     threads: Option<usize>,
     /// Also checkpoint every N steps (always at each epoch's end).
-    #[arg(long)]
+    #[arg(long, value_parser = value::at_least_one::<u64>)]
     checkpoint_every: Option<u64>,
     /// Continue the run in --out from its checkpoint.
     #[arg(long)]
@@ -151,10 +152,13 @@ struct ExportArgs {
 
 fn main() -> ExitCode {
     cli::run(|| {
-        let c = Cli::parse();
+        let c: Cli = cli::parse();
         match c.command {
             Some(Command::Export(e)) => export(&e),
-            Some(Command::Curves { run, output }) => curves::run(&run, &output),
+            Some(Command::Curves { run, output }) => {
+                output::check_outputs(&[&run_file(&run, "losses.csv"), &run_file(&run, "val.csv")], &[&output])?;
+                curves::run(&run, &output)
+            }
             None => train(c.train),
         }
     })
@@ -165,6 +169,8 @@ fn run_file(dir: &str, name: &str) -> String {
 }
 
 fn export(e: &ExportArgs) -> anyhow::Result<()> {
+    let inputs = [run_file(&e.run, "checkpoint.bin"), run_file(&e.run, "check_sim.npy"), run_file(&e.run, "check_real.npy")];
+    output::check_outputs(&inputs.iter().map(String::as_str).collect::<Vec<_>>(), &[&e.output])?;
     let (_, gan) = checkpoint::load(&run_file(&e.run, "checkpoint.bin"))?;
     let y = e.generator == "y";
     let check = npy::read_all(&run_file(&e.run, if y { "check_sim.npy" } else { "check_real.npy" }))?;
@@ -185,26 +191,17 @@ fn export(e: &ExportArgs) -> anyhow::Result<()> {
 fn train(a: TrainArgs) -> anyhow::Result<()> {
     let dir = a.out.clone().ok_or_else(|| cli::usage("--out RUN/ is required"))?;
     if let Some(t) = a.threads {
-        if t == 0 {
-            return Err(cli::usage("--threads must be at least 1"));
-        }
         rayon::ThreadPoolBuilder::new().num_threads(t).build_global()?;
     }
     let sim_path = a.sim.clone().ok_or_else(|| cli::usage("--sim is required"))?;
     let real_path = a.real.clone().ok_or_else(|| cli::usage("--real is required"))?;
     let opts = RunOptions { dir: dir.clone(), epochs: a.epochs, max_steps: a.max_steps, checkpoint_every: a.checkpoint_every };
-    if a.batch == Some(0) || a.width == Some(0) {
-        return Err(cli::usage("--batch and --width must be at least 1"));
-    }
-    if a.decay_from.is_some_and(|v| !(0.0..=1.0).contains(&v)) {
-        return Err(cli::usage("--decay-from must be in 0..1"));
-    }
-    if a.lambda_height.is_some_and(|v| !(v.is_finite() && v >= 0.0)) {
-        return Err(cli::usage("--lambda-height must be a number >= 0"));
-    }
-    if a.paired_fraction.is_some_and(|f| !(0.0..=1.0).contains(&f)) {
-        return Err(cli::usage("--paired-fraction must be in 0..1"));
-    }
+    // One writer per run folder: a second run, or a --resume beside a
+    // running one, is refused while this lock is held (until we return).
+    let _lock = session::lock(&dir)?;
+    let inputs: Vec<&str> = [&a.sim, &a.real, &a.pairs, &a.sensor].into_iter().flatten().map(String::as_str).collect();
+    let run_files: Vec<String> = session::FILES.iter().map(|f| run_file(&dir, f)).collect();
+    output::check_outputs(&inputs, &run_files.iter().map(String::as_str).collect::<Vec<_>>())?;
     let mut sim = npy::read_all(&sim_path)?;
     let real = npy::read_all(&real_path)?;
     let pairs = match &a.pairs {

@@ -34,6 +34,9 @@ use crate::{npy, output};
 
 use super::{stats::gap_terms, Outcome, Sets};
 
+/// Every file [`write`] leaves in its folder.
+pub const FILES: [&str; 6] = ["report.json", "sensor.json", "report.md", "compare.png", "rows-missing.png", "rows-height.png"];
+
 /// `report.json` of an outcome, in the exact schema of the module doc.
 pub fn report_json(o: &Outcome) -> Value {
     let steps: Vec<Value> = o

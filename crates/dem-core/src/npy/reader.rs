@@ -136,8 +136,15 @@ impl<R: Read> NpyReader<R> {
                 }
             }
         }
-        for d in &mut out[start..] {
-            self.nan_records += u64::from(canonicalize(d));
+        let record_bytes = (RECORD_LEN * dtype.size()) as u64;
+        for (k, d) in out[start..].iter_mut().enumerate() {
+            match canonicalize(d) {
+                Ok(nan) => self.nan_records += u64::from(nan),
+                Err(reason) => {
+                    let record = self.records + k as u64;
+                    return Err(self.bad_at(record, self.offset + k as u64 * record_bytes, reason));
+                }
+            }
         }
         self.offset += (n * RECORD_LEN * dtype.size()) as u64;
         self.records += n as u64;

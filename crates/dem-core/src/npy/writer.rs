@@ -8,6 +8,12 @@
 //!   `numpy.save` writes it, byte for byte: the header is reserved and the
 //!   record count patched in when the stream ends, so `numpy.load` reads all
 //!   of it.
+//! - Stdout redirected to a file gets its header patched after every chunk
+//!   of [`CHUNK_RECORDS`] records, so a killed run leaves a file that
+//!   `numpy.load` reads up to its last complete chunk (never one whose
+//!   header says 0 records with megabytes behind it).
+//! - Records holding NaN or infinity are refused ([`DemError::Unwritable`]):
+//!   the contract says tools never write them.
 //! - A pipe gets one complete array per chunk of [`CHUNK_RECORDS`] records,
 //!   which is what the contract calls a stream; memory stays one chunk.
 
@@ -19,11 +25,12 @@ use super::header::{f32_header, HEADER_LEN};
 use super::reader::CHUNK_RECORDS;
 use crate::error::{DemError, Result};
 use crate::output::{is_special, open_special, resolve, temp_beside};
-use crate::format::{Dem, RECORD_LEN};
+use crate::format::{unwritable, Dem, RECORD_LEN};
 
 enum Sink {
     /// One array with a patched header; `temp` is set for a named file.
-    Seekable { out: BufWriter<File>, start: u64, temp: Option<tempfile::TempPath> },
+    /// `patched` is the record count the header on disk says.
+    Seekable { out: BufWriter<File>, start: u64, temp: Option<tempfile::TempPath>, patched: u64 },
     /// One array per chunk, for pipes.
     Chunked { out: BufWriter<Box<dyn Write + Send>>, pending: Vec<Dem> },
 }
@@ -39,7 +46,7 @@ pub struct NpyWriter {
 
 impl Drop for NpyWriter {
     fn drop(&mut self) {
-        if let Some(Sink::Seekable { out, start, temp: None }) = self.sink.take() {
+        if let Some(Sink::Seekable { out, start, temp: None, .. }) = self.sink.take() {
             // into_parts drops the buffer unflushed, so nothing lands after the cut.
             let (file, _) = out.into_parts();
             let _ = file.set_len(start);
@@ -52,11 +59,13 @@ pub fn create(path: &str) -> Result<NpyWriter> {
     let io_err = |e| DemError::io(path, e);
     let sink = if path == "-" {
         match stdout_fd() {
-            Some(file) if file.metadata().is_ok_and(|m| m.is_file()) => {
+            // `>>` (append mode) cannot patch a header: it gets a stream of
+            // arrays, which every stream reader takes whole.
+            Some(file) if file.metadata().is_ok_and(|m| m.is_file()) && !is_append(&file) => {
                 let mut out = BufWriter::with_capacity(1 << 20, file);
                 let start = out.stream_position().map_err(io_err)?;
                 out.write_all(&f32_header(0)).map_err(io_err)?;
-                Sink::Seekable { out, start, temp: None }
+                Sink::Seekable { out, start, temp: None, patched: 0 }
             }
             fd => {
                 let raw: Box<dyn Write + Send> = match fd {
@@ -76,7 +85,7 @@ pub fn create(path: &str) -> Result<NpyWriter> {
         let (file, temp) = temp_beside(path)?.into_parts();
         let mut out = BufWriter::with_capacity(1 << 20, file);
         out.write_all(&f32_header(0)).map_err(io_err)?;
-        Sink::Seekable { out, start: 0, temp: Some(temp) }
+        Sink::Seekable { out, start: 0, temp: Some(temp), patched: 0 }
     };
     Ok(NpyWriter { sink: Some(sink), path: path.into(), records: 0 })
 }
@@ -86,6 +95,10 @@ pub fn write_all(path: &str, records: &[Dem]) -> Result<()> {
     let mut w = create(path)?;
     w.write(records)?;
     w.finish()
+}
+
+fn is_append(file: &File) -> bool {
+    rustix::fs::fcntl_getfl(file).is_ok_and(|f| f.contains(rustix::fs::OFlags::APPEND))
 }
 
 /// Stdout as a `File` on a duplicate of fd 1: seekable when redirected to
@@ -111,9 +124,19 @@ impl NpyWriter {
 
     /// Append records.
     pub fn write(&mut self, records: &[Dem]) -> Result<()> {
+        if let Some((k, reason)) = records.iter().enumerate().find_map(|(k, d)| unwritable(d).map(|r| (k, r))) {
+            return Err(DemError::Unwritable { path: self.path.clone(), record: self.records + k as u64, reason });
+        }
         let io_err = |e| DemError::io(self.path.as_str(), e);
+        let total = self.records + records.len() as u64;
         match self.sink.as_mut().expect("not finished") {
-            Sink::Seekable { out, .. } => out.write_all(&as_le_bytes(records)).map_err(io_err)?,
+            Sink::Seekable { out, start, temp, patched } => {
+                out.write_all(&as_le_bytes(records)).map_err(io_err)?;
+                if temp.is_none() && total - *patched >= CHUNK_RECORDS as u64 {
+                    patch_header(out, *start, total).map_err(io_err)?;
+                    *patched = total;
+                }
+            }
             Sink::Chunked { out, pending } => {
                 let mut rest = records;
                 while !rest.is_empty() {
@@ -152,15 +175,12 @@ impl NpyWriter {
                 }
                 out.flush().map_err(io_err)?;
             }
-            Sink::Seekable { mut out, start, temp } => {
-                let end = start + HEADER_LEN as u64 + self.records * (RECORD_LEN * 4) as u64;
-                out.seek(SeekFrom::Start(start)).map_err(io_err)?;
-                out.write_all(&f32_header(self.records)).map_err(io_err)?;
-                out.seek(SeekFrom::Start(end)).map_err(io_err)?;
+            Sink::Seekable { mut out, start, temp, .. } => {
+                let end = patch_header(&mut out, start, self.records).map_err(io_err)?;
                 out.flush().map_err(io_err)?;
                 let file = out.into_inner().map_err(|e| io_err(e.into_error()))?;
-                // An append-mode stdout (`>>`) ignores the seek: catch it
-                // rather than leave a broken file.
+                // Another writer appending to the same file would break the
+                // layout: catch it rather than leave a broken file.
                 let len = file.metadata().map_err(io_err)?.len();
                 if len != end {
                     return Err(DemError::io(
@@ -175,6 +195,18 @@ impl NpyWriter {
         }
         Ok(())
     }
+}
+
+/// Write the header for `records` at `start` (data flushed first, so the
+/// header never counts records that are not on disk) and return to the end,
+/// which is returned.
+fn patch_header(out: &mut BufWriter<File>, start: u64, records: u64) -> io::Result<u64> {
+    let end = start + HEADER_LEN as u64 + records * (RECORD_LEN * 4) as u64;
+    out.flush()?;
+    out.seek(SeekFrom::Start(start))?;
+    out.write_all(&f32_header(records))?;
+    out.seek(SeekFrom::Start(end))?;
+    Ok(end)
 }
 
 fn write_array(out: &mut impl Write, records: &[Dem]) -> io::Result<()> {

@@ -28,8 +28,9 @@ pub struct FilterRules {
     pub terrains: Option<Vec<Terrain>>,
     /// Drop records labelled `other`.
     pub drop_other: bool,
-    /// Keep only these indices (or all but these, with `invert_index`).
-    pub index: Option<HashSet<u64>>,
+    /// Keep only these indices (or all but these, with `invert_index`): the
+    /// index CSV's path and its rows in file order.
+    pub index: Option<(String, Vec<u64>)>,
     /// Invert the index rule.
     pub invert_index: bool,
     /// Keep records with at least this fraction of the 100 grid cells valid.
@@ -62,6 +63,7 @@ pub struct FilterCounts {
 /// A running filter: rules plus what it has seen.
 pub struct Filter {
     rules: FilterRules,
+    index: Option<HashSet<u64>>,
     seen: HashSet<u128>,
     /// Counts so far.
     pub counts: FilterCounts,
@@ -70,7 +72,13 @@ pub struct Filter {
 impl Filter {
     /// A filter over `rules`.
     pub fn new(rules: FilterRules) -> Self {
-        Filter { rules, seen: HashSet::new(), counts: FilterCounts::default() }
+        let index = rules.index.as_ref().map(|(_, rows)| rows.iter().copied().collect());
+        Filter { rules, index, seen: HashSet::new(), counts: FilterCounts::default() }
+    }
+
+    /// The labels the terrain rules read, when given.
+    pub fn labels(&self) -> Option<&[Label]> {
+        self.rules.labels.as_ref().map(|(_, l)| l.as_slice())
     }
 
     /// Decide on record `index` of the stream named `input`.
@@ -91,7 +99,7 @@ impl Filter {
                 return Ok(false);
             }
         }
-        if let Some(set) = &r.index {
+        if let Some(set) = &self.index {
             if set.contains(&index) == r.invert_index {
                 self.counts.index += 1;
                 return Ok(false);
@@ -118,8 +126,18 @@ impl Filter {
         Ok(true)
     }
 
-    /// Check at the end of the stream that labels covered it exactly.
+    /// Check at the end of the stream that labels covered it exactly and
+    /// that every index of the index CSV named a record.
     pub fn finish(&self, input: &str) -> Result<()> {
+        if let Some((path, rows)) = &self.rules.index {
+            if let Some(k) = rows.iter().position(|&i| i >= self.counts.read) {
+                return Err(DemError::Table {
+                    path: path.clone(),
+                    line: k as u64 + 2,
+                    reason: format!("index {} is past the end of {input} ({} records)", rows[k], self.counts.read),
+                });
+            }
+        }
         if let Some((path, labels)) = &self.rules.labels {
             if labels.len() as u64 != self.counts.read {
                 return Err(DemError::input(

@@ -12,7 +12,19 @@ use crate::npy;
 pub fn transform(
     input: &str,
     output: &str,
+    work: impl FnMut(u64, &mut Vec<Dem>) -> Result<()>,
+) -> Result<(u64, u64)> {
+    transform_checked(input, output, work, |_| Ok(()))
+}
+
+/// [`transform`], with a last check that needs the whole stream (labels that
+/// cover it exactly, indices inside it): `at_end` gets the number of records
+/// read, and when it refuses, a named output file is not written.
+pub fn transform_checked(
+    input: &str,
+    output: &str,
     mut work: impl FnMut(u64, &mut Vec<Dem>) -> Result<()>,
+    at_end: impl FnOnce(u64) -> Result<()>,
 ) -> Result<(u64, u64)> {
     let mut reader = npy::open(input)?;
     let mut writer = npy::create(output)?;
@@ -26,6 +38,7 @@ pub fn transform(
         work(first, &mut chunk)?;
         writer.write(&chunk)?;
     }
+    at_end(reader.records_read())?;
     let written = writer.records_written();
     writer.finish()?;
     Ok((reader.records_read(), written))

@@ -167,6 +167,26 @@ fn same_file(a: &Path, b: &Path) -> bool {
     a == b || matches!((a.canonicalize(), b.canonicalize()), (Ok(x), Ok(y)) if x == y)
 }
 
+/// The error for the first index of the CSV at `csv` past the end of the
+/// NPY at `npy` (line numbers count the header as line 1).
+fn index_past_end(csv: &str, indices: &[u64], npy: &str) -> Option<DemError> {
+    if npy == "-" {
+        return None;
+    }
+    let mut rdr = crate::npy::open(npy).ok()?;
+    let mut chunk = Vec::new();
+    while rdr.read_chunk(&mut chunk, crate::npy::CHUNK_RECORDS).ok()? > 0 {
+        chunk.clear();
+    }
+    let total = rdr.records_read();
+    let k = indices.iter().position(|&i| i >= total)?;
+    Some(DemError::Table {
+        path: csv.into(),
+        line: k as u64 + 2,
+        reason: format!("index {} is past the end of {npy} ({total} records)", indices[k]),
+    })
+}
+
 /// The name a file gets as a row label: its stem (`run/sim.npy` -> `sim`).
 pub fn default_label(path: &str) -> String {
     if path == "-" {
@@ -188,7 +208,11 @@ pub fn build_figure(cfg: &RenderConfig) -> Result<Figure> {
     };
     let mut picked: Vec<select::Picked> = Vec::with_capacity(cfg.inputs.len());
     for path in &cfg.inputs {
-        let p = select::read_selected(path, &selection)?;
+        let p = select::read_selected(path, &selection).map_err(|e| match (&cfg.pick, &selection, &e) {
+            // An index CSV past the end is the CSV's fault: name its line.
+            (Pick::IndexCsv(csv), Selection::Indices(v), DemError::Input { .. }) => index_past_end(csv, v, path).unwrap_or(e),
+            _ => e,
+        })?;
         picked.push(p);
     }
     // Files may differ in length (a sim file often begins with the records

@@ -34,6 +34,10 @@ pub const NOISE_ORIGIN: (f64, f64) = (0.15, 0.45);
 /// cell hides what lies behind it: terrain within a centimetre of the ray
 /// grazes it rather than blocks it.
 pub const OCCLUSION_TOLERANCE: f64 = 0.01;
+/// Largest magnitude of any parameter (metres, metres per metre, 1/m, m/s
+/// or a count): a DEM spans 2 m, so a larger value is a typo, and bounding
+/// it keeps every output finite.
+pub const MAX_PARAM: f64 = 10.0;
 /// Half the edge of a grid cell (m).
 const HALF: f64 = 0.05;
 /// Blob slots per record of `patch-dropout`: at most this many blobs.
@@ -43,7 +47,7 @@ const X_BACK: f64 = -0.6;
 
 /// One effect with its parameters. JSON: `{"effect": NAME, "params": {...}}`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "effect", content = "params", rename_all = "kebab-case")]
+#[serde(tag = "effect", content = "params", rename_all = "kebab-case", deny_unknown_fields)]
 pub enum Effect {
     /// Height noise growing with range: sigma = sigma0 + k d^2 (m).
     Noise {
@@ -213,6 +217,9 @@ impl Effect {
     pub fn check(&self) -> Result<(), String> {
         if let Some((n, v)) = self.params().into_iter().find(|(_, v)| !v.is_finite()) {
             return Err(format!("{n} = {v} is not a finite number"));
+        }
+        if let Some((n, v)) = self.params().into_iter().find(|(_, v)| v.abs() > MAX_PARAM) {
+            return Err(format!("{n} = {v:e} is outside -{MAX_PARAM}..={MAX_PARAM} (the grid spans 2 m; no sensor effect is that large)"));
         }
         match *self {
             Effect::Noise { sigma0, k } if sigma0 < 0.0 || k < 0.0 => Err("sigma0 and k must be >= 0".into()),

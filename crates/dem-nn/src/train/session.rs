@@ -21,6 +21,9 @@ use super::checkpoint::{self, Meta};
 use super::cyclegan::{CycleGan, Losses};
 use super::data::{Sampler, TrainData};
 
+/// Every file a run writes into its folder.
+pub const FILES: [&str; 5] = ["checkpoint.bin", "losses.csv", "val.csv", "check_sim.npy", "check_real.npy"];
+
 /// Records an export is checked on when there is no val split.
 pub const CHECK_RECORDS: usize = 256;
 
@@ -97,6 +100,24 @@ fn check_sets(data: &TrainData) -> (Vec<Dem>, Vec<Dem>) {
         let sims = data.val.iter().map(|(k, _)| data.sim[*k]).collect();
         let reals = data.val.iter().flat_map(|(_, rs)| rs.iter().map(|&r| data.real[r])).take(CHECK_RECORDS.max(data.val.len())).collect();
         (sims, reals)
+    }
+}
+
+/// Take the run folder `dir` (created if missing) for this process: an
+/// exclusive lock on `dir/.lock`, held while the returned file lives and
+/// released by the OS when the process ends, also by a kill. A second
+/// writer (another run, or a `--resume` beside a running one) is refused.
+pub fn lock(dir: &str) -> Result<File> {
+    fs::create_dir_all(dir).map_err(|source| DemError::Open { path: dir.into(), source })?;
+    let p = path(dir, ".lock");
+    let f = OpenOptions::new().create(true).truncate(false).write(true).open(&p).map_err(|source| DemError::Open { path: p.clone(), source })?;
+    match f.try_lock() {
+        Ok(()) => Ok(f),
+        Err(fs::TryLockError::WouldBlock) => Err(DemError::Usage(format!(
+            "{dir} is in use by another dem-train (it holds {p}); wait for it to end, or choose another --out"
+        ))
+        .into()),
+        Err(fs::TryLockError::Error(source)) => Err(DemError::Open { path: p, source }.into()),
     }
 }
 
