@@ -103,7 +103,7 @@ fn a_run_folder_takes_one_dem_train_at_a_time() {
     refused(&resume, "dem-train", &["is in use by another dem-train"]);
     // The lock goes with the process, also after a kill: resume works.
     let again = run("dem-train", &[&base[..], &["--resume", "--max-steps", "1"]].concat(), None);
-    assert_ne!(stderr(&again).contains("in use"), true, "{}", stderr(&again));
+    assert!(!stderr(&again).contains("in use"), "{}", stderr(&again));
 }
 
 // 3. Non-finite and nonsense values are refused, in one line naming the flag.
