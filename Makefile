@@ -65,6 +65,7 @@ bench: build venv
 	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench_prep.sh
 	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench_gap.sh
 	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench_apply.sh
+	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench_memory.sh
 	$(MAKE) venv-torch
 	$(CARGO) build --release -p dem-nn --example step_speed
 	TORCH_PY=$(TORCH_VENV)/bin/python BIN=$(BIN) OUT=.bench bash scripts/bench_train.sh

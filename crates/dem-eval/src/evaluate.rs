@@ -6,7 +6,7 @@ use std::path::Path;
 use clap::{Args as ClapArgs, ValueEnum};
 use dem_core::eval;
 use dem_core::table::Split;
-use dem_core::{cli, npy};
+use dem_core::cli;
 
 use crate::inputs::{self, Method, Request};
 use crate::report::{self, Format};
@@ -125,17 +125,14 @@ pub fn run(a: EvalArgs) -> anyhow::Result<()> {
         method,
         batch: a.batch,
         strict: a.strict,
-        keep: a.emit_input.is_some() || a.emit_pred.is_some() || a.emit_closest.is_some(),
+        emit_input: a.emit_input,
+        emit_pred: a.emit_pred,
+        emit_closest: a.emit_closest,
     };
     let ev = inputs::run(&q)?;
     let rows = eval::table_with(a.name.as_deref().unwrap_or(&name), &ev.results, a.by.is_some(), |g| ev.gap(g));
     if let Some(path) = &a.records {
         report::write_records(path, &ev.results)?;
-    }
-    for (path, records) in [(&a.emit_input, &ev.input), (&a.emit_pred, &ev.pred), (&a.emit_closest, &ev.closest)] {
-        if let Some(path) = path {
-            npy::write_all(path, records)?;
-        }
     }
     report::write_table(&a.output, &rows, a.format)
 }

@@ -423,3 +423,38 @@ fn unwritable_outputs_exit_2_a_full_disk_exits_1() {
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(stderr(&o).contains("/dev/full") && stderr(&o).contains("No space left"), "{}", stderr(&o));
 }
+
+// 10. dem-eval streams: blocks of selected records, a prediction stream whose
+// arrays split differently from the sim file's, reals read by index. The
+// result is the same as evaluating the same records as Identity.
+#[test]
+fn dem_eval_in_blocks_equals_identity_whatever_the_array_boundaries() {
+    let dir = tempdir();
+    let sim = arg(dir.path(), "sim3.npy");
+    let (t, r) = (td("sim.npy"), td("real.npy"));
+    ok(&run("dem-cat", &[&t, &t, &t, "-o", &sim], None));
+    // The same records as a stream of 4,096-record arrays (what a pipe carries).
+    let piped = run("dem-cat", &[&t, &t, &t], None);
+    let pred = arg(dir.path(), "pred.npy");
+    fs::write(&pred, ok(&piped)).unwrap();
+    let pairs = arg(dir.path(), "pairs.csv");
+    let rows: String = (0..9075u64).map(|i| format!("{i},{}\n", (i * 7) % 966)).collect();
+    fs::write(&pairs, format!("sim_index,real_index\n{rows}")).unwrap();
+    let table = |method: &[&str], emit: &str| {
+        let mut a = vec!["--sim", &sim, "--real", &r, "--pairs", &pairs, "--format", "csv", "--name", "x", "--emit-pred", emit];
+        a.extend_from_slice(method);
+        ok(&run("dem-eval", &a, None)).to_vec()
+    };
+    let (e1, e2) = (arg(dir.path(), "e1.npy"), arg(dir.path(), "e2.npy"));
+    assert_eq!(table(&["--identity"], &e1), table(&["--pred", &pred], &e2));
+    assert_eq!(fs::read(&e1).unwrap(), fs::read(&sim).unwrap(), "every record, in order, as one array");
+    // A prediction file one record short is refused, naming it.
+    let short = arg(dir.path(), "short.npy");
+    ok(&run("dem-filter", &["--min-valid", "0", &sim, "-o", &short, "--index", &{
+        let p = arg(dir.path(), "keep.csv");
+        fs::write(&p, format!("index\n{}", (0..9074).map(|i| format!("{i}\n")).collect::<String>())).unwrap();
+        p
+    }], None));
+    let o = run("dem-eval", &["--sim", &sim, "--real", &r, "--pairs", &pairs, "--pred", &short], None);
+    refused(&o, "dem-eval", &["short.npy: has 9074 records", "one record per sim record"]);
+}

@@ -2,10 +2,12 @@
 //! `.npy` arrays, write a numpy-loadable array or a stream of them.
 
 pub mod header;
+pub mod index;
 pub mod reader;
 pub mod writer;
 
-pub use reader::{open, read_all, NpyReader, CHUNK_RECORDS};
+pub use index::RecordIndex;
+pub use reader::{open, read_all, ArrayExtent, NpyReader, CHUNK_RECORDS};
 pub use writer::{create, write_all, NpyWriter};
 
 /// Pipe capacity asked for on a stdin or stdout that is a pipe: 1 MiB, the

@@ -249,6 +249,34 @@ impl<R: Read> NpyReader<R> {
     }
 }
 
+/// One array of a stream, as [`NpyReader::next_array`] finds it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ArrayExtent {
+    /// Index of its first record in the whole stream.
+    pub first: u64,
+    /// Records it holds.
+    pub records: u64,
+    /// Byte offset of its payload in the stream.
+    pub payload: u64,
+    /// Its element type.
+    pub dtype: Dtype,
+}
+
+impl<R: Read + std::io::Seek> NpyReader<R> {
+    /// Read the next array's header and seek past its payload, without
+    /// reading it: what an index of a file needs. None at the end.
+    pub fn next_array(&mut self) -> Result<Option<ArrayExtent>> {
+        let Some(h) = self.read_header()? else { return Ok(None) };
+        let extent = ArrayExtent { first: self.records, records: h.records, payload: self.offset, dtype: h.dtype };
+        // read_header refused a payload longer than the bytes left.
+        let bytes = h.records * (RECORD_LEN * h.dtype.size()) as u64;
+        self.src.seek(io::SeekFrom::Current(bytes as i64)).map_err(|e| self.io(e))?;
+        self.offset += bytes;
+        self.records += h.records;
+        Ok(Some(extent))
+    }
+}
+
 /// Fill `buf` as far as the source allows; returns the bytes read (fewer
 /// than `buf.len()` only at the end of the source).
 fn read_full(src: &mut impl Read, buf: &mut [u8]) -> io::Result<usize> {
