@@ -67,7 +67,7 @@ fn path(dir: &str, name: &str) -> String {
 /// Write `report.json`, `sensor.json`, the pictures and `report.md` into
 /// `dir` (created when missing). Each file appears whole or not at all.
 pub fn write(dir: &str, o: &Outcome, sets: &Sets, start: &crate::sensor::SensorModel, seed: u64) -> Result<()> {
-    std::fs::create_dir_all(dir).map_err(|e| DemError::io(dir, e))?;
+    std::fs::create_dir_all(dir).map_err(|source| DemError::Open { path: dir.into(), source })?;
     let text = serde_json::to_string_pretty(&report_json(o)).expect("json");
     output::write_atomic(&path(dir, "report.json"), |w| writeln!(w, "{text}"))?;
     o.model.write(&path(dir, "sensor.json"))?;

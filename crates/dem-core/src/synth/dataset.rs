@@ -67,7 +67,7 @@ pub fn generate(cfg: &DatasetConfig, dir: &Path, progress: impl Fn(u64)) -> Resu
     if cfg.terrains.is_empty() {
         return Err(DemError::Usage("no terrains to simulate".into()));
     }
-    std::fs::create_dir_all(dir).map_err(|e| DemError::io(dir.display().to_string(), e))?;
+    std::fs::create_dir_all(dir).map_err(|source| DemError::Open { path: dir.display().to_string(), source })?;
     let path = |name: &str| dir.join(name).to_string_lossy().into_owned();
     let mut sim = npy::create(&path("sim.npy"))?;
     let mut real = npy::create(&path("real.npy"))?;
