@@ -50,10 +50,10 @@ pub struct TransferArgs {
     #[arg(long)]
     test_labels: String,
     /// Ridge penalty per record, on standardised features.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, value_parser = dem_core::cli::value::positive::<f64>)]
     ridge: f64,
     /// Bootstrap resamples of the test runs for the interval of `closed`.
-    #[arg(long, default_value_t = 200)]
+    #[arg(long, default_value_t = 200, value_parser = dem_core::cli::value::at_least_one::<usize>)]
     bootstrap: usize,
     /// Seed of the bootstrap.
     #[arg(long, default_value_t = 0)]
@@ -198,9 +198,9 @@ pub fn run(a: TransferArgs) -> anyhow::Result<()> {
     if a.train.len() < 6 {
         return Err(cli::usage("transfer needs at least two --train sets: the baseline (sim) first, the oracle (measured) last"));
     }
-    if !(a.ridge.is_finite() && a.ridge > 0.0) {
-        return Err(cli::usage("--ridge must be a number > 0"));
-    }
+    let mut inputs: Vec<&str> = a.train.chunks(3).flat_map(|t| [t[1].as_str(), t[2].as_str()]).collect();
+    inputs.extend([a.test.as_str(), a.test_labels.as_str()]);
+    dem_core::output::check_outputs(&inputs, &[&a.output])?;
     let sets: Vec<Set> = a.train.chunks(3).map(|t| load(&t[0], &t[1], &t[2])).collect::<anyhow::Result<_>>()?;
     let test = load("test", &a.test, &a.test_labels)?;
     if test.flippers.iter().all(|f| f.iter().all(|v| *v == 0.0)) {
