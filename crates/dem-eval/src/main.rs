@@ -106,6 +106,7 @@ fn main() -> ExitCode {
         let a: Args = cli::parse();
         match a.cmd {
             Some(Cmd::Compare { baseline, current, tolerance, height_tolerance, rough_tolerance, gap_tolerance, format }) => {
+                dem_core::output::check_outputs(&[&baseline, &current], &["-"])?;
                 let tol = eval::Tolerances { pair: tolerance, height_cm: height_tolerance, rough_cm: rough_tolerance, gap: gap_tolerance };
                 compare::run(&baseline, &current, &tol, format)
             }

@@ -392,6 +392,10 @@ fn an_empty_input_is_named() {
     fs::write(&empty, b"").unwrap();
     let o = run("dem-pair", &["--by", "content", "--sim", &empty, "--real", &td("real.npy")], None);
     refused(&o, "dem-pair", &["empty.npy: holds no records"]);
+    let run_dir = arg(dir.path(), "run");
+    let o = run("dem-train", &["--sim", &empty, "--real", &td("real.npy"), "--out", &run_dir], None);
+    refused(&o, "dem-train", &["empty.npy: no records"]);
+    assert!(!Path::new(&run_dir).exists(), "a refused run leaves no folder");
 }
 
 #[test]

@@ -159,7 +159,20 @@ fn main() -> ExitCode {
                 output::check_outputs(&[&run_file(&run, "losses.csv"), &run_file(&run, "val.csv")], &[&output])?;
                 curves::run(&run, &output)
             }
-            None => train(c.train),
+            None => {
+                // A refused run leaves no folder behind: remove the one this
+                // run made when nothing but its lock is in it.
+                let dir = c.train.out.clone();
+                let made = dir.as_deref().is_some_and(|d| !std::path::Path::new(d).exists());
+                let outcome = train(c.train);
+                if let (Err(_), true, Some(d)) = (&outcome, made, dir) {
+                    let only_lock = std::fs::read_dir(&d).is_ok_and(|e| e.flatten().all(|f| f.file_name() == ".lock"));
+                    if only_lock {
+                        let _ = std::fs::remove_dir_all(&d);
+                    }
+                }
+                outcome
+            }
         }
     })
 }
