@@ -462,3 +462,35 @@ fn dem_eval_in_blocks_equals_identity_whatever_the_array_boundaries() {
     let o = run("dem-eval", &["--sim", &sim, "--real", &r, "--pairs", &pairs, "--pred", &short], None);
     refused(&o, "dem-eval", &["short.npy: has 9074 records", "one record per sim record"]);
 }
+
+// A running run shows its work: losses.csv gets every step as it is made
+// (not at checkpoints), and without a terminal stderr gets progress lines.
+#[test]
+fn a_running_dem_train_writes_every_step_and_logs_progress_lines() {
+    let dir = tempdir();
+    let out = arg(dir.path(), "run");
+    let mut child = Command::new(bin("dem-train"))
+        .args(["--sim", &td("sim.npy"), "--real", &td("real.npy"), "--pairs", &td("pairs.csv"), "--out", &out])
+        .args(["--width", "4", "--batch", "8", "--epochs", "1000", "--log-every", "0.05"])
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let (losses, ck) = (Path::new(&out).join("losses.csv"), Path::new(&out).join("checkpoint.bin"));
+    let mut seen = 0;
+    for _ in 0..600 {
+        seen = fs::read_to_string(&losses).map_or(0, |t| t.lines().count().saturating_sub(1));
+        if seen >= 3 {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    // 379 steps an epoch (3,025 sims, batch 8): the first checkpoint is far.
+    let before_checkpoint = !ck.exists();
+    child.kill().unwrap();
+    let o = child.wait_with_output().unwrap();
+    assert!(seen >= 3 && before_checkpoint, "{seen} rows before the first checkpoint");
+    let e = stderr(&o);
+    assert!(e.lines().any(|l| l.starts_with("dem-train: step ") && l.contains("samples/s, eta")), "{e}");
+}

@@ -118,6 +118,10 @@ struct TrainArgs {
     /// Also checkpoint every N steps (always at each epoch's end).
     #[arg(long, value_parser = value::at_least_one::<u64>)]
     checkpoint_every: Option<u64>,
+    /// Seconds between progress lines on stderr when it is not a terminal
+    /// (on a terminal, a progress bar).
+    #[arg(long, default_value_t = 10.0, value_parser = |s: &str| value::within(s, 0.01, 86_400.0))]
+    log_every: f64,
     /// Continue the run in --out from its checkpoint.
     #[arg(long)]
     resume: bool,
@@ -208,7 +212,7 @@ fn train(a: TrainArgs) -> anyhow::Result<()> {
     }
     let sim_path = a.sim.clone().ok_or_else(|| cli::usage("--sim is required"))?;
     let real_path = a.real.clone().ok_or_else(|| cli::usage("--real is required"))?;
-    let opts = RunOptions { dir: dir.clone(), epochs: a.epochs, max_steps: a.max_steps, checkpoint_every: a.checkpoint_every };
+    let opts = RunOptions { dir: dir.clone(), epochs: a.epochs, max_steps: a.max_steps, checkpoint_every: a.checkpoint_every, log_every: std::time::Duration::from_secs_f64(a.log_every) };
     // One writer per run folder: a second run, or a --resume beside a
     // running one, is refused while this lock is held (until we return).
     let _lock = session::lock(&dir)?;

@@ -38,6 +38,9 @@ pub struct RunOptions {
     pub max_steps: Option<u64>,
     /// Also checkpoint every this many steps (always at each epoch's end).
     pub checkpoint_every: Option<u64>,
+    /// When stderr is not a terminal (CI, a log file), log a progress line
+    /// this often instead of the hidden bar.
+    pub log_every: std::time::Duration,
 }
 
 /// The pair error table of `preds[i]` (G_Y of key i) against `reals[i]`,
@@ -164,6 +167,10 @@ pub fn run(gan: &mut CycleGan, data: &TrainData, sampler: Sampler, mut meta: Met
     let bar = cli::progress(total, "steps");
     bar.set_position(meta.step);
     let (t0, s0) = (Instant::now(), meta.step);
+    // Without a terminal (CI, nohup, a log file) the bar is hidden: a line
+    // every `log_every` instead.
+    let stderr_is_terminal = std::io::IsTerminal::is_terminal(&std::io::stderr());
+    let mut last_line = Instant::now();
     let mut last = None;
     while meta.step < total {
         let step = meta.step;
@@ -173,9 +180,17 @@ pub fn run(gan: &mut CycleGan, data: &TrainData, sampler: Sampler, mut meta: Met
         meta.step += 1;
         let epoch = step / spe + 1;
         writeln!(losses, "{},{epoch},{},{},{},{},{},{},{}", meta.step, l.gan, l.cycle, l.pair_y, l.pair_x, l.generator(), l.disc, l.height)?;
+        // Every step, so `tail -f losses.csv` and a plot of a running run
+        // see it; a step takes far longer than the write.
+        losses.flush()?;
         let rate = (meta.step - s0) as f64 * sampler.batch as f64 / t0.elapsed().as_secs_f64();
         bar.set_position(meta.step);
         bar.set_message(format!("epoch {epoch} {} {rate:.0} samples/s", fmt_losses(&l)));
+        if !stderr_is_terminal && last_line.elapsed() >= opts.log_every {
+            last_line = Instant::now();
+            let eta = (total - meta.step) as f64 * sampler.batch as f64 / rate.max(1e-9);
+            cli::log(format!("step {}/{total} (epoch {epoch}): {} {rate:.0} samples/s, eta {eta:.0} s", meta.step, fmt_losses(&l)));
+        }
         let epoch_end = meta.step.is_multiple_of(spe) || meta.step == total;
         if epoch_end {
             if let Some(row) = validate(gan, data) {
