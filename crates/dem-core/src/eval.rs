@@ -302,6 +302,62 @@ impl TableRow {
     }
 }
 
+/// One table row accumulated record by record: the pair errors (kept, 8
+/// bytes a record, for the exact median) and the pooled height and roughness
+/// sums. Adding a row's records in index order gives the same row, bit for
+/// bit, as [`table_with`] over those records.
+#[derive(Debug, Clone, Default)]
+pub struct RowAcc {
+    errors: Vec<f64>,
+    height: Sum,
+    rough_across: Sum,
+    rough_along: Sum,
+    real_rough_across: Sum,
+    real_rough_along: Sum,
+}
+
+impl RowAcc {
+    /// Add one record's result.
+    pub fn add(&mut self, r: &RecordResult) {
+        self.errors.push(r.error);
+        self.height = self.height + r.height;
+        self.rough_across = self.rough_across + r.rough_across;
+        self.rough_along = self.rough_along + r.rough_along;
+        self.real_rough_across = self.real_rough_across + r.real_rough_across;
+        self.real_rough_along = self.real_rough_along + r.real_rough_along;
+    }
+
+    /// Records added.
+    pub fn len(&self) -> usize {
+        self.errors.len()
+    }
+
+    /// True when no record was added.
+    pub fn is_empty(&self) -> bool {
+        self.errors.is_empty()
+    }
+
+    /// The row; None when no record was added.
+    pub fn row(&self, method: &str, terrain: &str, gap: Option<f64>) -> Option<TableRow> {
+        let s = Stats::of(&self.errors)?;
+        Some(TableRow {
+            method: method.into(),
+            terrain: terrain.into(),
+            count: s.count,
+            lowest: s.lowest,
+            highest: s.highest,
+            mean: s.mean,
+            median: s.median,
+            height_cm: self.height.mean_cm(),
+            rough_across_cm: self.rough_across.mean_cm(),
+            rough_along_cm: self.rough_along.mean_cm(),
+            real_rough_across_cm: self.real_rough_across.mean_cm(),
+            real_rough_along_cm: self.real_rough_along.mean_cm(),
+            gap,
+        })
+    }
+}
+
 /// The table of `method` over `results`: one row over all records and, with
 /// `by_terrain`, one per terrain present, in label order (`flat`,
 /// `stairs-up`, `stairs-down`, `pallet`, `other`). Empty when `results` is.
@@ -701,6 +757,22 @@ mod tests {
         assert!((t[2].mean - 0.3).abs() < 1e-15);
         assert_eq!(table("m", &res, false).len(), 1);
         assert!(table("m", &[], true).is_empty());
+    }
+
+    #[test]
+    fn a_row_accumulated_record_by_record_is_the_table_row_bit_for_bit() {
+        let res: Vec<RecordResult> = (0..7)
+            .map(|i| RecordResult {
+                height: Sum { sum: 0.013 * i as f64, count: 3 + i },
+                rough_across: Sum { sum: 0.1 / (i + 1) as f64, count: 4 },
+                real_rough_along: Sum { sum: 1.0 / 3.0, count: i },
+                ..result(0.1 + 0.37 * ((i * 5) % 7) as f64, "flat")
+            })
+            .collect();
+        let mut acc = RowAcc::default();
+        res.iter().for_each(|r| acc.add(r));
+        assert_eq!(acc.row("m", ALL, Some(1.5)).unwrap(), table_with("m", &res, false, |_| Some(1.5))[0]);
+        assert!(RowAcc::default().row("m", ALL, None).is_none());
     }
 
     #[test]

@@ -4,7 +4,6 @@
 use std::path::Path;
 
 use clap::{Args as ClapArgs, ValueEnum};
-use dem_core::eval;
 use dem_core::table::Split;
 use dem_core::cli;
 
@@ -123,6 +122,8 @@ pub fn run(a: EvalArgs) -> anyhow::Result<()> {
         }),
         labels_sim: a.labels_sim,
         method,
+        records: a.records,
+        by_terrain: a.by.is_some(),
         batch: a.batch,
         strict: a.strict,
         emit_input: a.emit_input,
@@ -130,9 +131,6 @@ pub fn run(a: EvalArgs) -> anyhow::Result<()> {
         emit_closest: a.emit_closest,
     };
     let ev = inputs::run(&q)?;
-    let rows = eval::table_with(a.name.as_deref().unwrap_or(&name), &ev.results, a.by.is_some(), |g| ev.gap(g));
-    if let Some(path) = &a.records {
-        report::write_records(path, &ev.results)?;
-    }
+    let rows = ev.table(a.name.as_deref().unwrap_or(&name), a.by.is_some());
     report::write_table(&a.output, &rows, a.format)
 }

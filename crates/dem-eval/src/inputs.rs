@@ -1,17 +1,19 @@
 //! What an evaluation reads, in bounded memory: the sim stream (and a
 //! prediction stream beside it) is read a block of selected records at a
 //! time; the real records a block's pairs name are read by index from the
-//! file (held only when the real stream is stdin); what is kept is one
-//! result per selected record, and for the gap a deterministic sample of at
-//! most [`GAP_SAMPLE`] records per table row. Each input is checked against
-//! the others with a one-line error.
+//! file (held only when the real stream is stdin); what is kept is the
+//! pairs (16 bytes each), one pair error per selected record (8 bytes, for
+//! the exact median), one terrain byte per sim record, and for the gap a
+//! deterministic sample of at most [`GAP_SAMPLE`] records per table row.
+//! Per-record results and `--emit-*` records are written as blocks finish.
+//! Each input is checked against the others with a one-line error.
 
 use std::collections::{BTreeSet, HashMap};
 
-use dem_core::eval::{self, RecordResult, Selection};
+use dem_core::eval::{self, RowAcc, Selection, TableRow};
 use dem_core::gap::stats;
 use dem_core::npy::{self, NpyReader, RecordIndex, CHUNK_RECORDS};
-use dem_core::table::{self, Label, Pair, Split};
+use dem_core::table::{self, Split};
 use dem_core::{cli, Dem, DemError, Terrain};
 use dem_onnx::apply::AttitudeCheck;
 
@@ -52,6 +54,10 @@ pub struct Request {
     pub batch: usize,
     /// Refuse a model that changes row 20.
     pub strict: bool,
+    /// Also one table row per terrain (needs the labels).
+    pub by_terrain: bool,
+    /// Write the per-record results here (CSV), in index order.
+    pub records: Option<String>,
     /// Write the sim record of each result here, in result order.
     pub emit_input: Option<String>,
     /// Write the prediction of each result here.
@@ -60,40 +66,97 @@ pub struct Request {
     pub emit_closest: Option<String>,
 }
 
-/// The outcome: one result per selected sim record, in index order, and the
-/// gap of each table row.
+/// The outcome: each table row's accumulated results and gap.
 pub struct Evaluation {
-    /// Pair error, best real record and terrain of each selected sim record.
-    pub results: Vec<RecordResult>,
-    /// Gap of the row over every record, and of each terrain's row.
+    /// The row over every record (None) and each terrain's row.
+    rows: std::collections::BTreeMap<Option<Terrain>, RowAcc>,
     gaps: HashMap<Option<Terrain>, f64>,
 }
 
 impl Evaluation {
-    /// The distribution gap (dem-gap's measure, unpaired) of the predictions
-    /// of `group` (a table row: all records, or one terrain's) against its
-    /// real set: the unique real records paired with its sim records in the
-    /// evaluated pairs (not only the closest ones). None for an empty group.
-    pub fn gap(&self, group: &[&RecordResult]) -> Option<f64> {
-        let first = group.first()?;
-        let key = if group.len() == self.results.len() { None } else { first.terrain.as_deref().and_then(|t| t.parse().ok()) };
-        self.gaps.get(&key).copied()
+    /// The table of `method`: the row over all records, then with
+    /// `by_terrain` one per terrain present, in label order.
+    pub fn table(&self, method: &str, by_terrain: bool) -> Vec<TableRow> {
+        let row = |key: Option<Terrain>, name: &str| self.rows.get(&key).and_then(|acc| acc.row(method, name, self.gaps.get(&key).copied()));
+        let mut rows: Vec<TableRow> = row(None, eval::ALL).into_iter().collect();
+        if by_terrain {
+            rows.extend(Terrain::ALL.into_iter().filter_map(|t| row(Some(t), t.as_str())));
+        }
+        rows
     }
 }
 
-/// Refuse a pairs row that points past a file of `len` records.
-fn check_range(pairs_path: &str, pairs: &[Pair], len: u64, file: &str, real: bool) -> anyhow::Result<()> {
-    let col = if real { "real_index" } else { "sim_index" };
-    if let Some((n, p)) = pairs.iter().enumerate().find(|(_, p)| (if real { p.real_index } else { p.sim_index }) >= len) {
-        let i = if real { p.real_index } else { p.sim_index };
-        return Err(DemError::Table {
-            path: pairs_path.into(),
-            line: n as u64 + 2,
-            reason: format!("{col} {i} is past the end of {file} ({len} records)"),
+/// The first line of the pairs CSV holding the largest index of a column,
+/// and that index: what a range check needs once the file's length is known.
+#[derive(Clone, Copy, Default)]
+struct Largest {
+    index: u64,
+    line: u64,
+}
+
+impl Largest {
+    fn check(&self, pairs_path: &str, len: u64, file: &str, col: &str) -> anyhow::Result<()> {
+        if self.line > 0 && self.index >= len {
+            return Err(DemError::Table {
+                path: pairs_path.into(),
+                line: self.line,
+                reason: format!("{col} {} is past the end of {file} ({len} records)", self.index),
+            }
+            .into());
         }
-        .into());
+        Ok(())
     }
-    Ok(())
+}
+
+/// The pairs to evaluate, compact: (sim, real) sorted by sim, each sim's
+/// reals in file order without repeats (as [`eval::select`] keeps them).
+struct Pairs {
+    pairs: Vec<(u64, u64)>,
+    sims: u64,
+}
+
+impl Pairs {
+    /// Read the pairs CSV; every row is range-checked later, also those of
+    /// the split not evaluated.
+    fn read(path: &str, split: Option<Split>) -> anyhow::Result<(Pairs, Largest, Largest)> {
+        let all = table::read_pairs(path)?;
+        if split.is_some() && all.iter().all(|p| p.split.is_none()) {
+            return Err(DemError::input(path, "has no split column for --split (dem-pair writes one)").into());
+        }
+        let (mut sim_max, mut real_max) = (Largest::default(), Largest::default());
+        for (n, p) in all.iter().enumerate() {
+            let line = n as u64 + 2;
+            if sim_max.line == 0 || p.sim_index > sim_max.index {
+                sim_max = Largest { index: p.sim_index, line };
+            }
+            if real_max.line == 0 || p.real_index > real_max.index {
+                real_max = Largest { index: p.real_index, line };
+            }
+        }
+        let mut pairs: Vec<(u64, u64)> =
+            all.iter().filter(|p| split.is_none() || p.split == split).map(|p| (p.sim_index, p.real_index)).collect();
+        drop(all);
+        pairs.sort_by_key(|p| p.0); // stable: each sim's reals stay in file order
+        let mut kept: Vec<(u64, u64)> = Vec::with_capacity(pairs.len());
+        let mut group_start = 0;
+        for p in pairs {
+            if kept.last().is_none_or(|l| l.0 != p.0) {
+                group_start = kept.len();
+            }
+            if !kept[group_start..].contains(&p) {
+                kept.push(p);
+            }
+        }
+        let sims = kept.chunk_by(|a, b| a.0 == b.0).count() as u64;
+        Ok((Pairs { pairs: kept, sims }, sim_max, real_max))
+    }
+
+    /// The pairs of the sims with indices in `range`.
+    fn within(&self, range: std::ops::Range<u64>) -> &[(u64, u64)] {
+        let lo = self.pairs.partition_point(|p| p.0 < range.start);
+        let hi = self.pairs.partition_point(|p| p.0 < range.end);
+        &self.pairs[lo..hi]
+    }
 }
 
 /// splitmix64 of an index: the gap sample keeps index i when this falls
@@ -164,8 +227,10 @@ fn read_n(r: &mut NpyReader<Box<dyn std::io::Read + Send>>, out: &mut Vec<Dem>, 
     Ok(got)
 }
 
-/// The writers of --emit-input, --emit-pred and --emit-closest.
+/// The writers of --records and --emit-input, --emit-pred, --emit-closest:
+/// each gets a block's rows as it finishes; files appear only on success.
 struct Emit {
+    records: Option<crate::report::RecordsWriter>,
     input: Option<npy::NpyWriter>,
     pred: Option<npy::NpyWriter>,
     closest: Option<npy::NpyWriter>,
@@ -174,10 +239,18 @@ struct Emit {
 impl Emit {
     fn create(q: &Request) -> anyhow::Result<Self> {
         let open = |p: &Option<String>| p.as_deref().map(npy::create).transpose();
-        Ok(Emit { input: open(&q.emit_input)?, pred: open(&q.emit_pred)?, closest: open(&q.emit_closest)? })
+        Ok(Emit {
+            records: q.records.as_deref().map(crate::report::RecordsWriter::create).transpose()?,
+            input: open(&q.emit_input)?,
+            pred: open(&q.emit_pred)?,
+            closest: open(&q.emit_closest)?,
+        })
     }
 
     fn finish(self) -> anyhow::Result<()> {
+        if let Some(r) = self.records {
+            r.finish()?;
+        }
         for w in [self.input, self.pred, self.closest].into_iter().flatten() {
             w.finish()?;
         }
@@ -193,6 +266,14 @@ struct GapSample {
     reals: BTreeSet<u64>,
 }
 
+/// Everything accumulated over the blocks.
+#[derive(Default)]
+struct Acc {
+    rows: std::collections::BTreeMap<Option<Terrain>, RowAcc>,
+    samples: HashMap<Option<Terrain>, GapSample>,
+    attitude: AttitudeCheck,
+}
+
 /// Run the evaluation.
 pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
     let stdin_users = [Some(&q.sim), Some(&q.real), Some(&q.pairs), q.labels_sim.as_ref()]
@@ -206,43 +287,37 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
     if stdin_users > 1 {
         return Err(cli::usage("only one input can be `-` (stdin)"));
     }
-    // Every row is range-checked, also those of the split not evaluated.
-    let all_pairs = table::read_pairs(&q.pairs)?;
-    if q.split.is_some() {
-        if all_pairs.iter().all(|p| p.split.is_none()) {
-            return Err(DemError::input(q.pairs.as_str(), "has no split column for --split (dem-pair writes one)").into());
-        }
-    }
-    let sel: Selection = eval::select(&all_pairs, q.split);
-    if sel.is_empty() {
+    let (pairs, sim_max, real_max) = Pairs::read(&q.pairs, q.split)?;
+    if pairs.pairs.is_empty() {
         let which = q.split.map_or(String::new(), |s| format!(" of split {}", if s == Split::Val { "val" } else { "train" }));
         return Err(DemError::input(q.pairs.as_str(), format!("holds no pairs{which} to evaluate")).into());
     }
-    let all_reals: BTreeSet<u64> = sel.values().flatten().copied().collect();
+    let all_reals: BTreeSet<u64> = if q.real == "-" { pairs.pairs.iter().map(|p| p.1).collect() } else { BTreeSet::new() };
     let (mut reals, n_real) = Reals::open(&q.real, &all_reals)?;
-    check_range(&q.pairs, &all_pairs, n_real, &q.real, true)?;
-    let labels: Option<Vec<Label>> = q.labels_sim.as_deref().map(table::read_labels).transpose()?;
-    let terrain_of = |i: u64| -> Option<Terrain> { labels.as_ref().and_then(|l| l.get(i as usize)).map(|l| l.terrain) };
+    drop(all_reals);
+    real_max.check(&q.pairs, n_real, &q.real, "real_index")?;
+    // One terrain byte per sim record; the labels' other columns are not kept.
+    let terrains: Option<Vec<Terrain>> = q.labels_sim.as_deref().map(|p| table::read_labels(p).map(|l| l.into_iter().map(|l| l.terrain).collect())).transpose()?;
+    let terrain_of = |i: u64| -> Option<Terrain> { terrains.as_ref().and_then(|t| t.get(i as usize)).copied() };
     // Rows of the table and their sizes, for the gap samples' rates.
-    let mut row_sizes: HashMap<Option<Terrain>, u64> = HashMap::from([(None, sel.len() as u64)]);
-    if labels.is_some() {
-        for &s in sel.keys() {
-            *row_sizes.entry(terrain_of(s)).or_default() += 1;
+    let mut row_sizes: HashMap<Option<Terrain>, u64> = HashMap::from([(None, pairs.sims)]);
+    if q.by_terrain {
+        for g in pairs.pairs.chunk_by(|a, b| a.0 == b.0) {
+            *row_sizes.entry(terrain_of(g[0].0)).or_default() += 1;
         }
     }
-    let mut samples: HashMap<Option<Terrain>, GapSample> = HashMap::new();
     let model = match &q.method {
         Method::Model(path) => Some(dem_onnx::OnnxModel::load(path)?),
         _ => None,
     };
-    let mut attitude = AttitudeCheck::default();
+    let mut acc = Acc::default();
     let mut emit = Emit::create(q)?;
     let mut sim_rdr = npy::open(&q.sim)?;
     let mut pred_rdr = match &q.method {
         Method::Pred(path) => Some((path, npy::open(path)?)),
         _ => None,
     };
-    let mut results = Vec::with_capacity(sel.len());
+    let ctx = BlockCtx { q, pairs: &pairs, model: model.as_ref(), terrain_of: &terrain_of, row_sizes: &row_sizes };
     let (mut chunk, mut pchunk) = (Vec::with_capacity(CHUNK_RECORDS), Vec::with_capacity(CHUNK_RECORDS));
     let mut block: Vec<(u64, Dem, Dem)> = Vec::with_capacity(BLOCK);
     loop {
@@ -256,41 +331,39 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
                 return Err(DemError::input(path.as_str(), format!("has {} records but {} has more: a prediction file holds one record per sim record", r.records_read(), q.sim)).into());
             }
         }
-        for (&i, _) in sel.range(first..first + n as u64) {
-            let k = (i - first) as usize;
+        for g in pairs.within(first..first + n as u64).chunk_by(|a, b| a.0 == b.0) {
+            let k = (g[0].0 - first) as usize;
             let pred = if pred_rdr.is_some() { pchunk[k] } else { chunk[k] };
-            block.push((i, chunk[k], pred));
+            block.push((g[0].0, chunk[k], pred));
         }
         if block.len() >= BLOCK || (n == 0 && !block.is_empty()) {
-            let b = std::mem::take(&mut block);
-            let ctx = BlockCtx { q, sel: &sel, model: model.as_ref(), terrain_of: &terrain_of, row_sizes: &row_sizes };
-            results.extend(evaluate_block(&ctx, b, &mut reals, &mut emit, &mut samples, &mut attitude)?);
+            evaluate_block(&ctx, std::mem::take(&mut block), &mut reals, &mut emit, &mut acc)?;
         }
         if n == 0 {
             break;
         }
     }
     let n_sim = sim_rdr.records_read();
-    check_range(&q.pairs, &all_pairs, n_sim, &q.sim, false)?;
+    sim_max.check(&q.pairs, n_sim, &q.sim, "sim_index")?;
     if let Some((path, r)) = &mut pred_rdr {
         let mut rest = Vec::new();
         if read_n(r, &mut rest, 1)? > 0 {
             return Err(DemError::input(path.as_str(), format!("has more records than the {n_sim} of {}: a prediction file holds one record per sim record", q.sim)).into());
         }
     }
-    if let (Some(l), Some(path)) = (&labels, &q.labels_sim) {
-        if l.len() as u64 != n_sim {
-            return Err(DemError::input(path.as_str(), format!("has {} rows but {} has {n_sim} records", l.len(), q.sim)).into());
+    if let (Some(t), Some(path)) = (&terrains, &q.labels_sim) {
+        if t.len() as u64 != n_sim {
+            return Err(DemError::input(path.as_str(), format!("has {} rows but {} has {n_sim} records", t.len(), q.sim)).into());
         }
     }
     if let Method::Model(path) = &q.method {
-        if let Some(w) = attitude.warning(path, &q.sim) {
+        if let Some(w) = acc.attitude.warning(path, &q.sim) {
             cli::log(w);
         }
     }
     emit.finish()?;
     let mut gaps = HashMap::new();
-    for (key, sample) in samples {
+    for (key, sample) in acc.samples {
         let n = row_sizes.get(&key).copied().unwrap_or(0);
         if n > GAP_SAMPLE {
             let row = key.map_or("all".to_string(), |t| t.to_string());
@@ -303,13 +376,13 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
         };
         gaps.insert(key, stats::gap(&stats::stats(&sample.preds, None), &stats::stats(&real_records, None)));
     }
-    Ok(Evaluation { results, gaps })
+    Ok(Evaluation { rows: acc.rows, gaps })
 }
 
 /// What every block needs to know.
 struct BlockCtx<'a> {
     q: &'a Request,
-    sel: &'a Selection,
+    pairs: &'a Pairs,
     model: Option<&'a dem_onnx::OnnxModel>,
     terrain_of: &'a dyn Fn(u64) -> Option<Terrain>,
     row_sizes: &'a HashMap<Option<Terrain>, u64>,
@@ -317,43 +390,44 @@ struct BlockCtx<'a> {
 
 /// Evaluate one block of (sim index, sim record, prediction); a model's
 /// predictions are made here.
-fn evaluate_block(
-    ctx: &BlockCtx,
-    mut block: Vec<(u64, Dem, Dem)>,
-    reals: &mut Reals,
-    emit: &mut Emit,
-    samples: &mut HashMap<Option<Terrain>, GapSample>,
-    attitude: &mut AttitudeCheck,
-) -> anyhow::Result<Vec<RecordResult>> {
+fn evaluate_block(ctx: &BlockCtx, mut block: Vec<(u64, Dem, Dem)>, reals: &mut Reals, emit: &mut Emit, acc: &mut Acc) -> anyhow::Result<()> {
     if let (Some(model), Method::Model(path)) = (ctx.model, &ctx.q.method) {
         let keys: Vec<u64> = block.iter().map(|b| b.0).collect();
         let inputs: Vec<Dem> = block.iter().map(|b| b.1).collect();
-        let preds = crate::model::predict(model, path, &keys, &inputs, &ctx.q.sim, ctx.q.batch, ctx.q.strict, attitude)?;
+        let preds = crate::model::predict(model, path, &keys, &inputs, &ctx.q.sim, ctx.q.batch, ctx.q.strict, &mut acc.attitude)?;
         block.iter_mut().zip(preds).for_each(|(b, p)| b.2 = p);
     }
-    let sub: Selection = block.iter().map(|b| (b.0, ctx.sel[&b.0].clone())).collect();
+    let (lo, hi) = (block[0].0, block[block.len() - 1].0 + 1);
+    let mut sub = Selection::new();
+    for &(s, r) in ctx.pairs.within(lo..hi) {
+        sub.entry(s).or_default().push(r);
+    }
     let wanted: BTreeSet<u64> = sub.values().flatten().copied().collect();
     let real = reals.fetch(&wanted)?;
     let pred: HashMap<u64, Dem> = block.iter().map(|b| (b.0, b.2)).collect();
     let results = eval::evaluate(&sub, |i| &pred[&i], |j| &real[&j], ctx.terrain_of);
     for (r, b) in results.iter().zip(&block) {
         debug_assert_eq!(r.sim_index, b.0);
+        if let Some(w) = &mut emit.records {
+            w.write(r)?;
+        }
         for (w, d) in [(&mut emit.input, &b.1), (&mut emit.pred, &b.2), (&mut emit.closest, &real[&r.real_index])] {
             if let Some(w) = w {
                 w.write(std::slice::from_ref(d))?;
             }
         }
-        let mut rows = vec![None];
-        if ctx.q.labels_sim.is_some() {
-            rows.push((ctx.terrain_of)(b.0));
+        let mut keys = vec![None];
+        if ctx.q.by_terrain {
+            keys.push((ctx.terrain_of)(b.0));
         }
-        for key in rows {
-            let s = samples.entry(key).or_default();
+        for key in keys {
+            acc.rows.entry(key).or_default().add(r);
+            let s = acc.samples.entry(key).or_default();
             if in_sample(b.0, ctx.row_sizes.get(&key).copied().unwrap_or(0)) {
                 s.preds.push(b.2);
             }
-            s.reals.extend(ctx.sel[&b.0].iter().copied());
+            s.reals.extend(sub[&b.0].iter().copied());
         }
     }
-    Ok(results)
+    Ok(())
 }
