@@ -44,6 +44,11 @@ struct Args {
     /// Seed of the choices and draws.
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// Index of the input's first record in the whole data set, when the
+    /// input is a shard (`dem-split` prints it): choices and draws follow the
+    /// index in the whole, so joined shards equal one run on the whole.
+    #[arg(long, default_value_t = 0, conflicts_with = "keep")]
+    first_index: u64,
 }
 
 fn main() -> ExitCode {
@@ -79,7 +84,7 @@ fn main() -> ExitCode {
         let (mut found, mut kept, mut filled, mut cells, mut empty) = (0u64, 0u64, 0u64, 0u64, 0u64);
         let (read, _) = transform(&a.input, &a.output, |first, chunk| {
             for (k, d) in chunk.iter_mut().enumerate().filter(|(_, d)| large(d)) {
-                let i = first + k as u64;
+                let i = a.first_index + first + k as u64;
                 found += 1;
                 let keep = match &kept_set {
                     Some(set) => set.contains(&i),

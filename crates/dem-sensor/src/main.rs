@@ -4,7 +4,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 use dem_core::cli;
-use dem_core::sensor::{apply_stream_at, SensorModel};
+use dem_core::sensor::{apply_shard, SensorModel};
 
 /// Sensor models of named effects (noise, dropout, row-dropout, occlusion,
 /// fov, smoothing, bias, quantization, startup, patch-dropout, edge-holes)
@@ -16,6 +16,8 @@ use dem_core::sensor::{apply_stream_at, SensorModel};
   dem-sensor apply --model gap/sensor.json sim.npy | dem-render - --count 12 -o measured_look.png
   dem-sensor apply --model gap/sensor.json --labels sim_labels.csv sim.npy -o out.npy  # startup by time
   dem-sensor show --model sensor.json        # the effects, one a line
+  dem-split --shards 4 --out part sim.npy | tail -n +2 | while IFS=, read shard first n; do
+      dem-sensor apply --model sensor.json --seed 1 --first-index $first $shard -o $shard.out; done
 
 A model file:
   {\"effects\": [{\"effect\": \"occlusion\", \"params\": {\"h\": 0.45, \"x0\": 0.15}},
@@ -45,6 +47,11 @@ enum Command {
         /// Seed of the random effects.
         #[arg(long, default_value_t = 0)]
         seed: u64,
+        /// Index of the input's first record in the whole data set, when the
+        /// input is a shard (`dem-split` prints it): records draw by their
+        /// index in the whole, so joined shards equal one run on the whole.
+        #[arg(long, default_value_t = 0)]
+        first_index: u64,
         /// Labels CSV of the input (one row per record): `startup` uses
         /// each record's `time` in its run; without, its per-record rate p.
         #[arg(long)]
@@ -60,7 +67,7 @@ enum Command {
 
 fn main() -> ExitCode {
     cli::run(|| match cli::parse::<Args>().command {
-        Command::Apply { model, input, output, seed, labels } => {
+        Command::Apply { model, input, output, seed, first_index, labels } => {
             let inputs: Vec<&str> = [Some(&input), Some(&model), labels.as_ref()].into_iter().flatten().map(String::as_str).collect();
             dem_core::output::check_outputs(&inputs, &[&output])?;
             let m = SensorModel::read(&model)?;
@@ -70,7 +77,7 @@ fn main() -> ExitCode {
             };
             let bar = cli::progress(0, "records");
             let t = labels.as_deref().zip(times.as_deref());
-            let n = apply_stream_at(&m, &input, &output, seed, t, |k| bar.inc(k))?;
+            let n = apply_shard(&m, &input, &output, seed, first_index, t, |k| bar.inc(k))?;
             bar.finish_and_clear();
             cli::log(format_args!("{n} records through {}", m.summary()));
             Ok(())

@@ -151,6 +151,22 @@ pub fn apply_stream_at(
     times: Option<(&str, &[f64])>,
     progress: impl Fn(u64),
 ) -> Result<u64> {
+    apply_shard(model, input, output, seed, 0, times, progress)
+}
+
+/// [`apply_stream_at`] on a shard of a larger data set whose first record is
+/// record `first_index` of the whole: each record's random draws come from
+/// its index in the whole, so shards joined equal one run on the whole,
+/// byte for byte. `times` index the shard's own records.
+pub fn apply_shard(
+    model: &SensorModel,
+    input: &str,
+    output: &str,
+    seed: u64,
+    first_index: u64,
+    times: Option<(&str, &[f64])>,
+    progress: impl Fn(u64),
+) -> Result<u64> {
     let (_, written) = transform(input, output, |first, chunk| {
         let t = match times {
             Some((path, t)) => {
@@ -162,7 +178,7 @@ pub fn apply_stream_at(
             }
             None => None,
         };
-        model.apply_all_at(chunk, seed, first, t);
+        model.apply_all_at(chunk, seed, first_index + first, t);
         progress(chunk.len() as u64);
         Ok(())
     })?;
