@@ -79,7 +79,7 @@ fn dem_sensor_shards_equal_the_whole_also_with_times() {
     ok(&run("dem-sensor", &["apply", "--model", &m, "--seed", "3", &rows[1][0], "-o", &o], None));
     let naive = fs::read(&o).unwrap();
     let tail = &whole[whole.len() - (naive.len() - 128)..];
-    assert_eq!(naive.len() - 128, 1008 * 840);
+    assert_eq!(naive.len() - 128, 1512 * 840);
     assert_ne!(&naive[128..], tail, "a shard without --first-index draws as the start of the stream");
 }
 
