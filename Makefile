@@ -18,10 +18,11 @@ build:
 
 # numpy (and later onnxruntime) for the peer checks in the tests.
 venv: $(VENV)/.stamp
-$(VENV)/.stamp: scripts/requirements.txt
+$(VENV)/.stamp: scripts/requirements.txt python/pyproject.toml python/demstream/__init__.py
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
 	$(PY) -m pip install -q -r scripts/requirements.txt
+	$(PY) -m pip install -q ./python
 	touch $@
 
 test: venv
