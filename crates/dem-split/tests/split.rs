@@ -151,6 +151,10 @@ fn the_scale_out_recipe_equals_one_run() {
     } else {
         eprintln!("GNU parallel is not installed: the recipe ran with xargs only");
     }
+    // The Slurm array script, its tasks run one after the other here.
+    let slurm = dem_testkit::workspace_root().join("scripts/slurm_shards.sh").to_string_lossy().into_owned();
+    let slurm_loop = format!("for i in 1 2 3; do SLURM_ARRAY_TASK_ID=$i bash {slurm} shards.csv m.json 9; done; for f in part-*.measured; do mv $f ${{f%.measured}}.out; done");
+    engines.push(("slurm", slurm_loop.as_str()));
     for (name, engine) in engines {
         let script = format!("set -e; dem-split --shards 3 --out part sim.npy > shards.csv; {engine}; dem-cat part-00000.npy.out part-00001.npy.out part-00002.npy.out -o joined.npy; rm -f part-*");
         fs::copy(td("sim.npy"), dir.path().join("sim.npy")).unwrap();
