@@ -189,3 +189,23 @@ fn bad_requests_are_refused_and_leave_no_shards() {
     let rows = manifest(ok(&run("dem-split", &["--shards", "5", "--out", &prefix, &one], None)));
     assert_eq!(rows.iter().map(|r| r[2].as_str()).collect::<Vec<_>>(), ["1", "1"]);
 }
+
+#[test]
+fn dem_synth_by_run_ranges_equals_the_whole_world() {
+    let dir = tempdir();
+    let d = |n: &str| arg(dir.path(), n);
+    let base = ["--seed", "4", "--real-runs", "3", "--threads", "1"];
+    ok(&run("dem-synth", &[&base[..], &["--runs", "7", "--out", &d("whole")]].concat(), None));
+    ok(&run("dem-synth", &[&base[..], &["--runs", "4", "--out", &d("a")]].concat(), None));
+    ok(&run("dem-synth", &[&base[..], &["--first-run", "4", "--runs", "3", "--out", &d("b")]].concat(), None));
+    for f in ["sim.npy", "real.npy"] {
+        let joined = d(&format!("joined_{f}"));
+        ok(&run("dem-cat", &[&d(&format!("a/{f}")), &d(&format!("b/{f}")), "-o", &joined], None));
+        assert_eq!(fs::read(&joined).unwrap(), fs::read(d(&format!("whole/{f}"))).unwrap(), "{f}");
+    }
+    // Labels: the same rows, each shard indexed from 0, the run in `sequence`.
+    let rows = |p: &str| fs::read_to_string(p).unwrap().lines().skip(1).map(|l| l.split_once(',').unwrap().1.to_string()).collect::<Vec<_>>();
+    let mut joined = rows(&d("a/sim_labels.csv"));
+    joined.extend(rows(&d("b/sim_labels.csv")));
+    assert_eq!(joined, rows(&d("whole/sim_labels.csv")));
+}

@@ -29,7 +29,12 @@ struct Args {
     /// Runs in all; each gives sim DEMs.
     #[arg(long, default_value_t = 400, value_parser = value::at_least_one::<u64>)]
     runs: u64,
-    /// The first this many runs are measured too (real DEMs).
+    /// Make runs FIRST..FIRST+runs of the world (a shard: the joined shards'
+    /// sim.npy and real.npy equal one run's, byte for byte; labels keep the
+    /// run in `sequence` and are indexed from 0 in each shard).
+    #[arg(long, default_value_t = 0)]
+    first_run: u64,
+    /// Runs 0..this of the world are measured too (real DEMs).
     #[arg(long, default_value_t = 20)]
     real_runs: u64,
     /// Terrains, cycled over the runs.
@@ -83,7 +88,7 @@ struct Args {
 fn main() -> ExitCode {
     cli::run(|| {
         let a: Args = cli::parse();
-        if a.real_runs > a.runs {
+        if a.first_run == 0 && a.real_runs > a.runs {
             return Err(cli::usage(format!("--real-runs {} is more than --runs {}", a.real_runs, a.runs)));
         }
         if let Some(n) = a.threads {
@@ -105,6 +110,7 @@ fn main() -> ExitCode {
         };
         let map = MapConfig { max_variance: a.max_variance, ..MapConfig::default() };
         let cfg = DatasetConfig {
+            first_run: a.first_run,
             runs: a.runs,
             real_runs: a.real_runs,
             terrains: a.terrains,

@@ -18,9 +18,12 @@ use crate::table::{Label, Pair};
 /// What to generate.
 #[derive(Debug, Clone)]
 pub struct DatasetConfig {
-    /// Runs in all; every run gives sim records.
+    /// Index of the first run to make (0 for a whole world; a shard of a
+    /// world starts later): run i depends on the seed and i only.
+    pub first_run: u64,
+    /// Runs to make, from `first_run`; every run gives sim records.
     pub runs: u64,
-    /// The first this many runs are also measured (real records).
+    /// Runs 0..real_runs of the world are also measured (real records).
     pub real_runs: u64,
     /// Terrains, cycled over the runs (run i has terrain i mod len).
     pub terrains: Vec<Terrain>,
@@ -76,9 +79,10 @@ pub fn generate(cfg: &DatasetConfig, dir: &Path, progress: impl Fn(u64)) -> Resu
     let mut pairs = CsvOut::<Pair>::create(path("pairs.csv"))?;
     let mut summary = Summary::default();
 
-    let mut start = 0;
-    while start < cfg.runs {
-        let end = (start + BATCH).min(cfg.runs);
+    let last = cfg.first_run + cfg.runs;
+    let mut start = cfg.first_run;
+    while start < last {
+        let end = (start + BATCH).min(last);
         let runs: Vec<_> = (start..end)
             .into_par_iter()
             .map(|i| {
@@ -111,7 +115,7 @@ pub fn generate(cfg: &DatasetConfig, dir: &Path, progress: impl Fn(u64)) -> Resu
                 counts.0 += 1;
             }
         }
-        progress(end);
+        progress(end - cfg.first_run);
         start = end;
     }
     sim.finish()?;
