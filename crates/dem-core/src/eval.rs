@@ -275,25 +275,6 @@ pub struct TableRow {
 }
 
 impl TableRow {
-    fn new(method: &str, terrain: &str, s: Stats, group: &[&RecordResult], gap: Option<f64>) -> Self {
-        let pooled = |f: fn(&RecordResult) -> Sum| group.iter().map(|r| f(r)).sum::<Sum>().mean_cm();
-        TableRow {
-            method: method.into(),
-            terrain: terrain.into(),
-            count: s.count,
-            lowest: s.lowest,
-            highest: s.highest,
-            mean: s.mean,
-            median: s.median,
-            height_cm: pooled(|r| r.height),
-            rough_across_cm: pooled(|r| r.rough_across),
-            rough_along_cm: pooled(|r| r.rough_along),
-            real_rough_across_cm: pooled(|r| r.real_rough_across),
-            real_rough_along_cm: pooled(|r| r.real_rough_along),
-            gap,
-        }
-    }
-
     /// |rough - real_rough| (cm), across and along: how far the
     /// predictions' roughness is from the real one's.
     pub fn rough_offsets(&self) -> [Option<f64>; 2] {
@@ -375,8 +356,9 @@ pub fn table_with(
     gap: impl Fn(&[&RecordResult]) -> Option<f64>,
 ) -> Vec<TableRow> {
     let row = |terrain: &str, group: Vec<&RecordResult>| {
-        let e: Vec<f64> = group.iter().map(|r| r.error).collect();
-        Stats::of(&e).map(|s| TableRow::new(method, terrain, s, &group, gap(&group)))
+        let mut acc = RowAcc::default();
+        group.iter().for_each(|r| acc.add(r));
+        acc.row(method, terrain, gap(&group))
     };
     let mut rows: Vec<TableRow> = row(ALL, results.iter().collect()).into_iter().collect();
     if by_terrain {

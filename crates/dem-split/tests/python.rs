@@ -19,17 +19,7 @@ fn demstream_reads_every_tool_output_file_and_pipe() {
     // A stream longer than one pipe chunk: 2 x 3,025 records.
     let m = d("m.json");
     fs::write(&m, r#"{"effects":[{"effect":"dropout","params":{"p":0.1}}]}"#).unwrap();
-    let onnx = d("id.onnx");
-    py(dir.path(), &format!(r#"
-import onnx
-from onnx import helper, TensorProto as T
-x = helper.make_tensor_value_info("x", T.FLOAT, ["N", 21, 5, 2])
-y = helper.make_tensor_value_info("y", T.FLOAT, ["N", 21, 5, 2])
-g = helper.make_graph([helper.make_node("Identity", ["x"], ["y"])], "t", [x], [y])
-m = helper.make_model(g, opset_imports=[helper.make_opsetid("", 17)])
-m.ir_version = 8
-onnx.save(m, "{onnx}")
-"#));
+    let onnx = dem_testkit::onnx_one_node(dir.path(), "id.onnx", "Identity");
     let cases: Vec<(&str, Vec<String>)> = vec![
         ("dem-cat", vec![sim.clone(), sim.clone()]),
         ("dem-filter", vec![sim.clone(), sim.clone()].into_iter().take(1).collect()),
@@ -65,13 +55,13 @@ print(len(a), len(np.load("pipe{k}.npy")), len(chunks))
         }
     }
     // From stdin (a pipe), and what demstream writes every tool reads.
-    let out = py(dir.path(), &format!(r#"
+    let out = py(dir.path(), r#"
 import subprocess, sys, numpy as np, demstream
 p = subprocess.run([sys.executable, "-c", "import sys, demstream; print(len(demstream.read(sys.stdin.buffer)))"],
                    input=open("pipe0.npy", "rb").read(), capture_output=True, check=True)
 print(p.stdout.decode().strip())
 demstream.write("w.npy", demstream.read("pipe0.npy"))
-"#));
+"#);
     assert_eq!(out.trim(), "6050");
     ok(&run("dem-cat", &[&d("w.npy"), "-o", &d("w2.npy")], None));
     assert_eq!(fs::read(d("w.npy")).unwrap(), fs::read(d("w2.npy")).unwrap(), "numpy.save's bytes, as our writer's");

@@ -7,7 +7,7 @@ use std::fs;
 use std::path::Path;
 use std::process::Command;
 
-use dem_testkit::{arg, bin, ok, py, run, stderr, tempdir, testdata};
+use dem_testkit::{arg, bin, ok, run, stderr, tempdir, testdata};
 
 fn td(name: &str) -> String {
     testdata(name).to_string_lossy().into_owned()
@@ -108,17 +108,7 @@ fn dem_fill_nans_and_dem_apply_shards_equal_the_whole() {
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
 
     // dem-apply: per record, no randomness; shards equal the whole.
-    let model = arg(dir.path(), "tanh.onnx");
-    py(dir.path(), &format!(r#"
-import onnx
-from onnx import helper, TensorProto as T
-x = helper.make_tensor_value_info("x", T.FLOAT, ["N", 21, 5, 2])
-y = helper.make_tensor_value_info("y", T.FLOAT, ["N", 21, 5, 2])
-g = helper.make_graph([helper.make_node("Tanh", ["x"], ["y"])], "t", [x], [y])
-m = helper.make_model(g, opset_imports=[helper.make_opsetid("", 17)])
-m.ir_version = 8
-onnx.save(m, "{model}")
-"#));
+    let model = dem_testkit::onnx_one_node(dir.path(), "tanh.onnx", "Tanh");
     let whole = arg(dir.path(), "applied.npy");
     ok(&run("dem-apply", &["--model", &model, &td("sim.npy"), "-o", &whole], None));
     let rows = manifest(ok(&run("dem-split", &["--shards", "4", "--out", &arg(dir.path(), "a"), &td("sim.npy")], None)));

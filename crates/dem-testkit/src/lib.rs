@@ -97,3 +97,26 @@ pub fn tempdir() -> tempfile::TempDir {
 pub fn arg(dir: &Path, name: &str) -> String {
     dir.join(name).to_string_lossy().into_owned()
 }
+
+/// A one-node ONNX model `y = OP(x)` on float32 `(N, 21, 5, 2)`, written to
+/// `dir/name` with the python `onnx` package (e.g. `Identity`, `Tanh`, `Neg`,
+/// `Log`): models whose every output is known. Returns its path.
+pub fn onnx_one_node(dir: &Path, name: &str, op: &str) -> String {
+    let path = arg(dir, name);
+    py(
+        dir,
+        &format!(
+            r#"
+import onnx
+from onnx import helper, TensorProto as T
+x = helper.make_tensor_value_info("x", T.FLOAT, ["N", 21, 5, 2])
+y = helper.make_tensor_value_info("y", T.FLOAT, ["N", 21, 5, 2])
+g = helper.make_graph([helper.make_node("{op}", ["x"], ["y"])], "t", [x], [y])
+m = helper.make_model(g, opset_imports=[helper.make_opsetid("", 17)])
+m.ir_version = 8
+onnx.save(m, "{path}")
+"#
+        ),
+    );
+    path
+}

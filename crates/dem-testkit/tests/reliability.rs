@@ -200,25 +200,8 @@ fn infinite_values_are_refused_by_every_tool_naming_the_record() {
     assert!(left.is_empty(), "outputs left behind: {left:?}");
 }
 
-/// A one-node ONNX model made with the python `onnx` package.
 fn onnx_model(dir: &Path, name: &str, op: &str) -> String {
-    let path = arg(dir, name);
-    py(
-        dir,
-        &format!(
-            r#"
-import onnx
-from onnx import helper, TensorProto as T
-x = helper.make_tensor_value_info("x", T.FLOAT, ["N", 21, 5, 2])
-y = helper.make_tensor_value_info("y", T.FLOAT, ["N", 21, 5, 2])
-g = helper.make_graph([helper.make_node("{op}", ["x"], ["y"])], "t", [x], [y])
-m = helper.make_model(g, opset_imports=[helper.make_opsetid("", 17)])
-m.ir_version = 8
-onnx.save(m, "{path}")
-"#
-        ),
-    );
-    path
+    dem_testkit::onnx_one_node(dir, name, op)
 }
 
 // 5. Bad model output is refused, not scored.
