@@ -64,6 +64,8 @@ if [[ -z "$model" ]]; then
     model=$OUT/gy.onnx
 fi
 "$BIN/dem-apply" --model "$model" "$OUT/sim.npy" -o "$OUT/gy_sim.npy"
+# The same with the holes drawn at the rate G_Y's raw masks predict.
+"$BIN/dem-apply" --model "$model" --sample-masks --seed "$SEED" "$OUT/sim.npy" -o "$OUT/gy_sampled_sim.npy"
 
 # 2. dem-gap's sensor model of the same gap, applied to the same sims.
 rm -rf "$OUT/gap"
@@ -77,6 +79,7 @@ for fmt in text csv md; do
     "$BIN/dem-eval" transfer --test "$OUT/test.npy" --test-labels "$OUT/test_labels.csv" \
         --train sim "$OUT/sim.npy" "$OUT/sim_labels.csv" \
         --train gy "$OUT/gy_sim.npy" "$OUT/sim_labels.csv" \
+        --train gy-sampled "$OUT/gy_sampled_sim.npy" "$OUT/sim_labels.csv" \
         --train sensor "$OUT/sensor_sim.npy" "$OUT/sim_labels.csv" \
         --train measured "$OUT/real.npy" "$OUT/real_labels.csv" \
         --by-terrain --seed "$SEED" --format "$fmt" -o "$OUT/transfer.$ext"

@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use clap::Parser;
 use dem_core::{cli, output};
-use dem_onnx::apply::apply;
+use dem_onnx::apply::{apply, MaskSampling};
 use dem_onnx::OnnxModel;
 
 /// Run an ONNX model over every DEM of an NPY stream, in parallel batches,
@@ -20,6 +20,7 @@ use dem_onnx::OnnxModel;
 #[derive(Parser)]
 #[command(version, after_long_help = "Examples:
   dem-apply --model g_y.onnx sim.npy -o realistic.npy
+  dem-apply --model g_y.onnx --sample-masks --seed 1 sim.npy -o realistic.npy   # holes drawn at the model's rate
   dem-synth --out w --runs 20 --seed 3 && dem-apply --model g_y.onnx w/sim.npy | dem-render - -o fake.png
   dem-filter --labels l.csv --terrain pallet sim.npy | dem-apply --model g_y.onnx --threads 2 > pallets_real.npy
   dem-render --compare sim.npy <(dem-apply --model g_y.onnx sim.npy) real.npy --row-labels sim,G(sim),real -o cmp.png")]
@@ -40,6 +41,18 @@ struct Args {
     /// through); without it, such a model gets a warning.
     #[arg(long)]
     strict: bool,
+    /// Draw each cell's validity from the model's raw mask m (valid with
+    /// probability (m + 1) / 2) instead of writing m: holes keep the rate
+    /// the model predicts, as a sensor's do; masks come out +-1.
+    #[arg(long)]
+    sample_masks: bool,
+    /// Seed of --sample-masks.
+    #[arg(long, default_value_t = 0, requires = "sample_masks")]
+    seed: u64,
+    /// With --sample-masks: index of the input's first record in the whole
+    /// data set, when the input is a shard (`dem-split` prints it).
+    #[arg(long, default_value_t = 0, requires = "sample_masks")]
+    first_index: u64,
     /// Worker threads (default: one per core).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
     threads: Option<u32>,
@@ -58,7 +71,8 @@ fn main() -> ExitCode {
         let start = Instant::now();
         let bar = cli::progress(estimate_records(&a.input), "records");
         let stats = pool.install(|| {
-            apply(&model, &a.input, &a.output, a.batch as usize, a.strict, |done| {
+            let sample = a.sample_masks.then_some(MaskSampling { seed: a.seed, first_index: a.first_index });
+            apply(&model, &a.input, &a.output, a.batch as usize, a.strict, sample, |done| {
                 bar.set_length(bar.length().unwrap_or(0).max(done));
                 bar.set_position(done);
             })

@@ -37,6 +37,7 @@ pub fn apply(
     output: &str,
     batch: usize,
     strict: bool,
+    sample: Option<MaskSampling>,
     mut progress: impl FnMut(u64),
 ) -> Result<ApplyStats, DemError> {
     let mut attitude = AttitudeCheck::default();
@@ -57,9 +58,15 @@ pub fn apply(
         if chunk.is_empty() {
             break;
         }
-        let outs: Vec<Vec<Dem>> = chunk.par_chunks(batch).map(|c| model.run(c)).collect::<Result<_, _>>()?;
-        for (k, (inp, out)) in chunk.chunks(batch).zip(&outs).enumerate() {
-            check_outputs(inp, out, first + (k * batch) as u64, input, model.name(), strict, &mut attitude)?;
+        let mut outs: Vec<Vec<Dem>> = chunk.par_chunks(batch).map(|c| model.run(c)).collect::<Result<_, _>>()?;
+        for (k, (inp, out)) in chunk.chunks(batch).zip(outs.iter_mut()).enumerate() {
+            let at = first + (k * batch) as u64;
+            check_outputs(inp, out, at, input, model.name(), strict, &mut attitude)?;
+            if let Some(s) = sample {
+                for (i, (x, y)) in inp.iter().zip(out.iter_mut()).enumerate() {
+                    dem_core::sensor::sample_masks(x, y, s.seed, s.first_index + at + i as u64);
+                }
+            }
             writer.write(out)?;
         }
         progress(reader.records_read());
@@ -67,6 +74,16 @@ pub fn apply(
     let records = writer.records_written();
     writer.finish()?;
     Ok(ApplyStats { records, attitude })
+}
+
+/// Draw the holes from the model's raw masks ([`dem_core::sensor::sample_masks`]):
+/// the seed, and the index of the input's first record in the whole data set.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MaskSampling {
+    /// Seed of the draws.
+    pub seed: u64,
+    /// Index of the input's first record in the whole data set (shards).
+    pub first_index: u64,
 }
 
 /// What a model did with row 20 (the attitude, which spec/network.md says

@@ -122,6 +122,19 @@ fn dem_fill_nans_and_dem_apply_shards_equal_the_whole() {
     cat.extend(["-o", &joined]);
     ok(&run("dem-cat", &cat, None));
     assert_eq!(fs::read(&joined).unwrap(), fs::read(&whole).unwrap(), "dem-apply");
+    // --sample-masks draws per record: by the index in the whole.
+    let whole = arg(dir.path(), "sampled.npy");
+    ok(&run("dem-apply", &["--model", &model, "--sample-masks", "--seed", "2", &td("sim.npy"), "-o", &whole], None));
+    let mut outs = Vec::new();
+    for r in &rows {
+        let out = format!("{}.sampled", r[0]);
+        ok(&run("dem-apply", &["--model", &model, "--sample-masks", "--seed", "2", "--first-index", &r[1], &r[0], "-o", &out], None));
+        outs.push(out);
+    }
+    let mut cat: Vec<&str> = outs.iter().map(String::as_str).collect();
+    cat.extend(["-o", &joined]);
+    ok(&run("dem-cat", &cat, None));
+    assert_eq!(fs::read(&joined).unwrap(), fs::read(&whole).unwrap(), "dem-apply --sample-masks");
 }
 
 /// The recipe of docs/scale-out.md, on this machine: GNU parallel when it is
