@@ -44,7 +44,7 @@ pub fn temp_beside(path: &str) -> Result<tempfile::NamedTempFile> {
         _ => Path::new("."),
     };
     let name = target.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-    remove_stale_temps(dir, &name);
+    remove_stale_temps(dir);
     // 0o666 minus the umask, like any file a tool creates; tempfile's
     // default 0o600 would hide outputs from the rest of a team.
     tempfile::Builder::new()
@@ -65,20 +65,36 @@ fn host() -> String {
         .unwrap_or_else(|| "host".into())
 }
 
-/// The pid in a temp file name of ours for `name` written by this host.
-fn temp_owner(file: &str, name: &str, host: &str) -> Option<u32> {
-    let rest = file.strip_prefix(&format!(".{name}."))?.strip_suffix(".tmp")?;
-    let (owner, _random) = rest.rsplit_once('.')?;
+/// The pid in a temp file name of ours (`.NAME.HOST-PID.XXXXXX.tmp`) written
+/// by `host`; `name`, when given, must be the output's name.
+fn temp_owner(file: &str, name: Option<&str>, host: &str) -> Option<u32> {
+    let rest = file.strip_prefix('.')?.strip_suffix(".tmp")?;
+    let (head, _random) = rest.rsplit_once('.')?;
+    let (out_name, owner) = head.rsplit_once('.')?;
+    if name.is_some_and(|n| n != out_name) {
+        return None;
+    }
     let (h, pid) = owner.rsplit_once('-')?;
     (h == host).then(|| pid.parse().ok()).flatten()
 }
 
-fn remove_stale_temps(dir: &Path, name: &str) {
+/// Remove this host's temp files of ours in `dir` whose process is gone.
+/// Once per folder in a process: a tool writing many files into one folder
+/// (dem-split's shards) scans it once.
+fn remove_stale_temps(dir: &Path) {
+    static SCANNED: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+    {
+        let mut seen = SCANNED.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        if seen.iter().any(|d| d == dir) {
+            return;
+        }
+        seen.push(dir.to_path_buf());
+    }
     let Ok(entries) = std::fs::read_dir(dir) else { return };
     let host = host();
     for entry in entries.flatten() {
         let file = entry.file_name().to_string_lossy().into_owned();
-        let Some(pid) = temp_owner(&file, name, &host) else { continue };
+        let Some(pid) = temp_owner(&file, None, &host) else { continue };
         // Without /proc we cannot tell a live writer from a dead one: keep it.
         if !Path::new("/proc/self").exists() || Path::new(&format!("/proc/{pid}")).exists() {
             continue;
@@ -241,9 +257,11 @@ mod tests {
         let out = dir.path().join("x.npy").to_string_lossy().into_owned();
         let t = temp_beside(&out).unwrap();
         let file = t.path().file_name().unwrap().to_string_lossy().into_owned();
-        assert_eq!(temp_owner(&file, "x.npy", &host()), Some(std::process::id()));
-        assert_eq!(temp_owner(&file, "y.npy", &host()), None);
-        assert_eq!(temp_owner(&file, "x.npy", "elsewhere"), None);
+        assert_eq!(temp_owner(&file, Some("x.npy"), &host()), Some(std::process::id()));
+        assert_eq!(temp_owner(&file, Some("y.npy"), &host()), None);
+        assert_eq!(temp_owner(&file, Some("x.npy"), "elsewhere"), None);
+        assert_eq!(temp_owner(&file, None, &host()), Some(std::process::id()));
+        assert_eq!(temp_owner(".notes.txt", None, &host()), None);
     }
 
     #[test]
