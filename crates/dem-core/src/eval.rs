@@ -63,16 +63,24 @@ pub const ALL: &str = "all";
 /// (sorted by sim index; real indices in file order of the pairs CSV).
 pub type Selection = BTreeMap<u64, Vec<u64>>;
 
-/// Group `pairs` by sim record, keeping only the rows of `split` when given.
-pub fn select(pairs: &[Pair], split: Option<Split>) -> Selection {
-    let mut sel = Selection::new();
-    for p in pairs.iter().filter(|p| split.is_none() || p.split == split) {
-        let reals = sel.entry(p.sim_index).or_default();
-        if !reals.contains(&p.real_index) {
-            reals.push(p.real_index);
+/// The pairs to score, keeping only the rows of `split` when given, as
+/// (sim, real) sorted by sim index, each sim's reals in file order without
+/// repeats: 16 bytes a pair, which is all an evaluation keeps of them.
+pub fn select(pairs: &[Pair], split: Option<Split>) -> Vec<(u64, u64)> {
+    let mut sorted: Vec<(u64, u64)> =
+        pairs.iter().filter(|p| split.is_none() || p.split == split).map(|p| (p.sim_index, p.real_index)).collect();
+    sorted.sort_by_key(|p| p.0); // stable: each sim's reals stay in file order
+    let mut kept: Vec<(u64, u64)> = Vec::with_capacity(sorted.len());
+    let mut group_start = 0;
+    for p in sorted {
+        if kept.last().is_none_or(|l| l.0 != p.0) {
+            group_start = kept.len();
+        }
+        if !kept[group_start..].contains(&p) {
+            kept.push(p);
         }
     }
-    sel
+    kept
 }
 
 /// The score of one sim record: its pair error and the real record that
@@ -701,9 +709,8 @@ mod tests {
     fn select_keeps_the_split_and_drops_repeats() {
         let p = |s, r, split| Pair { sim_index: s, real_index: r, split, distance: None };
         let pairs = [p(5, 1, Some(Split::Val)), p(5, 2, Some(Split::Val)), p(5, 1, Some(Split::Val)), p(3, 0, Some(Split::Train))];
-        let val = select(&pairs, Some(Split::Val));
-        assert_eq!(val.into_iter().collect::<Vec<_>>(), vec![(5, vec![1, 2])]);
-        assert_eq!(select(&pairs, None).keys().copied().collect::<Vec<_>>(), vec![3, 5]);
+        assert_eq!(select(&pairs, Some(Split::Val)), vec![(5, 1), (5, 2)]);
+        assert_eq!(select(&pairs, None), vec![(3, 0), (5, 1), (5, 2)]);
     }
 
     // The worked checks of spec/dem-format.md through evaluate: the best of

@@ -149,10 +149,16 @@ pub fn canonicalize(d: &mut Dem) -> Result<bool, String> {
     Ok(changed)
 }
 
+/// (row, column, channel) of flat index `j` of a record: the inverse of [`at`].
+pub fn cell_of(j: usize) -> (usize, usize, usize) {
+    debug_assert!(j < RECORD_LEN);
+    (j / (COLS * CHANNELS), j % (COLS * CHANNELS) / CHANNELS, j % CHANNELS)
+}
+
 /// Where a record breaks the contract's value rule, said as a reason.
 fn first_unreadable(d: &Dem) -> Option<String> {
     let (j, v) = d.iter().enumerate().find(|&(j, v)| v.is_infinite() || (v.is_nan() && j % 2 == 1))?;
-    let (row, col, ch) = (j / (COLS * CHANNELS), j % (COLS * CHANNELS) / CHANNELS, j % CHANNELS);
+    let (row, col, ch) = cell_of(j);
     let what = if ch == 0 { "height" } else if row == ATTITUDE_ROW { "attitude mask" } else { "mask" };
     Some(format!("{v} in the {what} at row {row}, column {col}, channel {ch} (the contract allows no infinite value, and NaN only as a height)"))
 }
@@ -161,7 +167,7 @@ fn first_unreadable(d: &Dem) -> Option<String> {
 /// output (NaN or infinity), said as a reason; None when it is writable.
 pub fn unwritable(d: &Dem) -> Option<String> {
     let j = d.iter().position(|v| !v.is_finite())?;
-    let (row, col, ch) = (j / (COLS * CHANNELS), j % (COLS * CHANNELS) / CHANNELS, j % CHANNELS);
+    let (row, col, ch) = cell_of(j);
     Some(format!("{} at row {row}, column {col}, channel {ch}: tools never write NaN or infinity", d[j]))
 }
 

@@ -12,7 +12,7 @@ use std::collections::{BTreeSet, HashMap};
 
 use dem_core::eval::{self, RowAcc, Selection, TableRow};
 use dem_core::gap::stats;
-use dem_core::npy::{self, NpyReader, RecordIndex, CHUNK_RECORDS};
+use dem_core::npy::{self, RecordIndex, CHUNK_RECORDS};
 use dem_core::table::{self, Split};
 use dem_core::{cli, Dem, DemError, Terrain};
 use dem_onnx::apply::AttitudeCheck;
@@ -108,8 +108,7 @@ impl Largest {
     }
 }
 
-/// The pairs to evaluate, compact: (sim, real) sorted by sim, each sim's
-/// reals in file order without repeats (as [`eval::select`] keeps them).
+/// The pairs to evaluate ([`eval::select`]) and the number of sims.
 struct Pairs {
     pairs: Vec<(u64, u64)>,
     sims: u64,
@@ -133,20 +132,8 @@ impl Pairs {
                 real_max = Largest { index: p.real_index, line };
             }
         }
-        let mut pairs: Vec<(u64, u64)> =
-            all.iter().filter(|p| split.is_none() || p.split == split).map(|p| (p.sim_index, p.real_index)).collect();
+        let kept = eval::select(&all, split);
         drop(all);
-        pairs.sort_by_key(|p| p.0); // stable: each sim's reals stay in file order
-        let mut kept: Vec<(u64, u64)> = Vec::with_capacity(pairs.len());
-        let mut group_start = 0;
-        for p in pairs {
-            if kept.last().is_none_or(|l| l.0 != p.0) {
-                group_start = kept.len();
-            }
-            if !kept[group_start..].contains(&p) {
-                kept.push(p);
-            }
-        }
         let sims = kept.chunk_by(|a, b| a.0 == b.0).count() as u64;
         Ok((Pairs { pairs: kept, sims }, sim_max, real_max))
     }
@@ -212,19 +199,6 @@ fn read_selected(path: &str, wanted: &BTreeSet<u64>) -> anyhow::Result<(u64, Has
         }
         first += n;
     }
-}
-
-/// Append exactly `n` records of `r` to `out` (fewer only at its end).
-fn read_n(r: &mut NpyReader<Box<dyn std::io::Read + Send>>, out: &mut Vec<Dem>, n: usize) -> anyhow::Result<usize> {
-    let mut got = 0;
-    while got < n {
-        let k = r.read_chunk(out, n - got)?;
-        if k == 0 {
-            break;
-        }
-        got += k;
-    }
-    Ok(got)
 }
 
 /// The writers of --records and --emit-input, --emit-pred, --emit-closest:
@@ -326,7 +300,7 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
         let n = sim_rdr.read_chunk(&mut chunk, CHUNK_RECORDS)?;
         if let Some((path, r)) = &mut pred_rdr {
             pchunk.clear();
-            let got = read_n(r, &mut pchunk, n)?;
+            let got = r.read_up_to(&mut pchunk, n)?;
             if got < n {
                 return Err(DemError::input(path.as_str(), format!("has {} records but {} has more: a prediction file holds one record per sim record", r.records_read(), q.sim)).into());
             }
@@ -347,7 +321,7 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
     sim_max.check(&q.pairs, n_sim, &q.sim, "sim_index")?;
     if let Some((path, r)) = &mut pred_rdr {
         let mut rest = Vec::new();
-        if read_n(r, &mut rest, 1)? > 0 {
+        if r.read_up_to(&mut rest, 1)? > 0 {
             return Err(DemError::input(path.as_str(), format!("has more records than the {n_sim} of {}: a prediction file holds one record per sim record", q.sim)).into());
         }
     }

@@ -5,7 +5,7 @@
 //! on the current rayon pool and are written in input order, so the output is
 //! the same for any number of threads.
 
-use dem_core::format::RECORD_LEN;
+use dem_core::format::{cell_of, RECORD_LEN};
 use dem_core::{npy, Dem, DemError};
 use rayon::prelude::*;
 
@@ -49,13 +49,7 @@ pub fn apply(
     loop {
         chunk.clear();
         let first = reader.records_read();
-        while chunk.len() < group {
-            let want = group - chunk.len();
-            if reader.read_chunk(&mut chunk, want)? == 0 {
-                break;
-            }
-        }
-        if chunk.is_empty() {
+        if reader.read_up_to(&mut chunk, group)? == 0 {
             break;
         }
         let mut outs: Vec<Vec<Dem>> = chunk.par_chunks(batch).map(|c| model.run(c)).collect::<Result<_, _>>()?;
@@ -124,8 +118,7 @@ pub fn check_outputs(
     for (i, (x, d)) in inp.iter().zip(out).enumerate() {
         let record = first + i as u64;
         if let Some(j) = d.iter().position(|v| !v.is_finite()) {
-            let (row, col, ch) = (j / 10, j % 10 / 2, j % 2);
-            debug_assert!(j < RECORD_LEN);
+            let (row, col, ch) = cell_of(j);
             return Err(DemError::input(
                 model,
                 format!("the model's output for record {record} of {input} is {} at row {row}, column {col}, channel {ch}", d[j]),

@@ -152,6 +152,20 @@ impl<R: Read> NpyReader<R> {
         Ok(n)
     }
 
+    /// Append up to `n` records to `out`, across arrays: fewer only at the
+    /// end of the stream. Returns how many were appended.
+    pub fn read_up_to(&mut self, out: &mut Vec<Dem>, n: usize) -> Result<usize> {
+        let mut got = 0;
+        while got < n {
+            let k = self.read_chunk(out, n - got)?;
+            if k == 0 {
+                break;
+            }
+            got += k;
+        }
+        Ok(got)
+    }
+
     /// Read the rest of the stream into memory.
     pub fn read_to_end(&mut self) -> Result<Vec<Dem>> {
         let mut out = Vec::new();
