@@ -72,8 +72,14 @@ mod terrain_serde {
     pub fn serialize<S: Serializer>(t: &Terrain, s: S) -> Result<S::Ok, S::Error> {
         s.serialize_str(t.as_str())
     }
+    /// An empty terrain (what dem-import writes for a recording nobody
+    /// labelled) reads as `other`: not one of the classes data preparation
+    /// keeps.
     pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Terrain, D::Error> {
         let s = <std::borrow::Cow<'de, str>>::deserialize(d)?;
+        if s.is_empty() {
+            return Ok(Terrain::Other);
+        }
         s.parse().map_err(serde::de::Error::custom)
     }
 }
@@ -201,6 +207,8 @@ mod tests {
         std::fs::write(&p, "index,terrain\n0,flat\n1,lava\n").unwrap();
         let e = read_labels(&p).unwrap_err().to_string();
         assert!(e.contains("line 3") && e.contains("lava"), "{e}");
+        std::fs::write(&p, "index,terrain,x\n0,,1.5\n").unwrap();
+        assert_eq!(read_labels(&p).unwrap()[0].terrain, Terrain::Other);
         std::fs::write(&p, "idx,terrain\n0,flat\n").unwrap();
         assert!(read_labels(&p).unwrap_err().to_string().contains("line 1"));
     }

@@ -1,0 +1,276 @@
+//! ROS 1 bag files (format 2.0), read front to back one record at a time.
+//!
+//! A bag is `#ROSBAG V2.0\n` and records: `u32` header length, header
+//! fields (`u32` length, `name=value`), `u32` data length, data. The ops
+//! used here: 0x05 chunk (compression `none`/`bz2`/`lz4`, holding
+//! connection and message records), 0x07 connection (`conn`, `topic`; data:
+//! `type`, `md5sum`, `message_definition`), 0x02 message (`conn`, `time`).
+//! Index records (0x04, 0x06) and the bag header (0x03) are stepped over,
+//! so a bag whose recorder was killed before it wrote its index reads
+//! like any other, up to its last whole record.
+//!
+//! Not the `rosbag` crate: it maps the whole file and slices it at the
+//! header's `index_pos`, which panics on a truncated or unindexed bag (the
+//! recordings a field robot leaves when its battery dies); this reader
+//! holds one chunk at a time and stops at the break with its byte offset.
+
+use std::collections::HashMap;
+use std::fs::File;
+use std::io::{self, BufReader, Read};
+use std::path::Path;
+
+use super::{short_type, Connection, Event, StopError};
+use crate::wire::Encoding;
+
+const MAGIC: &[u8] = b"#ROSBAG V2.0\n";
+/// No record of a sane bag has a header this large.
+const MAX_HEADER: u64 = 1 << 24;
+
+/// Record header fields as `name -> value bytes`.
+fn fields(header: &[u8]) -> Result<Vec<(&str, &[u8])>, String> {
+    let mut out = Vec::new();
+    let mut rest = header;
+    while !rest.is_empty() {
+        if rest.len() < 4 {
+            return Err("a header field length is cut short".into());
+        }
+        let n = u32::from_le_bytes(rest[..4].try_into().expect("4 bytes")) as usize;
+        let field = rest.get(4..4 + n).ok_or("a header field runs past its header")?;
+        let eq = field.iter().position(|&b| b == b'=').ok_or("a header field without '='")?;
+        let name = std::str::from_utf8(&field[..eq]).map_err(|_| "a header field name is not text")?;
+        out.push((name, &field[eq + 1..]));
+        rest = &rest[4 + n..];
+    }
+    Ok(out)
+}
+
+fn field<'a>(fields: &[(&str, &'a [u8])], name: &str) -> Option<&'a [u8]> {
+    fields.iter().find(|(n, _)| *n == name).map(|(_, v)| *v)
+}
+
+fn u32_field(fields: &[(&str, &[u8])], name: &str) -> Result<u32, String> {
+    let v = field(fields, name).ok_or_else(|| format!("record without its {name} field"))?;
+    Ok(u32::from_le_bytes(v.try_into().map_err(|_| format!("field {name} is not 4 bytes"))?))
+}
+
+struct State {
+    conns: HashMap<u32, Connection>,
+}
+
+impl State {
+    /// Handle one record (op from its header); `offset` for messages.
+    fn record(&mut self, header: &[u8], data: &[u8], offset: u64, on_event: &mut dyn FnMut(Event<'_>)) -> Result<(), String> {
+        let f = fields(header)?;
+        let op = field(&f, "op").and_then(|v| v.first().copied()).ok_or("record without an op field")?;
+        match op {
+            0x02 => {
+                let conn = u32_field(&f, "conn")?;
+                match self.conns.get(&conn) {
+                    Some(c) => on_event(Event::Message { conn: c, data }),
+                    None => on_event(Event::Skipped { offset, reason: format!("a message on connection {conn}, which was never declared") }),
+                }
+            }
+            0x07 => {
+                let conn = u32_field(&f, "conn")?;
+                if !self.conns.contains_key(&conn) {
+                    let d = fields(data)?;
+                    let text = |name: &str| field(&d, name).map(|v| String::from_utf8_lossy(v).into_owned());
+                    let topic = text("topic").or_else(|| field(&f, "topic").map(|v| String::from_utf8_lossy(v).into_owned()));
+                    let (Some(topic), Some(ty)) = (topic, text("type")) else {
+                        return Err(format!("connection {conn} without a topic or type"));
+                    };
+                    self.conns.insert(conn, Connection { topic, msg_type: short_type(&ty), encoding: Encoding::Ros1 });
+                }
+            }
+            0x03 | 0x04 | 0x06 => {}
+            0x05 => return Err("a chunk inside a chunk".into()),
+            op => return Err(format!("unknown record op {op:#04x}")),
+        }
+        Ok(())
+    }
+
+    /// The records inside a decompressed chunk.
+    fn chunk(&mut self, mut body: &[u8], offset: u64, on_event: &mut dyn FnMut(Event<'_>)) -> Result<(), String> {
+        while !body.is_empty() {
+            let (header, data, rest) = split_record(body).ok_or("a record inside the chunk is cut short")?;
+            self.record(header, data, offset, on_event)?;
+            body = rest;
+        }
+        Ok(())
+    }
+}
+
+fn split_record(b: &[u8]) -> Option<(&[u8], &[u8], &[u8])> {
+    let hl = u32::from_le_bytes(b.get(..4)?.try_into().ok()?) as usize;
+    let header = b.get(4..4 + hl)?;
+    let at = 4 + hl;
+    let dl = u32::from_le_bytes(b.get(at..at + 4)?.try_into().ok()?) as usize;
+    let data = b.get(at + 4..at + 4 + dl)?;
+    Some((header, data, &b[at + 4 + dl..]))
+}
+
+fn decompress(compression: &[u8], data: &[u8], size: usize, out: &mut Vec<u8>) -> Result<(), String> {
+    out.clear();
+    out.reserve(size);
+    match compression {
+        b"none" => out.extend_from_slice(data),
+        b"bz2" => {
+            bzip2::read::BzDecoder::new(data).read_to_end(out).map_err(|e| format!("bz2 chunk: {e}"))?;
+        }
+        b"lz4" => {
+            let mut d = lz4::Decoder::new(data).map_err(|e| format!("lz4 chunk: {e}"))?;
+            d.read_to_end(out).map_err(|e| format!("lz4 chunk: {e}"))?;
+        }
+        other => return Err(format!("chunk compression {:?} is not none, bz2 or lz4", String::from_utf8_lossy(other))),
+    }
+    if out.len() != size {
+        return Err(format!("chunk holds {} bytes, its header says {size}", out.len()));
+    }
+    Ok(())
+}
+
+/// Read exactly `buf.len()` bytes; Ok(false) at a clean end of file before
+/// the first byte.
+fn read_or_end(r: &mut impl Read, buf: &mut [u8]) -> io::Result<bool> {
+    let mut got = 0;
+    while got < buf.len() {
+        match r.read(&mut buf[got..]) {
+            Ok(0) if got == 0 => return Ok(false),
+            Ok(0) => return Err(io::ErrorKind::UnexpectedEof.into()),
+            Ok(n) => got += n,
+            Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(true)
+}
+
+/// Read the bag at `path`.
+pub fn read(path: &Path, on_event: &mut dyn FnMut(Event<'_>), on_bytes: &mut dyn FnMut(u64)) -> Result<(), StopError> {
+    let file = File::open(path)?;
+    let len = file.metadata()?.len();
+    let mut r = BufReader::with_capacity(1 << 20, file);
+    let mut magic = [0u8; MAGIC.len()];
+    if !read_or_end(&mut r, &mut magic).unwrap_or(false) || magic != MAGIC {
+        return Err(StopError::NotThisKind("not a ROS 1 bag (it does not start with #ROSBAG V2.0)".into()));
+    }
+    let mut state = State { conns: HashMap::new() };
+    let (mut header, mut data, mut chunk) = (Vec::new(), Vec::new(), Vec::new());
+    let mut offset = MAGIC.len() as u64;
+    let truncated = |offset: u64, what: &str| StopError::Broken {
+        offset,
+        reason: format!("the file ends inside {what} ({len} bytes in all): truncated"),
+    };
+    loop {
+        let mut n = [0u8; 4];
+        match read_or_end(&mut r, &mut n) {
+            Ok(false) => break,
+            Ok(true) => {}
+            Err(e) if e.kind() == io::ErrorKind::UnexpectedEof => return Err(truncated(offset, "a record")),
+            Err(e) => return Err(e.into()),
+        }
+        let hl = u32::from_le_bytes(n) as u64;
+        if hl > MAX_HEADER || offset + 4 + hl + 4 > len {
+            return Err(if offset + 4 + hl + 4 > len && hl <= MAX_HEADER {
+                truncated(offset, "a record header")
+            } else {
+                StopError::Broken { offset, reason: format!("a record header of {hl} bytes: not a bag record") }
+            });
+        }
+        header.resize(hl as usize, 0);
+        r.read_exact(&mut header)?;
+        r.read_exact(&mut n)?;
+        let dl = u32::from_le_bytes(n) as u64;
+        if offset + 8 + hl + dl > len {
+            return Err(truncated(offset, "a record"));
+        }
+        data.resize(dl as usize, 0);
+        r.read_exact(&mut data)?;
+        let f = fields(&header).map_err(|reason| StopError::Broken { offset, reason })?;
+        let is_chunk = field(&f, "op") == Some(&[0x05]);
+        let result = if is_chunk {
+            let compression = field(&f, "compression").unwrap_or(b"none");
+            u32_field(&f, "size")
+                .and_then(|size| decompress(compression, &data, size as usize, &mut chunk))
+                .and_then(|()| state.chunk(&chunk, offset, on_event))
+        } else {
+            state.record(&header, &data, offset, on_event)
+        };
+        // A damaged chunk is stepped over: its length was sound, so the
+        // records after it can still be read.
+        if let Err(reason) = result {
+            on_event(Event::Skipped { offset, reason });
+        }
+        offset += 8 + hl + dl;
+        on_bytes(offset);
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn rec(fields: &[(&str, &[u8])], data: &[u8]) -> Vec<u8> {
+        let mut h = Vec::new();
+        for (n, v) in fields {
+            h.extend(((n.len() + 1 + v.len()) as u32).to_le_bytes());
+            h.extend(n.as_bytes());
+            h.push(b'=');
+            h.extend(*v);
+        }
+        let mut out = (h.len() as u32).to_le_bytes().to_vec();
+        out.extend(h);
+        out.extend((data.len() as u32).to_le_bytes());
+        out.extend(data);
+        out
+    }
+
+    fn bag() -> Vec<u8> {
+        // A connection record's data is a bare field list.
+        let mut fields_only = Vec::new();
+        for (n, v) in [("topic", &b"/x"[..]), ("type", &b"std_msgs/String"[..])] {
+            fields_only.extend(((n.len() + 1 + v.len()) as u32).to_le_bytes());
+            fields_only.extend(n.as_bytes());
+            fields_only.push(b'=');
+            fields_only.extend(v);
+        }
+        let mut inner = rec(&[("op", &[0x07]), ("conn", &0u32.to_le_bytes()), ("topic", b"/x")], &fields_only);
+        inner.extend(rec(&[("op", &[0x02]), ("conn", &0u32.to_le_bytes()), ("time", &[0; 8])], b"hello"));
+        inner.extend(rec(&[("op", &[0x02]), ("conn", &0u32.to_le_bytes()), ("time", &[0; 8])], b"world"));
+        let mut b = MAGIC.to_vec();
+        b.extend(rec(&[("op", &[0x03]), ("index_pos", &0u64.to_le_bytes())], &[b' '; 16]));
+        b.extend(rec(&[("op", &[0x05]), ("compression", b"none"), ("size", &(inner.len() as u32).to_le_bytes())], &inner));
+        b
+    }
+
+    fn read_bytes(b: &[u8]) -> (Vec<String>, Vec<String>, Result<(), StopError>) {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("t.bag");
+        std::fs::write(&p, b).unwrap();
+        let (mut msgs, mut skipped) = (Vec::new(), Vec::new());
+        let r = read(
+            &p,
+            &mut |e| match e {
+                Event::Message { conn, data } => msgs.push(format!("{}:{}", conn.topic, String::from_utf8_lossy(data))),
+                Event::Skipped { reason, .. } => skipped.push(reason),
+            },
+            &mut |_| {},
+        );
+        (msgs, skipped, r)
+    }
+
+    #[test]
+    fn an_unindexed_bag_reads_and_a_truncated_one_stops_at_the_break() {
+        let b = bag();
+        let (msgs, skipped, r) = read_bytes(&b);
+        assert!(r.is_ok() && skipped.is_empty());
+        assert_eq!(msgs, ["/x:hello", "/x:world"]);
+        let (msgs, _, r) = read_bytes(&b[..b.len() - 3]);
+        assert!(msgs.is_empty());
+        let e = r.unwrap_err().to_string();
+        assert!(e.contains("truncated") && e.contains("byte"), "{e}");
+        let (_, _, r) = read_bytes(b"#ROSBAG V1.2\n");
+        assert!(matches!(r, Err(StopError::NotThisKind(_))));
+    }
+}

@@ -1,0 +1,430 @@
+//! dem-import: robot recordings (ROS 1 bags, ROS 2 MCAP) of grid_map
+//! elevation maps into the contract's DEM streams.
+//!
+//! Per recording, two passes over the file, each in bounded memory:
+//! 1. the transforms (`/tf`, `/tf_static`) and joint states, which are
+//!    small, into a [`tf::TfBuffer`] and a [`tf::JointTrack`]; so a map that
+//!    arrives before the transform it needs still finds it;
+//! 2. the maps: each is decoded in place ([`msg::GridMap`]), the robot's
+//!    pose at the map's stamp looked up, and the 20 x 5 window resampled
+//!    ([`window`]). Only the DEMs (840 bytes each) are kept.
+//!
+//! The DEMs are written in stamp order (recordings need not be) as
+//! `OUT/<recording>.npy` with `OUT/<recording>_labels.csv`, each atomically.
+//! A message that cannot be used is skipped and counted by kind, with a
+//! warning naming the file, the topic and the message's index on its topic.
+
+pub mod container;
+pub mod geometry;
+pub mod msg;
+pub mod tf;
+pub mod window;
+pub mod wire;
+
+use std::collections::{BTreeMap, HashMap};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use dem_core::format::{Dem, DemCells, Terrain};
+use dem_core::{npy, output, table, DemError};
+use rayon::prelude::*;
+
+use container::{Event, StopError};
+use window::Resampling;
+
+/// A validated request.
+#[derive(Clone, Debug)]
+pub struct ImportConfig {
+    /// Recordings: `.bag` or `.mcap` files, or ROS 2 bag folders.
+    pub recordings: Vec<PathBuf>,
+    /// Output folder (created if missing).
+    pub out: PathBuf,
+    /// Topic of the maps; None: the recording's one GridMap topic.
+    pub map_topic: Option<String>,
+    /// How map cells become DEM cells.
+    pub resampling: Resampling,
+    /// The robot's frame: C, the DEM's centre.
+    pub frame: String,
+    /// Topic of `sensor_msgs/JointState`.
+    pub joint_topic: String,
+    /// Joint names of the flippers: front-left, front-right, rear-left, rear-right.
+    pub flippers: [String; 4],
+    /// Keep a map only this many seconds after the last one kept.
+    pub every: Option<f64>,
+    /// Terrain written into the labels (empty when None).
+    pub terrain: Option<Terrain>,
+}
+
+/// Why a message was not turned into a DEM.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum SkipKind {
+    /// The message (or a part of the file) could not be decoded.
+    Damaged,
+    /// No transform from the map's frame to the robot's at the map's stamp.
+    NoTransform,
+    /// The map has no layer of that name.
+    NoLayer,
+}
+
+impl SkipKind {
+    /// Words for the summary.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            SkipKind::Damaged => "damaged",
+            SkipKind::NoTransform => "without a transform",
+            SkipKind::NoLayer => "without the layer",
+        }
+    }
+}
+
+/// What became of one recording.
+#[derive(Clone, Debug, Default)]
+pub struct RecordingReport {
+    /// The recording as given.
+    pub recording: String,
+    /// The NPY written (None when the recording could not be read at all).
+    pub npy: Option<String>,
+    /// Map messages on the map topic.
+    pub maps: u64,
+    /// DEMs written.
+    pub dems: u64,
+    /// Maps left out by `--every`.
+    pub thinned: u64,
+    /// Skipped messages (and file parts) by kind.
+    pub skipped: BTreeMap<SkipKind, u64>,
+    /// The recording could not be read at all: why.
+    pub failed: Option<String>,
+    /// The file broke off here (messages before it were imported).
+    pub broken: Option<String>,
+    /// Seconds from the first to the last DEM.
+    pub span: f64,
+    /// True when no joint states of the flippers were found (row 20 holds
+    /// zeros for them).
+    pub no_flippers: bool,
+}
+
+impl RecordingReport {
+    /// Messages or parts skipped, plus 1 for a broken or unreadable file.
+    pub fn problems(&self) -> u64 {
+        self.skipped.values().sum::<u64>() + u64::from(self.failed.is_some()) + u64::from(self.broken.is_some())
+    }
+}
+
+/// The outputs of a recording: `OUT/<name>.npy` and `OUT/<name>_labels.csv`.
+pub fn outputs_of(out: &Path, recording: &Path) -> (String, String) {
+    let name = recording.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "recording".into());
+    let name = if recording.is_dir() { recording.file_name().map(|s| s.to_string_lossy().into_owned()).unwrap_or(name) } else { name };
+    let p = |suffix: &str| out.join(format!("{name}{suffix}")).to_string_lossy().into_owned();
+    (p(".npy"), p("_labels.csv"))
+}
+
+/// Check the request before any work: outputs distinct, none an input.
+pub fn check(cfg: &ImportConfig) -> Result<(), DemError> {
+    if cfg.recordings.is_empty() {
+        return Err(DemError::Usage("no recordings given".into()));
+    }
+    std::fs::create_dir_all(&cfg.out).map_err(|e| DemError::Usage(format!("cannot create the output folder {}: {e}", cfg.out.display())))?;
+    let mut outputs = Vec::new();
+    let mut inputs = Vec::new();
+    for r in &cfg.recordings {
+        if !r.exists() {
+            return Err(DemError::Open { path: r.display().to_string(), source: std::io::ErrorKind::NotFound.into() });
+        }
+        let (npy, labels) = outputs_of(&cfg.out, r);
+        if outputs.contains(&npy) {
+            return Err(DemError::Usage(format!("two recordings would both write {npy}: rename one or import them into different folders")));
+        }
+        outputs.push(npy);
+        outputs.push(labels);
+        if let Ok(files) = container::files_of(r) {
+            inputs.extend(files.into_iter().map(|(_, p)| p.to_string_lossy().into_owned()));
+        }
+    }
+    let ins: Vec<&str> = inputs.iter().map(String::as_str).collect();
+    let outs: Vec<&str> = outputs.iter().map(String::as_str).collect();
+    output::check_outputs(&ins, &outs)
+}
+
+/// Total bytes of the recordings' files (for a progress bar over both passes: twice this).
+pub fn total_bytes(cfg: &ImportConfig) -> u64 {
+    cfg.recordings
+        .iter()
+        .filter_map(|r| container::files_of(r).ok())
+        .flatten()
+        .filter_map(|(_, p)| std::fs::metadata(p).ok())
+        .map(|m| m.len())
+        .sum()
+}
+
+/// Import every recording (in parallel), calling `progress` with bytes read
+/// (both passes) and `warn` with each warning line. Returns one report per
+/// recording, in order. Err only for failures to write outputs.
+pub fn import(cfg: &ImportConfig, progress: &(dyn Fn(u64) + Sync), warn: &(dyn Fn(&str) + Sync)) -> Result<Vec<RecordingReport>, DemError> {
+    let done = AtomicU64::new(0);
+    let tick = |n: u64| progress(done.fetch_add(n, Ordering::Relaxed) + n);
+    cfg.recordings.par_iter().enumerate().map(|(seq, r)| import_one(cfg, r, seq as u64, &tick, warn)).collect()
+}
+
+/// Warnings per kind printed for one recording; the rest are counted only.
+const WARNINGS_PER_KIND: u64 = 5;
+
+struct Recording<'a> {
+    name: String,
+    report: RecordingReport,
+    warn: &'a (dyn Fn(&str) + Sync),
+}
+
+impl Recording<'_> {
+    fn skip(&mut self, kind: SkipKind, what: String) {
+        let n = self.report.skipped.entry(kind).or_default();
+        *n += 1;
+        if *n <= WARNINGS_PER_KIND {
+            (self.warn)(&format!("warning: {}: {what}, skipped", self.name));
+        }
+        if *n == WARNINGS_PER_KIND + 1 {
+            (self.warn)(&format!("warning: {}: further messages {} are counted, not shown", self.name, kind.as_str()));
+        }
+    }
+}
+
+fn is_tf_topic(topic: &str) -> Option<bool> {
+    match msg::strip_slash(topic) {
+        "tf" => Some(false),
+        "tf_static" => Some(true),
+        _ => None,
+    }
+}
+
+/// One DEM with what its label needs.
+struct Imported {
+    stamp: i64,
+    dem: Dem,
+    x: f64,
+    y: f64,
+    yaw: f64,
+}
+
+#[derive(serde::Serialize)]
+struct LabelRow {
+    index: u64,
+    terrain: &'static str,
+    x: f64,
+    y: f64,
+    yaw: f64,
+    sequence: u64,
+    time: f64,
+}
+
+fn import_one(cfg: &ImportConfig, path: &Path, seq: u64, tick: &(dyn Fn(u64) + Sync), warn: &(dyn Fn(&str) + Sync)) -> Result<RecordingReport, DemError> {
+    let name = path.display().to_string();
+    let mut rec = Recording { name: name.clone(), report: RecordingReport { recording: name.clone(), ..Default::default() }, warn };
+    let files = match container::files_of(path) {
+        Ok(f) => f,
+        Err(why) => {
+            rec.report.failed = Some(why);
+            return Ok(rec.report);
+        }
+    };
+
+    // Pass 1: transforms, joints, and which topics hold maps.
+    let mut tfs = tf::TfBuffer::default();
+    let mut joints = tf::JointTrack::default();
+    let mut map_topics: BTreeMap<String, u64> = BTreeMap::new();
+    let mut all_topics: BTreeMap<String, String> = BTreeMap::new();
+    let joint_topic = msg::strip_slash(&cfg.joint_topic).to_string();
+    for (kind, file) in &files {
+        let fname = file.display().to_string();
+        let mut seen: HashMap<String, u64> = HashMap::new();
+        let mut events: Vec<(SkipKind, String)> = Vec::new();
+        let mut last = 0;
+        let result = container::read(
+            *kind,
+            file,
+            &mut |e| match e {
+                Event::Message { conn, data } => {
+                    let k = seen.entry(conn.topic.clone()).or_default();
+                    let index = *k;
+                    *k += 1;
+                    all_topics.entry(conn.topic.clone()).or_insert_with(|| conn.msg_type.clone());
+                    let at = || format!("{fname}: topic {}, message {index}", conn.topic);
+                    match conn.msg_type.as_str() {
+                        "tf2_msgs/TFMessage" => {
+                            if let Some(is_static) = is_tf_topic(&conn.topic) {
+                                match msg::decode_tf(data, conn.encoding) {
+                                    Ok(ts) => {
+                                        for t in ts {
+                                            if let Err(why) = tfs.insert(t, is_static) {
+                                                events.push((SkipKind::Damaged, format!("{}: {why}", at())));
+                                            }
+                                        }
+                                    }
+                                    Err(why) => events.push((SkipKind::Damaged, format!("{}: {why}", at()))),
+                                }
+                            }
+                        }
+                        "sensor_msgs/JointState" if msg::strip_slash(&conn.topic) == joint_topic => match msg::decode_joint_state(data, conn.encoding) {
+                            Ok(js) => joints.insert(&js),
+                            Err(why) => events.push((SkipKind::Damaged, format!("{}: {why}", at()))),
+                        },
+                        "grid_map_msgs/GridMap" => *map_topics.entry(conn.topic.clone()).or_default() += 1,
+                        _ => {}
+                    }
+                }
+                Event::Skipped { offset, reason } => events.push((SkipKind::Damaged, format!("{fname}: byte {offset}: {reason}"))),
+            },
+            &mut |b| {
+                tick(b - last);
+                last = b;
+            },
+        );
+        for (kind, what) in events {
+            rec.skip(kind, what);
+        }
+        match result {
+            Ok(()) => {}
+            Err(StopError::Broken { offset, reason }) => {
+                let what = format!("{fname}: byte {offset}: {reason}");
+                warn(&format!("warning: {what}; the messages before it are imported"));
+                rec.report.broken = Some(what);
+            }
+            Err(e) => {
+                rec.report.failed = Some(format!("{fname}: {e}"));
+                return Ok(rec.report);
+            }
+        }
+    }
+    tfs.finish();
+    joints.finish();
+
+    let topic = match pick_map_topic(cfg, &map_topics, &all_topics) {
+        Ok(t) => t,
+        Err(why) => {
+            rec.report.failed = Some(why);
+            return Ok(rec.report);
+        }
+    };
+    rec.report.no_flippers = !cfg.flippers.iter().any(|f| joints.has(f));
+
+    // Pass 2: the maps.
+    let mut dems: Vec<Imported> = Vec::new();
+    let mut index = 0u64;
+    for (kind, file) in &files {
+        let fname = file.display().to_string();
+        let mut skips: Vec<(SkipKind, String)> = Vec::new();
+        let mut last = 0;
+        // The break (if any) was reported in pass 1.
+        let _ = container::read(
+            *kind,
+            file,
+            &mut |e| {
+                let Event::Message { conn, data } = e else { return };
+                if conn.topic != topic {
+                    return;
+                }
+                let at = format!("{fname}: topic {topic}, message {index}");
+                index += 1;
+                let map = match msg::GridMap::decode(data, conn.encoding) {
+                    Ok(m) => m,
+                    Err(why) => return skips.push((SkipKind::Damaged, format!("{at}: {why}"))),
+                };
+                let base = match tfs.lookup(msg::strip_slash(map.frame), &cfg.frame, map.stamp) {
+                    Ok(b) => b,
+                    Err(why) => return skips.push((SkipKind::NoTransform, format!("{at}: {why}"))),
+                };
+                let mut dem = match window::resample(&map, &base, &cfg.resampling) {
+                    Ok(d) => d,
+                    Err(why) => return skips.push((SkipKind::NoLayer, format!("{at}: {why}"))),
+                };
+                let (yaw, pitch) = base.rotation.heading_and_pitch();
+                let flipper = |k: usize| joints.at(&cfg.flippers[k], map.stamp).unwrap_or(0.0) as f32;
+                dem.set_attitude([pitch as f32, flipper(0), flipper(1), flipper(2), flipper(3)]);
+                dems.push(Imported { stamp: map.stamp, dem, x: base.translation.x, y: base.translation.y, yaw });
+            },
+            &mut |b| {
+                tick(b - last);
+                last = b;
+            },
+        );
+        for (kind, what) in skips {
+            rec.skip(kind, what);
+        }
+    }
+    rec.report.maps = index;
+
+    dems.sort_by_key(|d| d.stamp);
+    if let Some(every) = cfg.every {
+        let step = (every * 1e9).round() as i64;
+        let mut last: Option<i64> = None;
+        let before = dems.len();
+        dems.retain(|d| {
+            let keep = last.is_none_or(|l| d.stamp - l >= step);
+            if keep {
+                last = Some(d.stamp);
+            }
+            keep
+        });
+        rec.report.thinned = (before - dems.len()) as u64;
+    }
+    let first = dems.first().map_or(0, |d| d.stamp);
+    rec.report.span = dems.last().map_or(0.0, |d| (d.stamp - first) as f64 * 1e-9);
+    let terrain = cfg.terrain.map_or("", Terrain::as_str);
+    let labels: Vec<LabelRow> = dems
+        .iter()
+        .enumerate()
+        .map(|(i, d)| LabelRow { index: i as u64, terrain, x: d.x, y: d.y, yaw: d.yaw, sequence: seq, time: (d.stamp - first) as f64 * 1e-9 })
+        .collect();
+    let records: Vec<Dem> = dems.into_iter().map(|d| d.dem).collect();
+    let (npy_path, labels_path) = outputs_of(&cfg.out, path);
+    npy::write_all(&npy_path, &records)?;
+    table::write_rows(&labels_path, &labels)?;
+    rec.report.dems = records.len() as u64;
+    rec.report.npy = Some(npy_path);
+    Ok(rec.report)
+}
+
+fn pick_map_topic(cfg: &ImportConfig, map_topics: &BTreeMap<String, u64>, all: &BTreeMap<String, String>) -> Result<String, String> {
+    let listed = |m: &BTreeMap<String, u64>| m.keys().cloned().collect::<Vec<_>>().join(", ");
+    match &cfg.map_topic {
+        Some(t) => {
+            let found = map_topics.keys().find(|k| msg::strip_slash(k) == msg::strip_slash(t));
+            match (found, all.iter().find(|(k, _)| msg::strip_slash(k) == msg::strip_slash(t))) {
+                (Some(k), _) => Ok(k.clone()),
+                (None, Some((_, ty))) => Err(format!("topic {t} holds {ty}, not grid_map_msgs/GridMap")),
+                (None, None) if map_topics.is_empty() => Err(format!("no topic {t} and no grid_map_msgs/GridMap topic at all")),
+                (None, None) => Err(format!("no topic {t} (GridMap topics: {})", listed(map_topics))),
+            }
+        }
+        None => match map_topics.len() {
+            1 => Ok(map_topics.keys().next().expect("one").clone()),
+            0 => Err(format!(
+                "no grid_map_msgs/GridMap topic (topics: {})",
+                if all.is_empty() { "none".to_string() } else { all.keys().cloned().collect::<Vec<_>>().join(", ") }
+            )),
+            _ => Err(format!("several GridMap topics ({}): choose one with --map-topic", listed(map_topics))),
+        },
+    }
+}
+
+/// The one-line summary of a report.
+pub fn summary(r: &RecordingReport) -> String {
+    if let Some(why) = &r.failed {
+        return format!("{}: not imported: {why}", r.recording);
+    }
+    let mut s = format!("{}: {} maps -> {} DEMs in {}", r.recording, r.maps, r.dems, r.npy.as_deref().unwrap_or("-"));
+    s.push_str(&format!(" ({:.1} s)", r.span));
+    if r.thinned > 0 {
+        s.push_str(&format!(", {} left out by --every", r.thinned));
+    }
+    let skipped: u64 = r.skipped.values().sum();
+    if skipped > 0 {
+        let parts: Vec<String> = r.skipped.iter().map(|(k, n)| format!("{n} {}", k.as_str())).collect();
+        s.push_str(&format!(", {skipped} skipped: {}", parts.join(", ")));
+    }
+    if r.broken.is_some() {
+        s.push_str(", the file breaks off");
+    }
+    if r.no_flippers && r.dems > 0 {
+        s.push_str(", no flipper joint states (zeros in row 20)");
+    }
+    s
+}

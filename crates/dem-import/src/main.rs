@@ -1,0 +1,121 @@
+//! dem-import: robot recordings into DEM streams.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::Parser;
+use dem_core::cli::{self, value};
+use dem_core::Terrain;
+use dem_import::window::Resampling;
+use dem_import::{import, summary, ImportConfig};
+
+/// Import robot recordings, ROS 1 bags (.bag) and ROS 2 MCAP (.mcap files
+/// or bag folders), in which elevation mapping published
+/// grid_map_msgs/GridMap messages, into the DEM contract: for each map, the
+/// robot's pose at the map's stamp from TF (the chain from the map's frame
+/// to --frame, interpolated), the 20 x 5 window of 10 cm cells in the
+/// robot's heading frame resampled from the map's cells, heights relative
+/// to C, and pitch and the four flipper angles (from --joint-topic) in row
+/// 20. Writes OUT/<recording>.npy and OUT/<recording>_labels.csv
+/// (index,terrain,x,y,yaw,sequence,time) per recording, in stamp order, and
+/// prints a summary per recording on stderr.
+///
+/// A damaged message, a map without a transform, a file that breaks off: the
+/// message (or the rest of the file) is skipped with a warning naming the
+/// file, the topic and the message's index on it, and counted; the exit
+/// status is then 1 unless --keep-going.
+#[derive(Parser)]
+#[command(version, after_long_help = "Examples:
+  dem-import --out dems/ field/*.bag
+  dem-import --map-topic /elevation_mapping/elevation_map --frame base_link \\
+      --every 0.4 --terrain stairs-up --out dems/ stairs_2024-05-01.mcap
+  # a folder of recordings, then one stream of all their DEMs:
+  dem-import --out dems/ --keep-going recordings/*.bag && dem-cat dems/*.npy -o real.npy
+  dem-render --labels dems/run1_labels.csv dems/run1.npy -o run1.png")]
+struct Args {
+    /// Recordings: .bag or .mcap files, or ROS 2 bag folders (of .mcap files).
+    #[arg(required = true)]
+    recordings: Vec<PathBuf>,
+    /// Output folder (created if missing).
+    #[arg(long, short = 'o')]
+    out: PathBuf,
+    /// Topic of the grid_map_msgs/GridMap messages (default: the
+    /// recording's only GridMap topic).
+    #[arg(long)]
+    map_topic: Option<String>,
+    /// Map layer with the heights.
+    #[arg(long, default_value = "elevation")]
+    layer: String,
+    /// The robot's frame: C, the centre of the DEM.
+    #[arg(long, default_value = "base_link")]
+    frame: String,
+    /// Topic of sensor_msgs/JointState with the flipper joints.
+    #[arg(long, default_value = "/joint_states")]
+    joint_topic: String,
+    /// Flipper joint names: front-left, front-right, rear-left, rear-right.
+    #[arg(long, value_delimiter = ',', num_args = 4,
+          default_value = "front_left_flipper_j,front_right_flipper_j,rear_left_flipper_j,rear_right_flipper_j")]
+    flippers: Vec<String>,
+    /// Keep a map only DT seconds or more after the last one kept.
+    #[arg(long, value_name = "DT", value_parser = value::positive::<f64>)]
+    every: Option<f64>,
+    /// Terrain for the labels' terrain column (empty without it).
+    #[arg(long)]
+    terrain: Option<Terrain>,
+    /// Map cells with a larger variance (layer --variance-layer) are missing (m^2).
+    #[arg(long, value_parser = value::positive::<f64>)]
+    max_variance: Option<f64>,
+    /// Map layer with the height variance, for --max-variance.
+    #[arg(long, default_value = "variance")]
+    variance_layer: String,
+    /// Share of a DEM cell's sample points (at a 5 cm map: its 4 quarter
+    /// centres) that must fall on valid map cells.
+    #[arg(long, default_value_t = 0.5, value_parser = value::fraction::<f64>)]
+    min_valid: f64,
+    /// Exit 0 even when messages or recordings were skipped.
+    #[arg(long)]
+    keep_going: bool,
+    /// Worker threads (default: all cores; recordings run in parallel).
+    #[arg(long, value_parser = value::at_least_one::<usize>)]
+    threads: Option<usize>,
+}
+
+fn main() -> ExitCode {
+    cli::run(|| {
+        let a: Args = cli::parse();
+        if a.min_valid <= 0.0 {
+            return Err(cli::usage("--min-valid must be > 0"));
+        }
+        if let Some(n) = a.threads {
+            rayon::ThreadPoolBuilder::new().num_threads(n).build_global()?;
+        }
+        let flippers: [String; 4] = a.flippers.try_into().map_err(|_| cli::usage("--flippers takes four joint names"))?;
+        let cfg = ImportConfig {
+            recordings: a.recordings,
+            out: a.out,
+            map_topic: a.map_topic,
+            resampling: Resampling { layer: a.layer, variance_layer: a.variance_layer, max_variance: a.max_variance, min_valid: a.min_valid },
+            frame: a.frame,
+            joint_topic: a.joint_topic,
+            flippers,
+            every: a.every,
+            terrain: a.terrain,
+        };
+        dem_import::check(&cfg)?;
+        let bar = cli::progress(2 * dem_import::total_bytes(&cfg), "bytes");
+        let reports = import(&cfg, &|b| bar.set_position(b), &|line| bar.suspend(|| cli::log(line)))?;
+        bar.finish_and_clear();
+        for r in &reports {
+            cli::log(summary(r));
+        }
+        let bad = reports.iter().filter(|r| r.problems() > 0).count();
+        let dems: u64 = reports.iter().map(|r| r.dems).sum();
+        if reports.len() > 1 {
+            cli::log(format_args!("{dems} DEMs from {} recordings", reports.len()));
+        }
+        if bad > 0 && !a.keep_going {
+            anyhow::bail!("{bad} of {} recordings had skipped messages or could not be read (see above; --keep-going accepts that)", reports.len());
+        }
+        Ok(())
+    })
+}
