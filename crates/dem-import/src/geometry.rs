@@ -57,7 +57,7 @@ impl Quat {
     }
 
     /// Hamilton product `self * o` (apply `o`, then `self`).
-    pub fn mul(self, o: Quat) -> Quat {
+    pub fn compose(self, o: Quat) -> Quat {
         Quat {
             w: self.w * o.w - self.x * o.x - self.y * o.y - self.z * o.z,
             x: self.w * o.x + self.x * o.w + self.y * o.z - self.z * o.y,
@@ -133,7 +133,7 @@ impl Transform {
 
     /// `self * o`: `o` expressed in `self`'s parent (self: A->B, o: B->C, result A->C).
     pub fn then(self, o: Transform) -> Transform {
-        Transform { translation: self.translation.add(self.rotation.rotate(o.translation)), rotation: self.rotation.mul(o.rotation) }
+        Transform { translation: self.translation.add(self.rotation.rotate(o.translation)), rotation: self.rotation.compose(o.rotation) }
     }
 
     /// The inverse transform.
@@ -159,7 +159,7 @@ mod tests {
     #[test]
     fn heading_and_pitch_follow_ros_axes_with_the_contracts_pitch_sign() {
         // Yaw 0.3, then nose up 0.2 (ROS: rotation of -0.2 about y).
-        let q = Quat::about(Z, 0.3).mul(Quat::about(Y, -0.2));
+        let q = Quat::about(Z, 0.3).compose(Quat::about(Y, -0.2));
         let (yaw, pitch) = q.heading_and_pitch();
         assert!((yaw - 0.3).abs() < 1e-12 && (pitch - 0.2).abs() < 1e-12, "{yaw} {pitch}");
     }

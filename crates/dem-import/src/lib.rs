@@ -179,7 +179,7 @@ impl Recording<'_> {
         let n = self.report.skipped.entry(kind).or_default();
         *n += 1;
         if *n <= WARNINGS_PER_KIND {
-            (self.warn)(&format!("warning: {}: {what}, skipped", self.name));
+            (self.warn)(&format!("warning: {what}, skipped"));
         }
         if *n == WARNINGS_PER_KIND + 1 {
             (self.warn)(&format!("warning: {}: further messages {} are counted, not shown", self.name, kind.as_str()));

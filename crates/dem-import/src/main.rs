@@ -31,7 +31,7 @@ use dem_import::{import, summary, ImportConfig};
       --every 0.4 --terrain stairs-up --out dems/ stairs_2024-05-01.mcap
   # a folder of recordings, then one stream of all their DEMs:
   dem-import --out dems/ --keep-going recordings/*.bag && dem-cat dems/*.npy -o real.npy
-  dem-render --labels dems/run1_labels.csv dems/run1.npy -o run1.png")]
+  dem-render dems/run1.npy --start 40 --count 24 -o run1.png")]
 struct Args {
     /// Recordings: .bag or .mcap files, or ROS 2 bag folders (of .mcap files).
     #[arg(required = true)]

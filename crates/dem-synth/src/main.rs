@@ -14,12 +14,15 @@ use dem_core::Terrain;
 ///
 /// Writes DIR/sim.npy, DIR/sim_labels.csv, DIR/real.npy, DIR/real_labels.csv
 /// and DIR/pairs.csv (sim and real records of the same pose). The same
-/// --seed gives the same files on any number of threads.
+/// --seed gives the same files on any number of threads. With --emit-maps
+/// also DIR/maps.npy and DIR/maps.csv: the 5 cm elevation map after every
+/// measured frame, for testing dem-import (docs/dem-synth.md).
 #[derive(Parser)]
 #[command(version, after_long_help = "Examples:
   dem-synth --out run/ --runs 400 --real-runs 20 --seed 1
   dem-synth --out shadowless/ --no-occlusion --seed 1      # same worlds, one effect hidden
   dem-synth --out high/ --camera-height 0.7 --camera-tilt 25 --seed 2   # another camera mount
+  dem-synth --out maps/ --runs 4 --real-runs 2 --seed 1 --emit-maps     # + the 5 cm maps behind real.npy
   dem-synth --out run/ && dem-render --compare run/sim.npy run/real.npy \\
       --row-labels sim,measured --start 40 --count 12 -o pairs.png")]
 struct Args {
@@ -83,6 +86,13 @@ struct Args {
     /// map cell (of 4) is enough for a DEM cell.
     #[arg(long)]
     no_holes: bool,
+    /// Also write DIR/maps.npy ((M, 2, 80, 80) float32: elevation and
+    /// variance of the 4 m elevation map window after each measured frame,
+    /// grid_map's unwrapped index order, NaN where invalid) and DIR/maps.csv
+    /// (window centre and robot pose per map, full precision). Changes no
+    /// other output.
+    #[arg(long)]
+    emit_maps: bool,
 }
 
 fn main() -> ExitCode {
@@ -114,7 +124,15 @@ fn main() -> ExitCode {
             runs: a.runs,
             real_runs: a.real_runs,
             terrains: a.terrains,
-            run: RunConfig { seed: a.seed, dt: a.dt, dark_patch_density: a.dark_patches, camera, map, stages },
+            run: RunConfig {
+                seed: a.seed,
+                dt: a.dt,
+                dark_patch_density: a.dark_patches,
+                camera,
+                map,
+                stages,
+                emit_maps: a.emit_maps,
+            },
         };
         let bar = cli::progress(cfg.runs, "runs");
         let started = std::time::Instant::now();

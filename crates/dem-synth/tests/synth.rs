@@ -157,3 +157,133 @@ fn bad_arguments_exit_2_and_write_nothing() {
         assert!(!std::path::Path::new(&out).join("sim.npy").exists());
     }
 }
+
+/// maps.npy of --emit-maps: header, then `(M, 2, n, n)` `<f4` values.
+fn read_maps(path: &str) -> (usize, usize, Vec<f32>) {
+    let bytes = std::fs::read(path).unwrap();
+    let len = u16::from_le_bytes([bytes[8], bytes[9]]) as usize + 10;
+    let dict = std::str::from_utf8(&bytes[10..len]).unwrap();
+    let shape = dict.split("'shape': (").nth(1).unwrap().split(')').next().unwrap();
+    let dims: Vec<usize> = shape.split(',').map(|d| d.trim().parse().unwrap()).collect();
+    assert!(dict.starts_with("{'descr': '<f4', 'fortran_order': False,") && dims.len() == 4 && dims[1] == 2, "{dict}");
+    assert_eq!(dims[2], dims[3]);
+    let values: Vec<f32> = bytes[len..].chunks_exact(4).map(|b| f32::from_le_bytes(b.try_into().unwrap())).collect();
+    assert_eq!(values.len(), dims[0] * 2 * dims[2] * dims[3], "payload of {path}");
+    (dims[0], dims[2], values)
+}
+
+/// maps.csv of --emit-maps: (column, value) rows.
+fn read_maps_csv(path: &str) -> Vec<Vec<(String, String)>> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<String> = lines.next().unwrap().split(',').map(String::from).collect();
+    assert_eq!(
+        header.join(","),
+        "index,sequence,time,center_x,center_y,resolution,x,y,z,yaw,pitch,flipper_fl,flipper_fr,flipper_rl,flipper_rr"
+    );
+    lines.map(|l| header.iter().cloned().zip(l.split(',').map(String::from)).collect()).collect()
+}
+
+fn field(row: &[(String, String)], name: &str) -> f64 {
+    row.iter().find(|(k, _)| k == name).unwrap().1.parse().unwrap()
+}
+
+/// Rebuild every measured DEM from its emitted map window alone, with the
+/// rule dem-import uses: for each DEM cell the four quarter centres (robot
+/// frame offsets +-2.5 cm, turned by yaw) are looked up in the window at
+/// i = floor((center_x + L/2 - x) / res), j = floor((center_y + L/2 - y) / res);
+/// the cell is valid with at least 2 non-NaN samples, its height their mean
+/// minus z. It must equal real.npy: same validity, heights within 1e-5 m.
+fn rebuild_dems_from_maps(out: &str) -> usize {
+    use dem_core::format::{col_center_y, row_center_x};
+    use dem_core::synth::pose::Pose;
+    let real = npy::read_all(&format!("{out}/real.npy")).unwrap();
+    let labels = table::read_labels(&format!("{out}/real_labels.csv")).unwrap();
+    let (m, n, maps) = read_maps(&format!("{out}/maps.npy"));
+    let rows = read_maps_csv(&format!("{out}/maps.csv"));
+    assert_eq!((m, n, rows.len()), (real.len(), 80, real.len()));
+    let mut valid = 0;
+    for (k, row) in rows.iter().enumerate() {
+        let l = &labels[k];
+        assert_eq!(field(row, "index"), k as f64);
+        assert_eq!((Some(field(row, "sequence") as u64), Some(field(row, "time"))), (l.sequence, l.time));
+        let pose = Pose {
+            x: field(row, "x"),
+            y: field(row, "y"),
+            z: field(row, "z"),
+            yaw: field(row, "yaw"),
+            pitch: field(row, "pitch"),
+            flippers: ["flipper_fl", "flipper_fr", "flipper_rl", "flipper_rr"].map(|f| field(row, f)),
+        };
+        let micro = |v: f64| (v * 1e6).round() / 1e6;
+        assert_eq!((Some(micro(pose.x)), Some(micro(pose.y)), Some(micro(pose.yaw))), (l.x, l.y, l.yaw));
+        let att = real[k].attitude();
+        let expected = [pose.pitch, pose.flippers[0], pose.flippers[1], pose.flippers[2], pose.flippers[3]];
+        assert_eq!(att, expected.map(|v| v as f32), "record {k}: attitude");
+        let res = field(row, "resolution");
+        let (cx, cy) = (field(row, "center_x"), field(row, "center_y"));
+        assert_eq!(res, 0.05);
+        let half = n as f64 * res / 2.0;
+        let elevation = &maps[k * 2 * n * n..][..n * n];
+        for r in 0..20 {
+            for c in 0..5 {
+                let (mut sum, mut count) = (0.0f64, 0);
+                for (dx, dy) in [(-0.025, -0.025), (-0.025, 0.025), (0.025, -0.025), (0.025, 0.025)] {
+                    let (x, y) = pose.to_world(row_center_x(r) + dx, col_center_y(c) + dy);
+                    let (i, j) = (((cx + half - x) / res).floor(), ((cy + half - y) / res).floor());
+                    assert!((0.0..n as f64).contains(&i) && (0.0..n as f64).contains(&j), "DEM outside the window");
+                    let h = elevation[i as usize * n + j as usize];
+                    if !h.is_nan() {
+                        sum += h as f64;
+                        count += 1;
+                    }
+                }
+                let ok = count >= 2;
+                assert_eq!(ok, real[k].is_valid(r, c), "record {k} cell ({r}, {c}): validity ({count} samples)");
+                if ok {
+                    let h = (sum / count as f64 - pose.z) as f32;
+                    let d = (h - real[k].height(r, c)).abs();
+                    assert!(d <= 1e-5, "record {k} cell ({r}, {c}): {h} against {}", real[k].height(r, c));
+                    valid += 1;
+                }
+            }
+        }
+    }
+    valid
+}
+
+#[test]
+fn emit_maps_rebuilds_every_measured_dem_and_changes_nothing_else() {
+    let dir = tempdir();
+    let plain = synth(dir.path(), "plain", &[]);
+    let maps = synth(dir.path(), "maps", &["--emit-maps"]);
+    for f in ["sim.npy", "real.npy", "sim_labels.csv", "real_labels.csv", "pairs.csv"] {
+        assert_eq!(bytes(&plain, f), bytes(&maps, f), "--emit-maps changed {f}");
+    }
+    assert!(!std::path::Path::new(&plain).join("maps.npy").exists() && !std::path::Path::new(&plain).join("maps.csv").exists());
+    let valid = rebuild_dems_from_maps(&maps);
+    assert!(valid > 1000, "only {valid} valid cells checked");
+    // A maximum variance low enough that seen cells become holes: the
+    // variance layer keeps them, the elevation layer does not.
+    let thin = synth(dir.path(), "thin", &["--emit-maps", "--max-variance", "2e-5"]);
+    rebuild_dems_from_maps(&thin);
+    let (_, n, values) = read_maps(&format!("{thin}/maps.npy"));
+    let holes = values
+        .chunks_exact(2 * n * n)
+        .flat_map(|m| m[..n * n].iter().zip(&m[n * n..]))
+        .filter(|(h, v)| h.is_nan() && !v.is_nan())
+        .inspect(|(_, v)| assert!(**v > 2e-5))
+        .count();
+    assert!(holes > 100, "{holes} cells above the maximum variance");
+    // Without holes every seen cell has its height (and the DEM needs 1 of 4).
+    let all = synth(dir.path(), "all", &["--emit-maps", "--no-holes"]);
+    let (_, _, values) = read_maps(&format!("{all}/maps.npy"));
+    for m in values.chunks_exact(2 * n * n) {
+        assert!(m[..n * n].iter().zip(&m[n * n..]).all(|(h, v)| h.is_nan() == v.is_nan()));
+    }
+    let shape = py(
+        dir.path(),
+        &format!("import numpy as np; a=np.load('{maps}/maps.npy'); print(a.shape, a.dtype, a.flags['C_CONTIGUOUS'])"),
+    );
+    assert_eq!(shape.trim(), format!("({}, 2, 80, 80) float32 True", npy::read_all(&format!("{maps}/real.npy")).unwrap().len()));
+}

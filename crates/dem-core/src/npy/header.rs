@@ -104,14 +104,30 @@ pub fn parse_dict(text: &str) -> Result<ArrayHeader, String> {
 /// always 128 bytes for any count below 10^21, so a writer can reserve it
 /// and patch the count in place when the stream ends.
 pub fn f32_header(records: u64) -> Vec<u8> {
-    let dict = format!("{{'descr': '<f4', 'fortran_order': False, 'shape': ({records}, {ROWS}, {COLS}, {CHANNELS}), }}");
-    let unpadded = MAGIC.len() + 4 + dict.len() + 1;
-    let total = unpadded.next_multiple_of(64).max(HEADER_LEN);
+    f32_array_header(&[records, ROWS as u64, COLS as u64, CHANNELS as u64])
+}
+
+/// A v1.0 header of a C-order `<f4` array of `shape` (not necessarily a
+/// DEM array: see [`super::array`]). Its length depends on the dimensions
+/// after the first only: it is padded for the longest first dimension (a
+/// u64), at least to [`HEADER_LEN`], so a writer can reserve it and patch
+/// the record count in place. For every count below 10^21 it is the header
+/// `numpy.save` writes, byte for byte, when that is at most 128 bytes.
+pub fn f32_array_header(shape: &[u64]) -> Vec<u8> {
+    let dict = |first: u64| {
+        let dims: Vec<String> = std::iter::once(first).chain(shape.iter().skip(1).copied()).map(|d| d.to_string()).collect();
+        // numpy writes a 1-tuple with a trailing comma.
+        let tuple = if dims.len() == 1 { format!("{},", dims[0]) } else { dims.join(", ") };
+        format!("{{'descr': '<f4', 'fortran_order': False, 'shape': ({tuple}), }}")
+    };
+    let text = dict(shape.first().copied().unwrap_or(0));
+    let longest = MAGIC.len() + 4 + dict(u64::MAX).len() + 1;
+    let total = longest.next_multiple_of(64).max(HEADER_LEN);
     let mut out = Vec::with_capacity(total);
     out.extend_from_slice(MAGIC);
     out.extend_from_slice(&[1, 0]);
     out.extend_from_slice(&((total - 10) as u16).to_le_bytes());
-    out.extend_from_slice(dict.as_bytes());
+    out.extend_from_slice(text.as_bytes());
     out.resize(total - 1, b' ');
     out.push(b'\n');
     out

@@ -1,11 +1,15 @@
 //! NPY streams as the contract defines them: read one or many concatenated
-//! `.npy` arrays, write a numpy-loadable array or a stream of them.
+//! `.npy` arrays, write a numpy-loadable array or a stream of them; and
+//! [`array`], a plain `<f4` array writer of any record shape for side
+//! outputs outside the contract (NaN allowed).
 
+pub mod array;
 pub mod header;
 pub mod index;
 pub mod reader;
 pub mod writer;
 
+pub use array::F32ArrayWriter;
 pub use index::RecordIndex;
 pub use reader::{open, read_all, ArrayExtent, NpyReader, CHUNK_RECORDS};
 pub use writer::{create, write_all, NpyWriter};

@@ -2,16 +2,22 @@
 //! `sim.npy` + `sim_labels.csv` (every run), `real.npy` + `real_labels.csv`
 //! (measured runs), and `pairs.csv`, the true pairs (same pose) of sim and
 //! real records. The output is the same for any thread count.
+//!
+//! With [`RunConfig::emit_maps`](super::RunConfig::emit_maps), also
+//! `maps.npy` and `maps.csv`: the 5 cm elevation map window after every
+//! measured frame, one per real record in the same order (see [`MapsOut`]).
 
 use std::collections::BTreeMap;
 use std::path::Path;
 
 use rayon::prelude::*;
 
+use super::elevation_map::MapWindow;
+use super::pose::Pose;
 use super::run::{simulate, RunConfig};
 use crate::error::{DemError, Result};
 use crate::format::Terrain;
-use crate::npy;
+use crate::npy::{self, F32ArrayWriter};
 use crate::output::AtomicOutput;
 use crate::table::{Label, Pair};
 
@@ -64,6 +70,68 @@ impl<T: serde::Serialize> CsvOut<T> {
     }
 }
 
+/// `maps.npy` + `maps.csv` of `--emit-maps`.
+///
+/// - `maps.npy`: `<f4` `(M, 2, n, n)`, n = [`MapConfig::window_cells`](super::MapConfig::window_cells)
+///   (80): record k holds the [`MapWindow`] of real record k, layer 0 its
+///   elevation (world z, NaN where invalid), layer 1 its variance (NaN where
+///   never seen), `[k, layer, i, j]` at grid_map's unwrapped index (i, j)
+///   (i = 0 at the largest x, j = 0 at the largest y).
+/// - `maps.csv`: `index,sequence,time,center_x,center_y,resolution,x,y,z,yaw,pitch,
+///   flipper_fl,flipper_fr,flipper_rl,flipper_rr`: `index` the real record,
+///   `sequence` the run, `time` as in `real_labels.csv`, then the window's
+///   centre and resolution and the robot's pose, at full precision (Rust's
+///   shortest round-trip formatting of f64).
+pub struct MapsOut {
+    npy: F32ArrayWriter,
+    csv: csv::Writer<AtomicOutput>,
+    csv_path: String,
+    cells: usize,
+    record: Vec<f32>,
+}
+
+/// Header of `maps.csv`.
+pub const MAPS_CSV_HEADER: [&str; 15] = [
+    "index", "sequence", "time", "center_x", "center_y", "resolution", "x", "y", "z", "yaw", "pitch", "flipper_fl",
+    "flipper_fr", "flipper_rl", "flipper_rr",
+];
+
+impl MapsOut {
+    /// Start `dir/maps.npy` and `dir/maps.csv` for windows of `cells` x `cells`.
+    pub fn create(dir: &Path, cells: usize) -> Result<Self> {
+        let path = |name: &str| dir.join(name).to_string_lossy().into_owned();
+        let n = cells as u64;
+        let npy = F32ArrayWriter::create(&path("maps.npy"), &[2, n, n])?;
+        let csv_path = path("maps.csv");
+        let mut csv = csv::Writer::from_writer(AtomicOutput::create(&csv_path)?);
+        csv.write_record(MAPS_CSV_HEADER).map_err(|e| DemError::io(csv_path.as_str(), std::io::Error::other(e)))?;
+        Ok(MapsOut { npy, csv, csv_path, cells, record: Vec::with_capacity(2 * cells * cells) })
+    }
+
+    /// Append the window of real record `index` (run `sequence`, `time` s
+    /// into it, the robot at `pose`).
+    pub fn write(&mut self, index: u64, sequence: u64, time: f64, pose: &Pose, map: &MapWindow) -> Result<()> {
+        assert_eq!(map.cells, self.cells, "map window size");
+        self.record.clear();
+        self.record.extend_from_slice(&map.elevation);
+        self.record.extend_from_slice(&map.variance);
+        self.npy.write(&self.record)?;
+        let f = pose.flippers;
+        let row = [index.to_string(), sequence.to_string()].into_iter().chain(
+            [time, map.center_x, map.center_y, map.resolution, pose.x, pose.y, pose.z, pose.yaw, pose.pitch, f[0], f[1], f[2], f[3]]
+                .map(|v| format!("{v}")),
+        );
+        self.csv.write_record(row).map_err(|e| DemError::io(self.csv_path.as_str(), std::io::Error::other(e)))
+    }
+
+    /// Complete both files.
+    pub fn finish(self) -> Result<()> {
+        self.npy.finish()?;
+        let path = self.csv_path;
+        self.csv.into_inner().map_err(|e| DemError::io(path.as_str(), e.into_error()))?.commit()
+    }
+}
+
 /// Generate the data set into `dir`; `progress` is called with the number
 /// of runs finished so far.
 pub fn generate(cfg: &DatasetConfig, dir: &Path, progress: impl Fn(u64)) -> Result<Summary> {
@@ -77,6 +145,7 @@ pub fn generate(cfg: &DatasetConfig, dir: &Path, progress: impl Fn(u64)) -> Resu
     let mut sim_labels = CsvOut::<Label>::create(path("sim_labels.csv"))?;
     let mut real_labels = CsvOut::<Label>::create(path("real_labels.csv"))?;
     let mut pairs = CsvOut::<Pair>::create(path("pairs.csv"))?;
+    let mut maps = if cfg.run.emit_maps { Some(MapsOut::create(dir, cfg.run.map.window_cells())?) } else { None };
     let mut summary = Summary::default();
 
     let last = cfg.first_run + cfg.runs;
@@ -108,6 +177,10 @@ pub fn generate(cfg: &DatasetConfig, dir: &Path, progress: impl Fn(u64)) -> Resu
                     real.write(std::slice::from_ref(m))?;
                     real_labels.row(&label(summary.real))?;
                     pairs.row(&Pair { sim_index: summary.sim, real_index: summary.real, split: None, distance: None })?;
+                    if let Some(maps) = maps.as_mut() {
+                        let map = step.map.as_ref().expect("a measured step keeps its map with emit_maps");
+                        maps.write(summary.real, i, round(step.time), &step.pose, map)?;
+                    }
                     summary.real += 1;
                     counts.1 += 1;
                 }
@@ -123,6 +196,9 @@ pub fn generate(cfg: &DatasetConfig, dir: &Path, progress: impl Fn(u64)) -> Resu
     sim_labels.commit()?;
     real_labels.commit()?;
     pairs.commit()?;
+    if let Some(maps) = maps {
+        maps.finish()?;
+    }
     Ok(summary)
 }
 

@@ -53,6 +53,13 @@ impl Default for MapConfig {
     }
 }
 
+impl MapConfig {
+    /// Side of the robot-centred window in cells (80 for 4 m at 5 cm).
+    pub fn window_cells(&self) -> usize {
+        (self.window / self.resolution).round() as usize
+    }
+}
+
 #[derive(Clone, Copy)]
 struct Cell {
     h: f64,
@@ -61,6 +68,41 @@ struct Cell {
 }
 
 const EMPTY: Cell = Cell { h: 0.0, var: f64::INFINITY, frame: 0 };
+
+/// The robot-centred window of the map after a frame, as elevation_mapping
+/// publishes it in a grid_map_msgs/GridMap (for `dem-synth --emit-maps`).
+///
+/// grid_map's conventions: the window is `cells` x `cells` map cells whose
+/// edges are the map's own cell edges, centred on (`center_x`, `center_y`);
+/// index (i, j) is grid_map's *unwrapped* index, i along -x and j along -y:
+/// (0, 0) is the cell at the largest x and y, and cell (i, j) is centred at
+/// `center + cells * resolution / 2 - resolution / 2 - (i, j) * resolution`.
+/// A world point (x, y) lies in cell
+/// `(floor((center_x + L/2 - x) / res), floor((center_y + L/2 - y) / res))`,
+/// L = `cells * resolution`. It follows the robot without resampling: the
+/// map cell holding the robot is (cells/2 - 1, cells/2 - 1), the window
+/// spans the map cells from `cells / 2` below the robot's cell to
+/// `cells / 2 - 1` above it along x and y, and cells beyond the emulator's
+/// map are NaN in both layers.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MapWindow {
+    /// World x of the window's centre (m).
+    pub center_x: f64,
+    /// World y of the window's centre (m).
+    pub center_y: f64,
+    /// Cell edge (m).
+    pub resolution: f64,
+    /// Cells along each side.
+    pub cells: usize,
+    /// World z (m) by unwrapped index, `[i * cells + j]`; NaN where the map
+    /// has no valid height (never seen, outside the map, or with the `holes`
+    /// stage on, a variance above the maximum): exactly the cells the DEM
+    /// resampling leaves out.
+    pub elevation: Vec<f32>,
+    /// Height variance (m^2), laid out as `elevation`; NaN where the cell
+    /// was never seen (infinite variance) or lies outside the map.
+    pub variance: Vec<f32>,
+}
 
 /// The map over a world rectangle.
 pub struct ElevationMap {
@@ -137,6 +179,49 @@ impl ElevationMap {
         cell.frame = frame;
     }
 
+    /// The map as elevation_mapping would publish it at `pose`: the
+    /// [`MapConfig::window_cells`]-square window of world-fixed
+    /// cells around the robot, laid out as grid_map's unwrapped index (see
+    /// [`MapWindow`]). `holes` as for [`dem`](Self::dem): a cell whose
+    /// variance is above the maximum has no elevation. Reads the map only.
+    pub fn window(&self, pose: &Pose, holes: bool) -> MapWindow {
+        let n = self.cfg.window_cells();
+        let res = self.cfg.resolution;
+        let half = (n / 2) as i64;
+        let a0 = ((pose.x - self.x0) / res).floor() as i64 - half;
+        let b0 = ((pose.y - self.y0) / res).floor() as i64 - half;
+        let mut elevation = vec![f32::NAN; n * n];
+        let mut variance = vec![f32::NAN; n * n];
+        for i in 0..n {
+            let a = a0 + (n - 1 - i) as i64;
+            if a < 0 || a >= self.nx as i64 {
+                continue;
+            }
+            for j in 0..n {
+                let b = b0 + (n - 1 - j) as i64;
+                if b < 0 || b >= self.ny as i64 {
+                    continue;
+                }
+                let cell = self.cells[a as usize * self.ny + b as usize];
+                if cell.var.is_infinite() {
+                    continue;
+                }
+                variance[i * n + j] = cell.var as f32;
+                if !holes || cell.var <= self.cfg.max_variance {
+                    elevation[i * n + j] = cell.h as f32;
+                }
+            }
+        }
+        MapWindow {
+            center_x: self.x0 + (a0 + half) as f64 * res,
+            center_y: self.y0 + (b0 + half) as f64 * res,
+            resolution: res,
+            cells: n,
+            elevation,
+            variance,
+        }
+    }
+
     /// The 10 cm DEM around `pose`: each DEM cell is the mean of the map
     /// cells under its four quarter centres that are valid, when at least
     /// `min_cells` are; heights relative to C. `holes` applies the
@@ -204,6 +289,44 @@ mod tests {
         p.x = 1.0;
         m.begin_frame(&p);
         assert!(m.cells[m.index(-1.5, 0.0).unwrap()].var.is_infinite());
+    }
+
+    #[test]
+    fn window_follows_grid_map_s_unwrapped_index_on_the_map_s_cell_edges() {
+        // A map over x in [-1, 2], y in [-1, 1]: the window runs past its ends.
+        let cfg = MapConfig { max_variance: 1e-4, ..MapConfig::default() };
+        let mut m = ElevationMap::new(cfg, -1.0, 2.0, -1.0, 1.0);
+        let mut p = pose();
+        (p.x, p.y) = (0.512, -0.033);
+        m.begin_frame(&p);
+        m.fuse(&Hit { x: 0.63, y: 0.21, z: 0.25, var: 1e-6 });
+        m.fuse(&Hit { x: 0.33, y: -0.41, z: -0.5, var: 2e-4 });
+        let w = m.window(&p, true);
+        assert_eq!((w.cells, w.resolution), (80, 0.05));
+        // The robot's map cell is a = floor(1.512 / 0.05) = 30, b = floor(0.967 / 0.05) = 19:
+        // the window spans a = -10..70, b = -21..59, centred on the edge of cells 30 and 29.
+        assert!((w.center_x - 0.5).abs() < 1e-12 && (w.center_y - -0.05).abs() < 1e-12, "{} {}", w.center_x, w.center_y);
+        let at = |x: f64, y: f64| {
+            let i = ((w.center_x + 2.0 - x) / w.resolution).floor() as usize;
+            let j = ((w.center_y + 2.0 - y) / w.resolution).floor() as usize;
+            (i, j, w.elevation[i * 80 + j], w.variance[i * 80 + j])
+        };
+        // (0.63, 0.21): map cell (32, 24) -> i = 69 - 32 = 37, j = 58 - 24 = 34.
+        assert_eq!(at(0.63, 0.21), (37, 34, 0.25, 1e-6));
+        // Variance above the maximum: seen (variance) but no elevation with holes on.
+        let (i, j, h, v) = at(0.33, -0.41);
+        assert!(h.is_nan() && v == 2e-4 && (i, j) == (43, 47), "{i} {j} {h} {v}");
+        assert_eq!(m.window(&p, false).elevation[i * 80 + j], -0.5);
+        // Unseen and outside the map (x < -1 is a < 0: i >= 70): NaN in both layers.
+        assert!(at(0.0, 0.0).2.is_nan() && at(0.0, 0.0).3.is_nan());
+        let outside = at(-1.2, 0.0);
+        assert!(outside.0 >= 70 && outside.2.is_nan() && outside.3.is_nan());
+        assert_eq!(w.elevation.iter().filter(|h| !h.is_nan()).count(), 1);
+        assert_eq!(w.variance.iter().filter(|v| !v.is_nan()).count(), 2);
+        // The grid_map centre of the unwrapped cell holds the cell.
+        let (ci, cj) = (37.0, 34.0);
+        let (cx, cy) = (w.center_x + 2.0 - 0.025 - ci * 0.05, w.center_y + 2.0 - 0.025 - cj * 0.05);
+        assert_eq!(m.index(cx, cy), m.index(0.63, 0.21));
     }
 
     #[test]

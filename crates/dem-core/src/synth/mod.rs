@@ -21,5 +21,5 @@ pub mod terrain;
 
 pub use camera::{CameraConfig, Stages};
 pub use dataset::{generate, DatasetConfig, Summary};
-pub use elevation_map::MapConfig;
+pub use elevation_map::{MapConfig, MapWindow};
 pub use run::RunConfig;

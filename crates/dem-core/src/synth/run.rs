@@ -5,7 +5,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use super::camera::{observe_with, CameraConfig, Stages};
-use super::elevation_map::{ElevationMap, MapConfig};
+use super::elevation_map::{ElevationMap, MapConfig, MapWindow};
 use super::pose::Pose;
 use super::terrain::World;
 use crate::format::{col_center_y, empty_dem, row_center_x, Dem, DemCells, Terrain, COLS, GRID_ROWS};
@@ -25,6 +25,10 @@ pub struct RunConfig {
     pub map: MapConfig,
     /// Emulator stages on/off.
     pub stages: Stages,
+    /// Keep the map window after every measured frame ([`Step::map`], for
+    /// `dem-synth --emit-maps`). It only reads the map: no random draws,
+    /// the DEMs are the same either way.
+    pub emit_maps: bool,
 }
 
 impl Default for RunConfig {
@@ -36,6 +40,7 @@ impl Default for RunConfig {
             camera: CameraConfig::default(),
             map: MapConfig::default(),
             stages: Stages::default(),
+            emit_maps: false,
         }
     }
 }
@@ -47,6 +52,9 @@ pub struct Step {
     pub sim: Dem,
     /// Emulated measured DEM (measured runs only).
     pub measured: Option<Dem>,
+    /// The map window right after this frame's fusion (measured runs with
+    /// [`RunConfig::emit_maps`] only).
+    pub map: Option<MapWindow>,
     /// The robot's pose.
     pub pose: Pose,
     /// Seconds since the run started.
@@ -107,6 +115,12 @@ impl<'a> Sensor<'a> {
         d.set_attitude(attitude(pose));
         d
     }
+
+    /// The map window around `pose` as it stands (after [`measure`](Self::measure):
+    /// the state that frame's DEM was resampled from).
+    pub fn window(&self, pose: &Pose) -> MapWindow {
+        self.map.window(pose, self.cfg.stages.holes)
+    }
 }
 
 /// Simulate run `index` of terrain `terrain`; measure it when `measured`.
@@ -136,7 +150,8 @@ pub fn simulate(cfg: &RunConfig, index: u64, terrain: Terrain, measured: bool) -
         let pose = Pose::rest_on(&world, x, y, yaw);
         let sim = sim_dem(&world, &pose);
         let measured = sensor.as_mut().map(|s| s.measure(&world, &pose));
-        steps.push(Step { sim, measured, pose, time });
+        let map = sensor.as_ref().filter(|_| cfg.emit_maps).map(|s| s.window(&pose));
+        steps.push(Step { sim, measured, map, pose, time });
         let ds = speed * cfg.dt;
         x += ds * yaw.cos();
         y += ds * yaw.sin();

@@ -72,14 +72,15 @@ impl State {
             }
             0x07 => {
                 let conn = u32_field(&f, "conn")?;
-                if !self.conns.contains_key(&conn) {
+                // The index section repeats the connections of the chunks.
+                if let std::collections::hash_map::Entry::Vacant(slot) = self.conns.entry(conn) {
                     let d = fields(data)?;
                     let text = |name: &str| field(&d, name).map(|v| String::from_utf8_lossy(v).into_owned());
                     let topic = text("topic").or_else(|| field(&f, "topic").map(|v| String::from_utf8_lossy(v).into_owned()));
                     let (Some(topic), Some(ty)) = (topic, text("type")) else {
                         return Err(format!("connection {conn} without a topic or type"));
                     };
-                    self.conns.insert(conn, Connection { topic, msg_type: short_type(&ty), encoding: Encoding::Ros1 });
+                    slot.insert(Connection { topic, msg_type: short_type(&ty), encoding: Encoding::Ros1 });
                 }
             }
             0x03 | 0x04 | 0x06 => {}
