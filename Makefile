@@ -67,10 +67,11 @@ bench: build venv
 	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench_gap.sh
 	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench_apply.sh
 	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench_memory.sh
+	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench_import.sh
 	$(MAKE) venv-torch
 	$(CARGO) build --release -p dem-nn --example step_speed
 	TORCH_PY=$(TORCH_VENV)/bin/python BIN=$(BIN) OUT=.bench bash scripts/bench_train.sh
-	@echo "Reports: .bench/npy.txt .bench/synth.txt .bench/prep.txt .bench/gap.txt .bench/apply.txt .bench/train.txt"
+	@echo "Reports: .bench/npy.txt .bench/synth.txt .bench/prep.txt .bench/gap.txt .bench/apply.txt .bench/import.txt .bench/train.txt"
 
 # Records of testdata/real.npy (and the same poses in testdata/sim.npy) that
 # show the effects: a startup frame, flat ground, stairs up (approach, on
@@ -144,6 +145,8 @@ demo: build venv
 	BIN=$(BIN) OUT=$(OUT)/eval_ci bash scripts/eval_ci.sh
 	@echo "== 6. dem-gap: name the sim-to-real gap, leaving one emulator stage out at a time"
 	BIN=$(BIN) OUT=$(OUT) PY=$(PY) TD=$(TD) bash scripts/gap_demo.sh
+	@echo "== 7. dem-import: robot recordings (a ROS 1 bag, a ROS 2 MCAP bag) back into DEMs"
+	BIN=$(BIN) OUT=$(OUT) PY=$(PY) bash scripts/import_demo.sh
 	@echo
 	@echo "Pictures:"
 	@echo "  $(OUT)/generated.png         G_Y: sim input, closest real, generated, pair error under each"
@@ -152,6 +155,7 @@ demo: build venv
 	@echo "  $(OUT)/effects.png           the same poses with each emulator stage switched off"
 	@echo "  $(OUT)/pallets_cleaned.png   sim pallets before and after dem-clean-pallet"
 	@echo "  $(OUT)/startup_filled.png    startup frames before and after dem-fill-nans"
+	@echo "  $(OUT)/import/import.png     dem-import of a ROS 1 bag and a ROS 2 MCAP bag vs the emulator's DEMs of the same poses"
 	@echo "Table: $(OUT)/effects.md (missing cells, residuals and Identity error per emulator stage)"
 	@echo "Data: $(OUT)/prep/ (sim keys, real, pairs.csv, cleaned and filled streams)"
 	@echo "Model: $(OUT)/gy.onnx (dem-apply --model $(OUT)/gy.onnx < sim.npy > realistic.npy); run: $(OUT)/train/"
