@@ -17,7 +17,11 @@ time, exact to the nanosecond):
   identity orientation), in a circular buffer: message k (k-th map written)
   has outer_start_index (7 k) % n and inner_start_index (3 k) % n, and the
   data as grid_map_ros writes Eigen's default column-major matrices
-  (--row-major: row-major);
+  (--row-major: row-major); --pad-to N writes every n x n window (n = 80
+  from dem-synth) as an N x N map with the same centre, the n x n window in
+  its middle and NaN around it in both layers (N - n even; lengths
+  N * resolution), so maps are larger (N = 200: 320 KB a message) and the
+  DEMs imported from them unchanged (default: no padding);
 - /tf: odom -> base_footprint (x, y, 0; yaw about z) and base_footprint ->
   base_link (0, 0, z; pitch about y as -pitch: the data's pitch is nose-up
   positive, ROS's positive rotation about +y points the nose down), each at
@@ -33,7 +37,10 @@ messages are written in receive-time order. Defects for importer tests:
 --shuffle-maps swaps the receive times of maps 2m and 2m+1, --tf-late
 receives every TF message 0.5 s after its stamp (a map arrives before its
 TF), --extra-map-without-tf adds a copy of the first map stamped 30 s
-before it, where no TF exists.
+before it, where no TF exists, --damaged-map K cuts the serialized bytes of
+the K-th map message written (0-based, in the order maps are written, i.e.
+receive-time order; the --extra-map-without-tf copy, written first, counts)
+to their first half, as a broken driver or a disk error leaves a message.
 
 ros1: one .bag file (rosbags.rosbag1.Writer; --compression none|bz2|lz4;
 each TF link has its own connection on /tf, callerid /odometry and
@@ -50,7 +57,8 @@ text: rosbags' noetic store lacks it). --verify reads the recording back
 with rosbags' readers, deserializes every message with types parsed from
 the definitions stored in the recording, and checks the maps, stamps,
 receive times, TF and joints, and that the importer's rule rebuilds every
-real.npy record from the recording alone.
+real.npy record from the recording alone. With --damaged-map it expects
+that one message to fail to deserialize, skips it in the checks, and says so.
 
 Needs numpy and rosbags >= 0.11 (0.10 has no MCAP writer, no Qos type,
 and connection definitions as plain strings; tested with 0.11.0 and 0.11.9).
@@ -181,6 +189,18 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--shuffle-maps", action="store_true", help="swap the receive times of maps 2m and 2m+1")
     p.add_argument("--tf-late", action="store_true", help="receive TF 0.5 s after its stamp")
     p.add_argument("--extra-map-without-tf", action="store_true", help="add a map 30 s before the first, without TF")
+    p.add_argument(
+        "--damaged-map",
+        type=int,
+        metavar="K",
+        help="cut the K-th map message written (0-based, the --extra-map-without-tf copy counts) to its first half",
+    )
+    p.add_argument(
+        "--pad-to",
+        type=int,
+        metavar="N",
+        help="write each n x n window as an N x N map, same centre, NaN around it (N - n even; default: no padding)",
+    )
     p.add_argument("--map-topic", default="/elevation_mapping/elevation_map")
     p.add_argument(
         "--flippers",
@@ -202,6 +222,10 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         p.error(f"--compression {a.compression} is not available for {a.format} (one of {', '.join(allowed)})")
     if a.stamp0 < 0:
         p.error("--stamp0 must not be negative")
+    if a.damaged_map is not None and a.damaged_map < 0:
+        p.error("--damaged-map must not be negative")
+    if a.pad_to is not None and not 1 <= a.pad_to <= 65535:
+        p.error("--pad-to must be 1 .. 65535 (grid_map's start indices are uint16)")
     return a
 
 
@@ -210,7 +234,9 @@ def seconds_to_ns(text: str) -> int:
     return int((Decimal(text) * NS).to_integral_value())
 
 
-def read_maps(folder: Path, sequences: set[int] | None) -> tuple[list[MapRow], np.ndarray, int]:
+def read_maps(folder: Path, sequences: set[int] | None, pad_to: int | None = None) -> tuple[list[MapRow], np.ndarray, int]:
+    """The selected rows, maps.npy (memory-mapped) and the size n of the map
+    messages (the windows' size, or --pad-to)."""
     csv_path, npy_path = folder / "maps.csv", folder / "maps.npy"
     for f in (csv_path, npy_path):
         if not f.is_file():
@@ -222,6 +248,8 @@ def read_maps(folder: Path, sequences: set[int] | None) -> tuple[list[MapRow], n
     if maps.dtype != np.float32 or maps.ndim != 4 or maps.shape[1] != 2 or maps.shape[2] != maps.shape[3]:
         raise BadInput(f"{npy_path}: expected (M, 2, n, n) float32, got {maps.shape} {maps.dtype}")
     n = maps.shape[2]
+    if pad_to is not None and (pad_to < n or (pad_to - n) % 2):
+        raise BadInput(f"--pad-to {pad_to}: must be at least the windows' {n} cells, with an even difference (same centre)")
     with csv_path.open(newline="") as f:
         reader = csv.DictReader(f)
         if reader.fieldnames != CSV_COLUMNS:
@@ -262,6 +290,7 @@ def read_maps(folder: Path, sequences: set[int] | None) -> tuple[list[MapRow], n
             raise BadInput(f"no maps of run(s) {', '.join(map(str, sorted(missing)))} in {csv_path}")
     if not selected:
         raise BadInput(f"{csv_path}: no maps to write")
+    n = pad_to if pad_to is not None else n
     for a, b in zip(selected, selected[1:]):
         if b.stamp_ns - a.stamp_ns <= 2 * HALF_GAP_NS:
             raise BadInput(
@@ -269,6 +298,19 @@ def read_maps(folder: Path, sequences: set[int] | None) -> tuple[list[MapRow], n
                 f"(-/+ {HALF_GAP_NS / NS} s) would interleave (runs longer than 1000 s, or --dt below 0.04?)"
             )
     return selected, maps, n
+
+
+def window(maps: np.ndarray, index: int, n: int) -> np.ndarray:
+    """Map `index` as (2, n, n) float32: the window itself, or (--pad-to) in
+    the middle of an n x n map of NaN (same centre: the unwrapped index i of
+    the window is i + (n - w) / 2 of the map)."""
+    w = maps.shape[2]
+    if n == w:
+        return np.asarray(maps[index])
+    out = np.full((2, n, n), np.nan, dtype=np.float32)
+    o = (n - w) // 2
+    out[:, o : o + w, o : o + w] = maps[index]
+    return out
 
 
 def make_typestore(fmt: str):
@@ -405,16 +447,17 @@ class Planned:
     order: int
     conn: str
     data: bytes
+    stamp_ns: int | None = None  # header stamp, for maps
 
 
-def plan(a: argparse.Namespace, rows: list[MapRow], maps: np.ndarray, mb: Messages) -> tuple[list[Planned], dict]:
+def plan(a: argparse.Namespace, rows: list[MapRow], maps: np.ndarray, n: int, mb: Messages) -> tuple[list[Planned], dict]:
     """Every message in writing order, and what --verify expects."""
     out: list[Planned] = []
     base = a.stamp0 * NS
-    expected = {"maps": [], "tf": 0, "joints": 0}
+    expected = {"maps": [], "tf": 0, "joints": 0, "damaged": None}
 
-    def add(recv: int, conn: str, data: bytes) -> None:
-        out.append(Planned(recv, len(out), conn, data))
+    def add(recv: int, conn: str, data: bytes, stamp_ns: int | None = None) -> None:
+        out.append(Planned(recv, len(out), conn, data, stamp_ns))
 
     map_recv = [base + m.stamp_ns + MAP_DELAY_NS for m in rows]
     if a.shuffle_maps:
@@ -422,7 +465,7 @@ def plan(a: argparse.Namespace, rows: list[MapRow], maps: np.ndarray, mb: Messag
             map_recv[i], map_recv[i + 1] = map_recv[i + 1], map_recv[i]
     for k, m in enumerate(rows):
         ns = base + m.stamp_ns
-        add(map_recv[k], "map", mb.grid_map(m, ns, maps[m.index], k, a.row_major))
+        add(map_recv[k], "map", mb.grid_map(m, ns, window(maps, m.index, n), k, a.row_major), ns)
         expected["maps"].append((ns, map_recv[k], m, k))
         for sign in (-1, 1):
             t = ns + sign * HALF_GAP_NS
@@ -442,13 +485,21 @@ def plan(a: argparse.Namespace, rows: list[MapRow], maps: np.ndarray, mb: Messag
         ns = base + m.stamp_ns - EXTRA_MAP_BEFORE_NS
         if ns < 0:
             raise BadInput("--extra-map-without-tf needs --stamp0 of at least 30")
-        add(ns + MAP_DELAY_NS, "map", mb.grid_map(m, ns, maps[m.index], 0, a.row_major))
+        add(ns + MAP_DELAY_NS, "map", mb.grid_map(m, ns, window(maps, m.index, n), 0, a.row_major), ns)
         expected["maps"].append((ns, ns + MAP_DELAY_NS, m, 0))
     first = min(p.recv_ns for p in out) - 100_000_000
     static = mb.tf(first, "base_link", "camera_link", (0.15, 0.0, 0.45), quat_y(math.radians(35.0)), "static")
     add(first, "tf_static", static)
     expected["tf_static"] = 1
     out.sort(key=lambda p: (p.recv_ns, p.order))
+    if a.damaged_map is not None:
+        written = [p for p in out if p.conn == "map"]
+        if a.damaged_map >= len(written):
+            raise BadInput(f"--damaged-map {a.damaged_map}: only {len(written)} map messages are written (0 .. {len(written) - 1})")
+        p = written[a.damaged_map]
+        full = len(p.data)
+        p.data = p.data[: full // 2]
+        expected["damaged"] = (a.damaged_map, p.stamp_ns, len(p.data), full)
     return out, expected
 
 
@@ -746,9 +797,9 @@ def main(argv: list[str] | None = None) -> int:
             raise BadInput(f"{a.out} exists already; not overwriting")
         if not a.out.parent.is_dir():
             raise BadInput(f"{a.out.parent} is not a folder")
-        rows, maps, n = read_maps(a.dir, a.sequences)
+        rows, maps, n = read_maps(a.dir, a.sequences, a.pad_to)
         ts = make_typestore(a.format)
-        planned, expected = plan(a, rows, maps, Messages(ts, a.format))
+        planned, expected = plan(a, rows, maps, n, Messages(ts, a.format))
     except BadInput as e:
         log(str(e))
         return 2

@@ -195,6 +195,20 @@ fn is_tf_topic(topic: &str) -> Option<bool> {
     }
 }
 
+/// The index of this message on `topic` (the messages seen on it before), counted.
+fn bump(seen: &mut HashMap<String, u64>, topic: &str) -> u64 {
+    match seen.get_mut(topic) {
+        Some(k) => {
+            *k += 1;
+            *k - 1
+        }
+        None => {
+            seen.insert(topic.to_string(), 1);
+            0
+        }
+    }
+}
+
 /// One DEM with what its label needs.
 struct Imported {
     stamp: i64,
@@ -242,10 +256,10 @@ fn import_one(cfg: &ImportConfig, path: &Path, seq: u64, tick: &(dyn Fn(u64) + S
             file,
             &mut |e| match e {
                 Event::Message { conn, data } => {
-                    let k = seen.entry(conn.topic.clone()).or_default();
-                    let index = *k;
-                    *k += 1;
-                    all_topics.entry(conn.topic.clone()).or_insert_with(|| conn.msg_type.clone());
+                    let index = bump(&mut seen, &conn.topic);
+                    if index == 0 && !all_topics.contains_key(&conn.topic) {
+                        all_topics.insert(conn.topic.clone(), conn.msg_type.clone());
+                    }
                     let at = || format!("{fname}: topic {}, message {index}", conn.topic);
                     match conn.msg_type.as_str() {
                         "tf2_msgs/TFMessage" => {
@@ -321,19 +335,20 @@ fn import_one(cfg: &ImportConfig, path: &Path, seq: u64, tick: &(dyn Fn(u64) + S
                 if conn.topic != topic {
                     return;
                 }
-                let at = format!("{fname}: topic {topic}, message {index}");
+                let k = index;
                 index += 1;
+                let at = || format!("{fname}: topic {topic}, message {k}");
                 let map = match msg::GridMap::decode(data, conn.encoding) {
                     Ok(m) => m,
-                    Err(why) => return skips.push((SkipKind::Damaged, format!("{at}: {why}"))),
+                    Err(why) => return skips.push((SkipKind::Damaged, format!("{}: {why}", at()))),
                 };
                 let base = match tfs.lookup(msg::strip_slash(map.frame), &cfg.frame, map.stamp) {
                     Ok(b) => b,
-                    Err(why) => return skips.push((SkipKind::NoTransform, format!("{at}: {why}"))),
+                    Err(why) => return skips.push((SkipKind::NoTransform, format!("{}: {why}", at()))),
                 };
                 let mut dem = match window::resample(&map, &base, &cfg.resampling) {
                     Ok(d) => d,
-                    Err(why) => return skips.push((SkipKind::NoLayer, format!("{at}: {why}"))),
+                    Err(why) => return skips.push((SkipKind::NoLayer, format!("{}: {why}", at()))),
                 };
                 let (yaw, pitch) = base.rotation.heading_and_pitch();
                 let flipper = |k: usize| joints.at(&cfg.flippers[k], map.stamp).unwrap_or(0.0) as f32;
