@@ -655,12 +655,29 @@ def dem_from_window(elev: np.ndarray, cx: float, cy: float, res: float, x, y, z,
     return (mean - z).astype(np.float32), count >= 2
 
 
-def read_back(a) -> tuple[list, object]:
+def read_back(a, damaged: int | None = None) -> tuple[list, object]:
     """(topic, msgtype, recv_ns, message, connection) of every message, with a
-    typestore built from the definitions stored in the recording."""
+    typestore built from the definitions stored in the recording. Message
+    `damaged` of the map topic (--damaged-map) must fail to deserialize: its
+    message is None."""
     from rosbags.typesys import get_types_from_msg as parse
 
     out = []
+    on_map_topic = 0
+
+    def decode(conn, raw, deserialize):
+        nonlocal on_map_topic
+        if conn.topic != a.map_topic:
+            return deserialize(raw, conn.msgtype)
+        k, on_map_topic = on_map_topic, on_map_topic + 1
+        if k != damaged:
+            return deserialize(raw, conn.msgtype)
+        try:
+            deserialize(raw, conn.msgtype)
+        except Exception:  # noqa: BLE001 - any failure to deserialize is what is expected
+            return None
+        raise AssertionError(f"map message {k} was cut to {len(raw)} bytes but deserializes")
+
     if a.format == "ros1":
         from rosbags.rosbag1 import Reader
 
@@ -674,7 +691,7 @@ def read_back(a) -> tuple[list, object]:
                 got = ts.generate_msgdef(conn.msgtype)[1]
                 assert got == conn.digest, f"{conn.msgtype}: stored definition hashes to {got}"
             for conn, t, raw in r.messages():
-                out.append((conn.topic, conn.msgtype, t, ts.deserialize_ros1(raw, conn.msgtype), conn))
+                out.append((conn.topic, conn.msgtype, t, decode(conn, raw, ts.deserialize_ros1), conn))
     else:
         from rosbags.rosbag2 import Reader
 
@@ -683,12 +700,13 @@ def read_back(a) -> tuple[list, object]:
             for conn in r.connections:
                 ts.register(parse(conn.msgdef.data, conn.msgtype))
             for conn, t, raw in r.messages():
-                out.append((conn.topic, conn.msgtype, t, ts.deserialize_cdr(raw, conn.msgtype), conn))
+                out.append((conn.topic, conn.msgtype, t, decode(conn, raw, ts.deserialize_cdr), conn))
     return out, ts
 
 
 def verify(a, rows: list[MapRow], maps: np.ndarray, n: int, expected: dict, planned: list[Planned]) -> str:
-    msgs, _ = read_back(a)
+    damaged = expected["damaged"]
+    msgs, _ = read_back(a, damaged[0] if damaged else None)
     assert len(msgs) == len(planned), f"{len(msgs)} messages read, {len(planned)} written"
     recv = [m[2] for m in msgs]
     assert recv == sorted(recv) == [p.recv_ns for p in planned], "receive times or their order"
@@ -727,11 +745,16 @@ def verify(a, rows: list[MapRow], maps: np.ndarray, n: int, expected: dict, plan
     maps_read = {}
     for msgtype, t, msg in by_topic[a.map_topic]:
         assert msgtype == GRID_MAP
+        if msg is None:  # the --damaged-map message
+            continue
         header = msg.info.header if a.format == "ros1" else msg.header
         maps_read.setdefault(stamp(header), []).append((t, msg, header))
     worst = {"xy": 0.0, "z": 0.0, "angle": 0.0, "flipper": 0.0, "dem": 0.0}
     cells = 0
     for ns, recv_ns, m, k in expected["maps"]:
+        if damaged and ns == damaged[1]:
+            assert ns not in maps_read, "the damaged map was read"
+            continue
         (t, msg, header), *rest = maps_read[ns]
         assert not rest, f"two maps stamped {ns}"
         assert t == recv_ns, f"map {m.index}: received at {t}, planned {recv_ns}"
@@ -748,7 +771,7 @@ def verify(a, rows: list[MapRow], maps: np.ndarray, n: int, expected: dict, plan
             s0, s1 = msg.outer_start_index, msg.inner_start_index
             layers.append(np.roll(buf, (-s0, -s1), axis=(0, 1)))
         got = np.stack(layers)
-        assert np.array_equal(got.view(np.uint32), np.asarray(maps[m.index]).view(np.uint32)), f"map {m.index}: values"
+        assert np.array_equal(got.view(np.uint32), window(maps, m.index, n).view(np.uint32)), f"map {m.index}: values"
         # The pose from TF and joints at the map's stamp.
         odom = lookup(tf, "odom", "base_footprint", ns)
         body = lookup(tf, "base_footprint", "base_link", ns)
@@ -780,8 +803,14 @@ def verify(a, rows: list[MapRow], maps: np.ndarray, n: int, expected: dict, plan
     assert worst["xy"] < 1e-9 and worst["z"] < 1e-9 and worst["angle"] < 1e-9 and worst["flipper"] < 1e-9, worst
     assert worst["dem"] <= 1e-5, worst
     dem = f", {cells} valid DEM cells rebuilt as real.npy (max error {worst['dem']:.1e} m)" if real is not None else ""
+    cut = (
+        f" (map message {damaged[0]}, cut to {damaged[2]} of {damaged[3]} bytes, fails to deserialize as expected: "
+        "skipped in the checks)"
+        if damaged
+        else ""
+    )
     return (
-        f"verified {len(msgs)} messages: maps bit-exact, pose from TF within {max(worst['xy'], worst['z']):.1e} m "
+        f"verified {len(msgs)} messages{cut}: maps bit-exact, pose from TF within {max(worst['xy'], worst['z']):.1e} m "
         f"and {worst['angle']:.1e} rad, flippers within {worst['flipper']:.1e} rad{dem}"
     )
 
@@ -809,7 +838,9 @@ def main(argv: list[str] | None = None) -> int:
         runs = sorted({m.sequence for m in rows})
         log(
             f"wrote {len(planned)} messages ({len(rows)} maps of {len(runs)} run(s)"
-            f"{' + 1 without TF' if a.extra_map_without_tf else ''}, "
+            f"{' + 1 without TF' if a.extra_map_without_tf else ''}"
+            f"{f', {n} x {n} cells' if a.pad_to is not None else ''}"
+            f"{f', map message {a.damaged_map} cut short' if a.damaged_map is not None else ''}, "
             f"{expected['tf'] + 1} TF, {expected['joints']} joint states) to {output_file(a)} "
             f"({a.format}, compression {a.compression}, {size / 1e6:.1f} MB)"
         )

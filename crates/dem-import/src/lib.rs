@@ -21,7 +21,7 @@ pub mod tf;
 pub mod window;
 pub mod wire;
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -243,13 +243,12 @@ fn import_one(cfg: &ImportConfig, path: &Path, seq: u64, tick: &(dyn Fn(u64) + S
     // Pass 1: transforms, joints, and which topics hold maps.
     let mut tfs = tf::TfBuffer::default();
     let mut joints = tf::JointTrack::default();
-    let mut map_topics: BTreeMap<String, u64> = BTreeMap::new();
+    let mut map_topics: BTreeSet<String> = BTreeSet::new();
     let mut all_topics: BTreeMap<String, String> = BTreeMap::new();
     let joint_topic = msg::strip_slash(&cfg.joint_topic).to_string();
     for (kind, file) in &files {
         let fname = file.display().to_string();
         let mut seen: HashMap<String, u64> = HashMap::new();
-        let mut events: Vec<(SkipKind, String)> = Vec::new();
         let mut last = 0;
         let result = container::read(
             *kind,
@@ -268,32 +267,31 @@ fn import_one(cfg: &ImportConfig, path: &Path, seq: u64, tick: &(dyn Fn(u64) + S
                                     Ok(ts) => {
                                         for t in ts {
                                             if let Err(why) = tfs.insert(t, is_static) {
-                                                events.push((SkipKind::Damaged, format!("{}: {why}", at())));
+                                                rec.skip(SkipKind::Damaged, format!("{}: {why}", at()));
                                             }
                                         }
                                     }
-                                    Err(why) => events.push((SkipKind::Damaged, format!("{}: {why}", at()))),
+                                    Err(why) => rec.skip(SkipKind::Damaged, format!("{}: {why}", at())),
                                 }
                             }
                         }
                         "sensor_msgs/JointState" if msg::strip_slash(&conn.topic) == joint_topic => match msg::decode_joint_state(data, conn.encoding) {
                             Ok(js) => joints.insert(&js),
-                            Err(why) => events.push((SkipKind::Damaged, format!("{}: {why}", at()))),
+                            Err(why) => rec.skip(SkipKind::Damaged, format!("{}: {why}", at())),
                         },
-                        "grid_map_msgs/GridMap" => *map_topics.entry(conn.topic.clone()).or_default() += 1,
+                        "grid_map_msgs/GridMap" if index == 0 => {
+                            map_topics.insert(conn.topic.clone());
+                        }
                         _ => {}
                     }
                 }
-                Event::Skipped { offset, reason } => events.push((SkipKind::Damaged, format!("{fname}: byte {offset}: {reason}"))),
+                Event::Skipped { offset, reason } => rec.skip(SkipKind::Damaged, format!("{fname}: byte {offset}: {reason}")),
             },
             &mut |b| {
                 tick(b - last);
                 last = b;
             },
         );
-        for (kind, what) in events {
-            rec.skip(kind, what);
-        }
         match result {
             Ok(()) => {}
             Err(StopError::Broken { offset, reason }) => {
@@ -321,10 +319,9 @@ fn import_one(cfg: &ImportConfig, path: &Path, seq: u64, tick: &(dyn Fn(u64) + S
 
     // Pass 2: the maps.
     let mut dems: Vec<Imported> = Vec::new();
-    let mut index = 0u64;
     for (kind, file) in &files {
         let fname = file.display().to_string();
-        let mut skips: Vec<(SkipKind, String)> = Vec::new();
+        let mut index = 0u64;
         let mut last = 0;
         // The break (if any) was reported in pass 1.
         let _ = container::read(
@@ -340,15 +337,15 @@ fn import_one(cfg: &ImportConfig, path: &Path, seq: u64, tick: &(dyn Fn(u64) + S
                 let at = || format!("{fname}: topic {topic}, message {k}");
                 let map = match msg::GridMap::decode(data, conn.encoding) {
                     Ok(m) => m,
-                    Err(why) => return skips.push((SkipKind::Damaged, format!("{}: {why}", at()))),
+                    Err(why) => return rec.skip(SkipKind::Damaged, format!("{}: {why}", at())),
                 };
                 let base = match tfs.lookup(msg::strip_slash(map.frame), &cfg.frame, map.stamp) {
                     Ok(b) => b,
-                    Err(why) => return skips.push((SkipKind::NoTransform, format!("{}: {why}", at()))),
+                    Err(why) => return rec.skip(SkipKind::NoTransform, format!("{}: {why}", at())),
                 };
                 let mut dem = match window::resample(&map, &base, &cfg.resampling) {
                     Ok(d) => d,
-                    Err(why) => return skips.push((SkipKind::NoLayer, format!("{}: {why}", at()))),
+                    Err(why) => return rec.skip(SkipKind::NoLayer, format!("{}: {why}", at())),
                 };
                 let (yaw, pitch) = base.rotation.heading_and_pitch();
                 let flipper = |k: usize| joints.at(&cfg.flippers[k], map.stamp).unwrap_or(0.0) as f32;
@@ -360,11 +357,8 @@ fn import_one(cfg: &ImportConfig, path: &Path, seq: u64, tick: &(dyn Fn(u64) + S
                 last = b;
             },
         );
-        for (kind, what) in skips {
-            rec.skip(kind, what);
-        }
+        rec.report.maps += index;
     }
-    rec.report.maps = index;
 
     dems.sort_by_key(|d| d.stamp);
     if let Some(every) = cfg.every {
@@ -397,11 +391,11 @@ fn import_one(cfg: &ImportConfig, path: &Path, seq: u64, tick: &(dyn Fn(u64) + S
     Ok(rec.report)
 }
 
-fn pick_map_topic(cfg: &ImportConfig, map_topics: &BTreeMap<String, u64>, all: &BTreeMap<String, String>) -> Result<String, String> {
-    let listed = |m: &BTreeMap<String, u64>| m.keys().cloned().collect::<Vec<_>>().join(", ");
+fn pick_map_topic(cfg: &ImportConfig, map_topics: &BTreeSet<String>, all: &BTreeMap<String, String>) -> Result<String, String> {
+    let listed = |m: &BTreeSet<String>| m.iter().cloned().collect::<Vec<_>>().join(", ");
     match &cfg.map_topic {
         Some(t) => {
-            let found = map_topics.keys().find(|k| msg::strip_slash(k) == msg::strip_slash(t));
+            let found = map_topics.iter().find(|k| msg::strip_slash(k) == msg::strip_slash(t));
             match (found, all.iter().find(|(k, _)| msg::strip_slash(k) == msg::strip_slash(t))) {
                 (Some(k), _) => Ok(k.clone()),
                 (None, Some((_, ty))) => Err(format!("topic {t} holds {ty}, not grid_map_msgs/GridMap")),
@@ -410,7 +404,7 @@ fn pick_map_topic(cfg: &ImportConfig, map_topics: &BTreeMap<String, u64>, all: &
             }
         }
         None => match map_topics.len() {
-            1 => Ok(map_topics.keys().next().expect("one").clone()),
+            1 => Ok(map_topics.iter().next().expect("one").clone()),
             0 => Err(format!(
                 "no grid_map_msgs/GridMap topic (topics: {})",
                 if all.is_empty() { "none".to_string() } else { all.keys().cloned().collect::<Vec<_>>().join(", ") }
