@@ -382,11 +382,14 @@ fn import_one(cfg: &ImportConfig, path: &Path, seq: u64, tick: &(dyn Fn(u64) + S
         .enumerate()
         .map(|(i, d)| LabelRow { index: i as u64, terrain, x: d.x, y: d.y, yaw: d.yaw, sequence: seq, time: (d.stamp - first) as f64 * 1e-9 })
         .collect();
-    let records: Vec<Dem> = dems.into_iter().map(|d| d.dem).collect();
     let (npy_path, labels_path) = outputs_of(&cfg.out, path);
-    npy::write_all(&npy_path, &records)?;
+    let mut writer = npy::create(&npy_path)?;
+    for d in &dems {
+        writer.write(std::slice::from_ref(&d.dem))?;
+    }
+    writer.finish()?;
     table::write_rows(&labels_path, &labels)?;
-    rec.report.dems = records.len() as u64;
+    rec.report.dems = dems.len() as u64;
     rec.report.npy = Some(npy_path);
     Ok(rec.report)
 }

@@ -153,6 +153,18 @@ fn bad_recordings_are_named_skipped_and_counted() {
     assert_same(&read_npy(&out.join("notf.npy")), &want, "the other maps");
     ok(&import(&dir.path().join("o2"), &["--keep-going"], &[&bag]));
 
+    // A map message cut short (a broken driver, a disk error): named, the others kept.
+    let cut_msg = dir.path().join("cutmsg.bag");
+    to_bag(&w, &cut_msg, &["--format", "ros1", "--sequences", "0", "--damaged-map", "3"]);
+    let out = dir.path().join("o0");
+    let o = import(&out, &[], &[&cut_msg]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let log = stderr(&o);
+    assert!(log.contains("cutmsg.bag: topic /elevation_mapping/elevation_map, message 3: layer elevation: data: 6400 elements cannot fit"), "{log}");
+    assert!(log.contains("1 skipped: 1 damaged"), "{log}");
+    let without_3: Vec<_> = want.iter().enumerate().filter(|(k, _)| *k != 3).map(|(_, d)| *d).collect();
+    assert_same(&read_npy(&out.join("cutmsg.npy")), &without_3, "the undamaged maps");
+
     // An unknown layer: every map skipped, the layers the map has are named.
     let o = import(&dir.path().join("o3"), &["--layer", "height"], &[&bag]);
     assert_eq!(o.status.code(), Some(1));

@@ -114,7 +114,6 @@ fn decompress(compression: &[u8], data: &[u8], size: usize, out: &mut Vec<u8>) -
     out.clear();
     out.reserve(size);
     match compression {
-        b"none" => out.extend_from_slice(data),
         b"bz2" => {
             bzip2::read::BzDecoder::new(data).read_to_end(out).map_err(|e| format!("bz2 chunk: {e}"))?;
         }
@@ -185,17 +184,30 @@ pub fn read(path: &Path, on_event: &mut dyn FnMut(Event<'_>), on_bytes: &mut dyn
         if offset + 8 + hl + dl > len {
             return Err(truncated(offset, "a record"));
         }
-        data.resize(dl as usize, 0);
-        r.read_exact(&mut data)?;
+        // The buffer only grows: a megabyte chunk is not zeroed before every read.
+        if data.len() < dl as usize {
+            data.resize(dl as usize, 0);
+        }
+        let data = &mut data[..dl as usize];
+        r.read_exact(data)?;
         let f = fields(&header).map_err(|reason| StopError::Broken { offset, reason })?;
         let is_chunk = field(&f, "op") == Some(&[0x05]);
         let result = if is_chunk {
             let compression = field(&f, "compression").unwrap_or(b"none");
-            u32_field(&f, "size")
-                .and_then(|size| decompress(compression, &data, size as usize, &mut chunk))
-                .and_then(|()| state.chunk(&chunk, offset, on_event))
+            u32_field(&f, "size").and_then(|size| {
+                if compression == b"none" {
+                    // `rosbag record`'s default: read the records where they are.
+                    if data.len() != size as usize {
+                        return Err(format!("chunk holds {} bytes, its header says {size}", data.len()));
+                    }
+                    state.chunk(data, offset, on_event)
+                } else {
+                    decompress(compression, data, size as usize, &mut chunk)?;
+                    state.chunk(&chunk, offset, on_event)
+                }
+            })
         } else {
-            state.record(&header, &data, offset, on_event)
+            state.record(&header, data, offset, on_event)
         };
         // A damaged chunk is stepped over: its length was sound, so the
         // records after it can still be read.
