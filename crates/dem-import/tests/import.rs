@@ -174,31 +174,13 @@ fn bad_recordings_are_named_skipped_and_counted() {
     // A truncated bag (a recorder killed mid-write): the maps before the break.
     let whole = dir.path().join("whole.bag");
     to_bag(&w, &whole, &["--format", "ros1", "--sequences", "0"]);
-    let bytes = std::fs::read(&whole).unwrap();
-    let cut = dir.path().join("cut.bag");
-    std::fs::write(&cut, &bytes[..bytes.len() * 6 / 10]).unwrap();
-    let out = dir.path().join("o4");
-    let o = import(&out, &[], &[&cut]);
-    assert_eq!(o.status.code(), Some(1));
-    assert!(stderr(&o).contains("cut.bag: byte") && stderr(&o).contains("truncated"), "{}", stderr(&o));
-    let got = read_npy(&out.join("cut.npy"));
-    assert!(!got.is_empty() && got.len() < want.len(), "{} of {}", got.len(), want.len());
-    assert_same(&got, &want[..got.len()], "the maps before the break");
+    truncated_keeps_the_maps_before_the_break(&whole, &dir.path().join("cut.bag"), &want);
 
     // A truncated MCAP file the same way.
     let mdir = dir.path().join("m");
     to_bag(&w, &mdir, &["--format", "mcap", "--sequences", "0"]);
     let mfile = std::fs::read_dir(&mdir).unwrap().flatten().map(|e| e.path()).find(|p| p.extension().is_some_and(|x| x == "mcap")).unwrap();
-    let bytes = std::fs::read(&mfile).unwrap();
-    let mcut = dir.path().join("mcut.mcap");
-    std::fs::write(&mcut, &bytes[..bytes.len() * 6 / 10]).unwrap();
-    let out = dir.path().join("o5");
-    let o = import(&out, &[], &[&mcut]);
-    assert_eq!(o.status.code(), Some(1));
-    assert!(stderr(&o).contains("mcut.mcap: byte") && stderr(&o).contains("truncated"), "{}", stderr(&o));
-    let got = read_npy(&out.join("mcut.npy"));
-    assert!(!got.is_empty() && got.len() < want.len());
-    assert_same(&got, &want[..got.len()], "the MCAP maps before the break");
+    truncated_keeps_the_maps_before_the_break(&mfile, &dir.path().join("mcut.mcap"), &want);
 
     // Not a recording at all, and a ROS 2 SQLite bag: named, not imported.
     let junk = dir.path().join("junk.bag");
@@ -209,6 +191,21 @@ fn bad_recordings_are_named_skipped_and_counted() {
     let db3 = dir.path().join("x.db3");
     std::fs::write(&db3, b"SQLite format 3\0").unwrap();
     assert!(stderr(&import(&dir.path().join("o7"), &[], &[&db3])).contains("convert"));
+}
+
+/// `whole` cut to 60 % as `cut`: exit 1, the break named with its byte
+/// offset, and the maps before it imported.
+fn truncated_keeps_the_maps_before_the_break(whole: &Path, cut: &Path, want: &[[f32; 210]]) {
+    let bytes = std::fs::read(whole).unwrap();
+    std::fs::write(cut, &bytes[..bytes.len() * 6 / 10]).unwrap();
+    let out = cut.with_extension("out");
+    let o = import(&out, &[], &[cut]);
+    assert_eq!(o.status.code(), Some(1));
+    let name = cut.file_name().unwrap().to_str().unwrap();
+    assert!(stderr(&o).contains(&format!("{name}: byte")) && stderr(&o).contains("truncated"), "{}", stderr(&o));
+    let got = read_npy(&out.join(cut.file_stem().unwrap()).with_extension("npy"));
+    assert!(!got.is_empty() && got.len() < want.len(), "{} of {}", got.len(), want.len());
+    assert_same(&got, &want[..got.len()], name);
 }
 
 #[test]
