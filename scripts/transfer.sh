@@ -67,11 +67,21 @@ fi
 # The same with the holes drawn at the rate G_Y's raw masks predict.
 "$BIN/dem-apply" --model "$model" --sample-masks --seed "$SEED" "$OUT/sim.npy" -o "$OUT/gy_sampled_sim.npy"
 
-# 2. dem-gap's sensor model of the same gap, applied to the same sims.
+# 2. dem-gap's sensor model of the same gap, with the labels' times (so
+#    `startup` is fitted as the blind edge receding in each run's first
+#    frames), applied to the same sims with their times.
 rm -rf "$OUT/gap"
-"$BIN/dem-gap" --sim "$OUT/sim.npy" --real "$OUT/real.npy" --out "$OUT/gap" --seed "$SEED" 2> "$OUT/gap.log" \
+"$BIN/dem-gap" --sim "$OUT/sim.npy" --real "$OUT/real.npy" --labels-sim "$OUT/sim_labels.csv" \
+    --labels-real "$OUT/real_labels.csv" --out "$OUT/gap" --seed "$SEED" 2> "$OUT/gap.log" \
     || { cat "$OUT/gap.log" >&2; exit 1; }
-"$BIN/dem-sensor" apply --model "$OUT/gap/sensor.json" --seed "$SEED" "$OUT/sim.npy" -o "$OUT/sensor_sim.npy"
+"$BIN/dem-sensor" apply --model "$OUT/gap/sensor.json" --labels "$OUT/sim_labels.csv" --seed "$SEED" \
+    "$OUT/sim.npy" -o "$OUT/sensor_sim.npy"
+# The virtual sensor: G_Y (terrain-made effects), then the one effect a sim
+# DEM cannot carry, the startup rows of a run's first frames, by time.
+for v in gy gy_sampled; do
+    "$BIN/dem-sensor" apply --model "$OUT/gap/sensor.json" --only startup --labels "$OUT/sim_labels.csv" \
+        --seed "$SEED" "$OUT/${v}_sim.npy" -o "$OUT/${v}_startup_sim.npy"
+done
 
 # 3. The transfer table.
 for fmt in text csv md; do
@@ -80,6 +90,8 @@ for fmt in text csv md; do
         --train sim "$OUT/sim.npy" "$OUT/sim_labels.csv" \
         --train gy "$OUT/gy_sim.npy" "$OUT/sim_labels.csv" \
         --train gy-sampled "$OUT/gy_sampled_sim.npy" "$OUT/sim_labels.csv" \
+        --train gy+startup "$OUT/gy_startup_sim.npy" "$OUT/sim_labels.csv" \
+        --train gy-sampled+startup "$OUT/gy_sampled_startup_sim.npy" "$OUT/sim_labels.csv" \
         --train sensor "$OUT/sensor_sim.npy" "$OUT/sim_labels.csv" \
         --train measured "$OUT/real.npy" "$OUT/real_labels.csv" \
         --by-terrain --seed "$SEED" --format "$fmt" -o "$OUT/transfer.$ext"

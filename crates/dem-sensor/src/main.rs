@@ -15,6 +15,9 @@ use dem_core::sensor::{apply_shard, SensorModel};
   dem-gap --sim sim.npy --real real.npy --out gap/ && dem-sensor apply --model gap/sensor.json sim.npy -o sim_as_measured.npy
   dem-sensor apply --model gap/sensor.json sim.npy | dem-render - --count 12 -o measured_look.png
   dem-sensor apply --model gap/sensor.json --labels sim_labels.csv sim.npy -o out.npy  # startup by time
+  # the virtual sensor: G_Y, then the startup rows a sim DEM cannot carry (by the labels' time)
+  dem-apply --model gy.onnx sim.npy | dem-sensor apply --model gap/sensor.json --only startup \
+      --labels sim_labels.csv -o realistic.npy
   dem-sensor show --model sensor.json        # the effects, one a line
   dem-split --shards 4 --out part sim.npy | tail -n +2 | while IFS=, read shard first n; do
       dem-sensor apply --model sensor.json --seed 1 --first-index $first $shard -o $shard.out; done
@@ -56,6 +59,11 @@ enum Command {
         /// each record's `time` in its run; without, its per-record rate p.
         #[arg(long)]
         labels: Option<String>,
+        /// Apply only these effects of the model (comma-separated names,
+        /// e.g. `startup` after a generator: the one effect a sim DEM
+        /// cannot carry, since it depends on the frame's time in its run).
+        #[arg(long, value_delimiter = ',')]
+        only: Vec<String>,
     },
     /// Check a model and print its effects, one a line.
     Show {
@@ -67,10 +75,13 @@ enum Command {
 
 fn main() -> ExitCode {
     cli::run(|| match cli::parse::<Args>().command {
-        Command::Apply { model, input, output, seed, first_index, labels } => {
+        Command::Apply { model, input, output, seed, first_index, labels, only } => {
             let inputs: Vec<&str> = [Some(&input), Some(&model), labels.as_ref()].into_iter().flatten().map(String::as_str).collect();
             dem_core::output::check_outputs(&inputs, &[&output])?;
-            let m = SensorModel::read(&model)?;
+            let mut m = SensorModel::read(&model)?;
+            if !only.is_empty() {
+                m = m.only(&only).map_err(|why| dem_core::DemError::input(model.as_str(), why))?;
+            }
             let times = match &labels {
                 Some(p) => Some(dem_core::table::read_labels(p)?.iter().map(|l| l.time.unwrap_or(f64::NAN)).collect::<Vec<f64>>()),
                 None => None,

@@ -93,6 +93,20 @@ impl SensorModel {
         SensorModel { effects }
     }
 
+    /// The model with only the effects named in `names` (in the model's
+    /// order). Their random draws are the same as in the whole model (the
+    /// streams are keyed by name and occurrence). Err names an effect the
+    /// model does not have.
+    pub fn only(&self, names: &[String]) -> std::result::Result<Self, String> {
+        for n in names {
+            if !self.effects.iter().any(|e| e.name() == n) {
+                let have: Vec<&str> = self.effects.iter().map(Effect::name).collect();
+                return Err(format!("the model has no {n} effect (it has: {})", have.join(", ")));
+            }
+        }
+        Ok(SensorModel { effects: self.effects.iter().filter(|e| names.iter().any(|n| n == e.name())).cloned().collect() })
+    }
+
     /// Apply every effect to record number `index` of a stream, in order.
     pub fn apply(&self, d: &mut Dem, seed: u64, index: u64) {
         self.apply_at(d, seed, index, None)
@@ -220,6 +234,29 @@ pub fn sample_masks(input: &Dem, out: &mut Dem, seed: u64, index: u64) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn only_keeps_the_named_effects_and_their_draws() {
+        use crate::format::{empty_dem, DemCells};
+        let m = SensorModel::from_json(
+            r#"{"effects": [{"effect": "startup", "params": {"x0": 0.4, "v": 0.2, "p": 0.25}},
+                            {"effect": "dropout", "params": {"p": 0.3}}, {"effect": "noise", "params": {"sigma0": 0.01, "k": 0.0}}]}"#,
+        )
+        .unwrap();
+        let only = m.only(&["dropout".to_string()]).unwrap();
+        assert_eq!(only.effects.iter().map(Effect::name).collect::<Vec<_>>(), ["dropout"]);
+        let mut flat = empty_dem();
+        (0..100).for_each(|i| flat.set_valid(i / 5, i % 5, -0.07));
+        let dropout_alone = SensorModel::from_json(r#"{"effects": [{"effect": "dropout", "params": {"p": 0.3}}]}"#).unwrap();
+        for index in 0..20 {
+            let (mut a, mut b) = (flat, flat);
+            only.apply(&mut a, 7, index);
+            dropout_alone.apply(&mut b, 7, index);
+            assert_eq!(a, b);
+        }
+        let e = m.only(&["occlusion".to_string()]).unwrap_err();
+        assert!(e.contains("no occlusion effect") && e.contains("startup, dropout, noise"), "{e}");
+    }
 
     #[test]
     fn sampled_masks_keep_the_rate_and_are_plus_minus_one() {
