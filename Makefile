@@ -139,7 +139,7 @@ demo: build venv
 	$(BIN)/dem-eval --sim $(OUT)/prep/sim.npy --real $(OUT)/prep/real.npy --pairs $(OUT)/prep/pairs_split.csv \
 	    --split val --model $(OUT)/gy.onnx --name paired-data --format md -o $(OUT)/train/model.md
 	cat $(OUT)/train/identity.md <(tail -n +3 $(OUT)/train/model.md) | tee $(OUT)/train/table.md
-	@echo "== 4b. downstream: flipper regressor and terrain classifier trained on sim, G_Y(sim) (holes thresholded and drawn), sensor(sim), measured"
+	@echo "== 4b. downstream: flipper regressor and terrain classifier trained on sim, G_Y(sim) (holes thresholded and drawn, then startup by time), sensor(sim), measured"
 	BIN=$(BIN) TD=$(TD) OUT=$(OUT)/transfer bash scripts/transfer.sh
 	@echo "== 5. CI guard: the validation table of a tiny model against testdata/eval_baseline.csv"
 	BIN=$(BIN) OUT=$(OUT)/eval_ci bash scripts/eval_ci.sh
@@ -160,7 +160,7 @@ demo: build venv
 	@echo "Data: $(OUT)/prep/ (sim keys, real, pairs.csv, cleaned and filled streams)"
 	@echo "Model: $(OUT)/gy.onnx (dem-apply --model $(OUT)/gy.onnx < sim.npy > realistic.npy); run: $(OUT)/train/"
 	@echo "Tables: $(OUT)/train/table.md (Identity vs G_Y: pair error, height error, roughness, gap), $(OUT)/eval_ci/compare.txt (CI guard)"
-	@echo "Transfer: $(OUT)/transfer/transfer.txt (flipper and terrain models trained on sim, G_Y(sim) (holes thresholded and drawn), sensor(sim), measured)"
+	@echo "Transfer: $(OUT)/transfer/transfer.txt (flipper and terrain models trained on sim, G_Y(sim) (holes thresholded and drawn, then startup by time), sensor(sim), measured)"
 	@echo "Gap: $(OUT)/gap/summary.md (effects named per emulator stage left out), $(OUT)/gap/exact-paired/report.md (report with pictures)"
 
 # The committed test data set (see testdata/README.md).

@@ -7,9 +7,12 @@
 #   sim records of every run not held out are the training inputs.
 #   1. G_Y: dem-filter -> dem-pair (by content, val split) -> dem-train -> export,
 #      on the non-held-out runs only (the generator never sees a test run);
-#   2. dem-gap names the gap on the same data; dem-sensor applies its model;
+#   2. dem-gap names the gap on the same data (with the labels' times); dem-sensor
+#      applies its model, and its `startup` effect alone after G_Y (the virtual
+#      sensor: G_Y for what terrain makes, startup for what time makes);
 #   3. dem-eval transfer trains the flipper regressor and terrain classifier on
-#      sim, G_Y(sim), sensor(sim) and measured, tests all on the held-out runs.
+#      sim, G_Y(sim) (thresholded, holes drawn, each then startup), sensor(sim)
+#      and measured, tests all on the held-out runs.
 #
 # Environment (all optional):
 #   BIN=target/release  TD=testdata  OUT=out/transfer
