@@ -183,3 +183,19 @@ fn patch_dropout_makes_blobs_of_its_size() {
     // Scattered cells at this rate would give rate^2 of pairs.
     assert!(pair_rate > 3.0 * rate * rate, "pairs {pair_rate} vs rate {rate}");
 }
+
+#[test]
+fn only_applies_the_named_effects_with_their_draws_and_names_a_missing_one() {
+    let dir = tempdir();
+    let model = arg(dir.path(), "m.json");
+    std::fs::write(&model, MODEL).unwrap();
+    let alone = arg(dir.path(), "alone.json");
+    std::fs::write(&alone, r#"{"effects": [{"effect": "noise", "params": {"sigma0": 0.003, "k": 0.01}}, {"effect": "dropout", "params": {"p": 0.05}}]}"#).unwrap();
+    let only = run("dem-sensor", &["apply", "--model", &model, "--only", "dropout,noise", "--seed", "3", &td("sim.npy")], None);
+    let same = run("dem-sensor", &["apply", "--model", &alone, "--seed", "3", &td("sim.npy")], None);
+    assert!(ok(&only) == ok(&same), "--only changed the effects' draws");
+    assert!(stderr(&only).contains("through noise") && !stderr(&only).contains("occlusion"), "{}", stderr(&only));
+    let missing = run("dem-sensor", &["apply", "--model", &model, "--only", "startup", &td("sim.npy")], None);
+    assert_eq!(missing.status.code(), Some(2));
+    assert!(stderr(&missing).contains("m.json: the model has no startup effect (it has: fov, occlusion"), "{}", stderr(&missing));
+}
