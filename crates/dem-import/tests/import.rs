@@ -8,6 +8,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use dem_core::{npy, table, Dem};
 use dem_testkit::{ok, run, stderr, workspace_root};
 
 fn python() -> PathBuf {
@@ -30,31 +31,22 @@ fn to_bag(world: &Path, out: &Path, args: &[&str]) {
     assert!(o.status.success(), "maps_to_bag.py failed:\n{}", String::from_utf8_lossy(&o.stderr));
 }
 
-fn read_npy(p: &Path) -> Vec<[f32; 210]> {
-    let bytes = std::fs::read(p).unwrap();
-    let hl = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
-    let body = &bytes[10 + hl..];
-    body.chunks_exact(840).map(|r| std::array::from_fn(|k| f32::from_le_bytes(r[4 * k..4 * k + 4].try_into().unwrap()))).collect()
+fn read_npy(p: &Path) -> Vec<Dem> {
+    npy::read_all(p.to_str().unwrap()).unwrap()
 }
 
 /// The real records of run `seq`, from dem-synth's labels.
-fn expected(world: &Path, seq: u64) -> Vec<[f32; 210]> {
+fn expected(world: &Path, seq: u64) -> Vec<Dem> {
     let all = read_npy(&world.join("real.npy"));
-    let labels = std::fs::read_to_string(world.join("real_labels.csv")).unwrap();
-    let mut out = Vec::new();
-    for line in labels.lines().skip(1) {
-        let f: Vec<&str> = line.split(',').collect();
-        if f[5].parse::<u64>().unwrap() == seq {
-            out.push(all[f[0].parse::<usize>().unwrap()]);
-        }
-    }
+    let labels = table::read_labels(world.join("real_labels.csv").to_str().unwrap()).unwrap();
+    let out: Vec<Dem> = labels.iter().filter(|l| l.sequence == Some(seq)).map(|l| all[l.index as usize]).collect();
     assert!(out.len() > 10, "run {seq} has {} records", out.len());
     out
 }
 
 /// Same validity everywhere; heights within 1e-5 m (the maps carry f32
 /// heights where the emulator averages f64); attitude within 1e-6 rad.
-fn assert_same(got: &[[f32; 210]], want: &[[f32; 210]], what: &str) {
+fn assert_same(got: &[Dem], want: &[Dem], what: &str) {
     assert_eq!(got.len(), want.len(), "{what}: record count");
     let mut worst = 0f32;
     let mut valid = 0;
@@ -195,7 +187,7 @@ fn bad_recordings_are_named_skipped_and_counted() {
 
 /// `whole` cut to 60 % as `cut`: exit 1, the break named with its byte
 /// offset, and the maps before it imported.
-fn truncated_keeps_the_maps_before_the_break(whole: &Path, cut: &Path, want: &[[f32; 210]]) {
+fn truncated_keeps_the_maps_before_the_break(whole: &Path, cut: &Path, want: &[Dem]) {
     let bytes = std::fs::read(whole).unwrap();
     std::fs::write(cut, &bytes[..bytes.len() * 6 / 10]).unwrap();
     let out = cut.with_extension("out");
