@@ -31,6 +31,15 @@ heights relative to the robot centre; missing = mask -1, height 0):
                square lies within r of the centre missing
   edge-holes   a valid cell with a valid 4-neighbour more than g higher is
                missing with probability p
+  mixed-cells  a cell is the mean of its back and front halves (centres 2.5
+               cm and 7.5 cm from each boundary); at a boundary between
+               valid x-neighbours more than 5 cm apart the step lies at s,
+               uniform in [-5, 5] cm past the boundary into the lower cell,
+               and the higher surface reaches s + e into it, e = u up (higher
+               cell ahead) or u down (higher cell behind), u uniform: each
+               half of the lower cell whose centre that reaches reads the
+               higher height; each half of the higher cell whose centre
+               -(s + e) reaches reads the lower height (a raise wins)
 """
 import sys
 import numpy as np
@@ -157,9 +166,36 @@ def edge_holes(d, rng, g, p):
     set_missing(d, jump & valid & (rng.random((20, 5)) < p))
 
 
+def mixed_cells(d, rng, up, down):
+    z = d[:20, :, 0].astype(np.float64)
+    valid = d[:20, :, 1] > 0
+    halves = np.repeat(z[:, :, None], 2, axis=2)  # [..., 0] back, [..., 1] front
+    raised = np.zeros((20, 5, 2), bool)
+    for b in range(19):
+        s = rng.uniform(-0.05, 0.05)
+        for c in range(5):
+            e = rng.random()
+            if not (valid[b, c] and valid[b + 1, c]) or abs(z[b + 1, c] - z[b, c]) <= 0.05:
+                continue
+            if z[b + 1, c] > z[b, c]:  # riser ahead: row b is the lower cell, its front half touches
+                lo, lo_near, hi, hi_near, reach = b, 1, b + 1, 0, s + e * up
+            else:  # drop ahead: row b + 1 is lower, its back half touches
+                lo, lo_near, hi, hi_near, reach = b + 1, 0, b, 1, s + e * down
+            zlo, zhi = min(z[b, c], z[b + 1, c]), max(z[b, c], z[b + 1, c])
+            for dist, h in ((0.025, lo_near), (0.075, 1 - lo_near)):
+                if reach > dist:
+                    halves[lo, c, h] = zhi if not raised[lo, c, h] else max(halves[lo, c, h], zhi)
+                    raised[lo, c, h] = True
+            for dist, h in ((0.025, hi_near), (0.075, 1 - hi_near)):
+                if -reach > dist and not raised[hi, c, h]:
+                    halves[hi, c, h] = min(halves[hi, c, h], zlo)
+    d[:20, :, 0] = np.where(valid, halves.mean(axis=2), d[:20, :, 0])
+
+
 EFFECTS = {"noise": noise, "dropout": dropout, "row-dropout": row_dropout, "occlusion": occlusion,
            "fov": fov, "smoothing": smoothing, "bias": bias, "quantization": quantization,
-           "startup": startup, "patch-dropout": patch_dropout, "edge-holes": edge_holes}
+           "startup": startup, "patch-dropout": patch_dropout, "edge-holes": edge_holes,
+           "mixed-cells": mixed_cells}
 
 
 def main():

@@ -160,6 +160,52 @@ pub fn evidence(effect: &Effect, before: &Stats, after: &Stats, real: &Stats, ga
                 if r > b { "holes at height jumps" } else { "no more of them in real: the holes are the closest effect, not a clear one" }
             )
         }
+        Effect::ViewTop { h, t } => {
+            let far = |s: &Stats| s.mean_over("missing", 15..20);
+            format!(
+                "cells far ahead (rows 15-19) missing: real {} vs model {}: terrain above a line {} above C falling {} per metre is out of view",
+                pct(far(real)),
+                pct(far(before)),
+                mm(h),
+                mm(t),
+            )
+        }
+        Effect::RimHoles { .. } => {
+            let (r, b) = (real.mean_over("jump-missing", 0..20), before.mean_over("jump-missing", 0..20));
+            format!(
+                "missing cells between valid cells of their column that differ by 5 cm or more: real {} vs model {}; missing cells real {} vs model {}: {}",
+                pct(r),
+                pct(b),
+                pct(real.mean_over("missing", 0..20)),
+                pct(before.mean_over("missing", 0..20)),
+                if r > b { "holes at height jumps, on their upper side too" } else { "no more holes at jumps in real: the rim holes are the closest effect, not a clear one" }
+            )
+        }
+        Effect::PitFill { .. } => {
+            let (r2, b2) = (real.mean_over("edge-2cm", 0..19), before.mean_over("edge-2cm", 0..19));
+            format!(
+                "steps between neighbouring rows above 0.02 m: real {} vs model {}: {}",
+                pct(r2),
+                pct(b2),
+                if r2 < b2 { "narrow pits read as their rims" } else { "real has as many steps: the filled pits are the closest effect, not a clear one" }
+            )
+        }
+        Effect::MixedCells { .. } => {
+            let (r10, b10) = (real.mean_over("edge-10cm", 0..19), before.mean_over("edge-10cm", 0..19));
+            let mid = |s: &Stats| s.mean_over("edge-2cm", 0..19) - s.mean_over("edge-10cm", 0..19);
+            let verdict = if r10 < b10 && mid(real) > mid(before) {
+                "a cell beside a step reads part of the way up: jumps split into two smaller ones"
+            } else {
+                "no clear split of jumps in real: mixed cells are the closest effect, not a clear one"
+            };
+            format!(
+                "steps between neighbouring rows above 0.1 m: real {} vs model {}; of 0.02-0.1 m: real {} vs model {}: {verdict}",
+                pct(r10),
+                pct(b10),
+                pct(mid(real)),
+                pct(mid(before)),
+            )
+        }
         Effect::Smoothing { .. } => {
             let (r10, b10) = (real.mean_over("edge-10cm", 0..19), before.mean_over("edge-10cm", 0..19));
             let verdict = if r10 < b10 {

@@ -35,6 +35,8 @@ pub fn ranges(name: &str) -> Vec<Range> {
         // within the tracks and flippers.
         "occlusion" => vec![lin(0.2, 1.2), lin(-0.4, 0.5)],
         "fov" => vec![lin(-0.65, 0.55), lin(0.35, 1.45)],
+        // A camera 0.2-1.2 m above C whose top ray falls 0-60 degrees.
+        "view-top" => vec![lin(0.1, 1.5), lin(0.0, 1.7)],
         "smoothing" => vec![lin(0.05, 1.0)],
         "bias" => vec![lin(-0.1, 0.1), lin(-0.1, 0.1)],
         "quantization" => vec![Range { lo: 0.002, hi: 0.05, log: true }],
@@ -44,7 +46,9 @@ pub fn ranges(name: &str) -> Vec<Range> {
         // A blob is more than one cell: r from 2 cm (up to four cells
         // around a corner); smaller is `dropout`'s business.
         "patch-dropout" => vec![lin(0.0, 4.0), lin(0.02, 0.2)],
-        "edge-holes" => vec![lin(0.02, 0.3), lin(0.0, 1.0)],
+        "edge-holes" | "rim-holes" | "pit-fill" => vec![lin(0.02, 0.3), lin(0.0, 1.0)],
+        // Reaches from none (the halves' mean alone) to a whole cell.
+        "mixed-cells" => vec![lin(0.0, 0.15), lin(0.0, 0.15)],
         _ => vec![],
     }
 }
@@ -59,12 +63,17 @@ pub fn limits(name: &str) -> Vec<(f64, f64, bool, bool)> {
         "dropout" | "row-dropout" => vec![(0.0, 1.0, true, false)],
         "occlusion" => vec![(0.05, 3.0, false, false), (-1.0, 1.2, false, false)],
         "fov" => vec![(-0.65, 0.55, true, false), (0.35, 1.45, false, true)],
+        // High enough or flat enough, the ray clears everything: natural ends.
+        "view-top" => vec![(0.0, 3.0, false, true), (-1.0, 3.0, true, false)],
         "smoothing" => vec![(0.01, 1.0, false, true)],
         "bias" => vec![(-0.5, 0.5, false, false), (-0.5, 0.5, false, false)],
         "quantization" => vec![(0.0005, 0.2, false, false)],
         "startup" => vec![(-0.6, 1.45, true, true), (0.005, 3.0, false, false), (0.0, 1.0, true, false)],
         "patch-dropout" => vec![(0.0, 8.0, true, false), (0.02, 0.5, true, false)],
-        "edge-holes" => vec![(0.005, 1.0, false, true), (0.0, 1.0, true, false)],
+        "edge-holes" | "rim-holes" | "pit-fill" => vec![(0.005, 1.0, false, true), (0.0, 1.0, true, false)],
+        // Past 0.2 m the surface reaches past the far half of the lower
+        // cell whatever the step's place: larger reaches change nothing.
+        "mixed-cells" => vec![(0.0, 0.2, true, true), (0.0, 0.2, true, true)],
         _ => vec![],
     }
 }

@@ -13,12 +13,16 @@
 //! | `row-dropout` | each grid row wholly missing with probability p |
 //! | `occlusion` | in each column, a sensor at (x0, h) looks at the far edge of each cell's top; the cell is missing when the line of sight passes more than [`OCCLUSION_TOLERANCE`] below the top of a valid cell between |
 //! | `fov` | cells whose centre x is outside [x_min, x_max] missing |
+//! | `view-top` | cells whose height lies above the line z = h - t x (the upper edge of the camera's vertical field of view) missing |
 //! | `smoothing` | h = (w h + (1-w)/8 sum of valid 3x3 neighbours) / (w + (1-w)/8 n_valid) |
 //! | `bias` | h += b + t x |
 //! | `quantization` | h = q floor(h / q + 1/2) |
 //! | `startup` | rows whose centre x < e missing: e = x0 - v t for a record t seconds into its run (labels' `time`, v > 0); without a time, with probability p the record is a startup frame and e = x0 - u (x0 + 0.6), u uniform |
 //! | `patch-dropout` | blobs: each of [`PATCH_SLOTS`] slots holds a blob with probability n / slots, centred uniformly over the grid; cells whose square lies within r of a blob centre missing |
 //! | `edge-holes` | a valid cell whose valid 4-neighbour is higher by more than g is missing with probability p (the foot of a height jump) |
+//! | `rim-holes` | a valid cell whose valid 4-neighbour is lower by more than g is missing with probability p (the rim of a height jump) |
+//! | `pit-fill` | a valid cell lower by more than g than both valid neighbours of a line through it (rows r +- 1, or columns c +- 1) reads the lower of the two with probability p |
+//! | `mixed-cells` | a cell is the mean of its two half cells along x; at a jump of more than [`MIXED_JUMP`] between valid x-neighbours the step lies at s, uniform over the 10 cm between their centres (one draw per row boundary), and the higher surface reaches e = u r past it into the lower cell (u uniform per cell; r = `up` when the higher cell lies ahead, `down` when it lies behind, i.e. beyond a drop): a half of the lower cell whose centre the higher surface reaches reads the higher height, a half of the higher cell the lower surface reaches (the step lies in it, deeper than e) reads the lower height |
 
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
@@ -44,6 +48,10 @@ const HALF: f64 = 0.05;
 pub const PATCH_SLOTS: usize = 8;
 /// Back edge of the grid (m): where a startup frame's blind edge ends.
 const X_BACK: f64 = -0.6;
+/// Height difference (m) between x-neighbours that `mixed-cells` treats as
+/// a step (the `jump-missing` statistic's threshold): below it the terrain
+/// is a slope, whose cell mean is the centre's height.
+pub const MIXED_JUMP: f64 = 0.05;
 
 /// One effect with its parameters. JSON: `{"effect": NAME, "params": {...}}`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -79,6 +87,14 @@ pub enum Effect {
         x_min: f64,
         /// Farthest x observed (m).
         x_max: f64,
+    },
+    /// The upper edge of the vertical field of view: terrain above the top
+    /// ray is never seen (far treads of stairs going up, tall obstacles).
+    ViewTop {
+        /// Height (m) of the top ray above C at x = 0.
+        h: f64,
+        /// Its fall per metre along x (the tangent of its depression angle).
+        t: f64,
     },
     /// Fusion blurs edges: 3x3 kernel with centre weight w.
     Smoothing {
@@ -122,10 +138,40 @@ pub enum Effect {
         /// Probability that such a cell is lost.
         p: f64,
     },
+    /// Holes at the rim of height jumps (the stereo matcher's consistency
+    /// check rejects pixels whose window straddles the jump on the near side
+    /// too).
+    RimHoles {
+        /// Jump (m) above which the higher cell may be lost.
+        g: f64,
+        /// Probability that such a cell is lost.
+        p: f64,
+    },
+    /// Narrow pits read as their rims: a gap narrower than a map cell (between
+    /// pallet boards, say) is never seen to its bottom, and a map cell over it
+    /// keeps the tops around it.
+    PitFill {
+        /// Depth (m) below both neighbours above which a cell is a pit.
+        g: f64,
+        /// Probability that a pit is filled.
+        p: f64,
+    },
+    /// Cells that straddle a step read part of the way up or down: a DEM
+    /// cell is the mean of finer map cells, and a map cell holding a step
+    /// keeps the higher surface (lower points hide under tops; the ground
+    /// just beyond a drop edge is hidden by the edge).
+    MixedCells {
+        /// How far (m, at most) a riser's top reaches back into the lower
+        /// cell in front of it.
+        up: f64,
+        /// How far (m, at most) a drop edge's top reaches on into the lower
+        /// cell beyond it.
+        down: f64,
+    },
 }
 
 /// Every effect name, in the vocabulary's order.
-pub const NAMES: [&str; 11] = [
+pub const NAMES: [&str; 15] = [
     "noise",
     "dropout",
     "row-dropout",
@@ -137,6 +183,10 @@ pub const NAMES: [&str; 11] = [
     "startup",
     "patch-dropout",
     "edge-holes",
+    "mixed-cells",
+    "rim-holes",
+    "pit-fill",
+    "view-top",
 ];
 
 impl Effect {
@@ -154,6 +204,10 @@ impl Effect {
             Effect::Startup { .. } => "startup",
             Effect::PatchDropout { .. } => "patch-dropout",
             Effect::EdgeHoles { .. } => "edge-holes",
+            Effect::MixedCells { .. } => "mixed-cells",
+            Effect::RimHoles { .. } => "rim-holes",
+            Effect::PitFill { .. } => "pit-fill",
+            Effect::ViewTop { .. } => "view-top",
         }
     }
 
@@ -164,12 +218,14 @@ impl Effect {
             Effect::Dropout { p } | Effect::RowDropout { p } => vec![("p", p)],
             Effect::Occlusion { h, x0 } => vec![("h", h), ("x0", x0)],
             Effect::Fov { x_min, x_max } => vec![("x_min", x_min), ("x_max", x_max)],
+            Effect::ViewTop { h, t } => vec![("h", h), ("t", t)],
             Effect::Smoothing { w } => vec![("w", w)],
             Effect::Bias { b, t } => vec![("b", b), ("t", t)],
             Effect::Quantization { q } => vec![("q", q)],
             Effect::Startup { x0, v, p } => vec![("x0", x0), ("v", v), ("p", p)],
             Effect::PatchDropout { n, r } => vec![("n", n), ("r", r)],
-            Effect::EdgeHoles { g, p } => vec![("g", g), ("p", p)],
+            Effect::EdgeHoles { g, p } | Effect::RimHoles { g, p } | Effect::PitFill { g, p } => vec![("g", g), ("p", p)],
+            Effect::MixedCells { up, down } => vec![("up", up), ("down", down)],
         }
     }
 
@@ -188,27 +244,34 @@ impl Effect {
             "startup" => Effect::Startup { x0: g(0)?, v: g(1)?, p: g(2)? },
             "patch-dropout" => Effect::PatchDropout { n: g(0)?, r: g(1)? },
             "edge-holes" => Effect::EdgeHoles { g: g(0)?, p: g(1)? },
+            "mixed-cells" => Effect::MixedCells { up: g(0)?, down: g(1)? },
+            "rim-holes" => Effect::RimHoles { g: g(0)?, p: g(1)? },
+            "pit-fill" => Effect::PitFill { g: g(0)?, p: g(1)? },
+            "view-top" => Effect::ViewTop { h: g(0)?, t: g(1)? },
             _ => return None,
         })
     }
 
     /// Place in the physical chain: what the sensor can see (fov,
     /// startup, occlusion), what the matcher rejects at jumps (edge-holes),
-    /// how fusion shapes heights (smoothing, bias, noise, quantization),
+    /// how fusion and resampling shape heights (mixed-cells, smoothing,
+    /// bias, noise, quantization),
     /// what is lost at the end (dropout, patch-dropout, row-dropout).
     pub fn stage(&self) -> u8 {
         match self {
-            Effect::Fov { .. } => 0,
+            Effect::Fov { .. } | Effect::ViewTop { .. } => 0,
             Effect::Startup { .. } => 1,
             Effect::Occlusion { .. } => 2,
-            Effect::EdgeHoles { .. } => 3,
-            Effect::Smoothing { .. } => 4,
-            Effect::Bias { .. } => 5,
-            Effect::Noise { .. } => 6,
-            Effect::Quantization { .. } => 7,
-            Effect::Dropout { .. } => 8,
-            Effect::PatchDropout { .. } => 9,
-            Effect::RowDropout { .. } => 10,
+            Effect::EdgeHoles { .. } | Effect::RimHoles { .. } => 3,
+            Effect::PitFill { .. } => 4,
+            Effect::MixedCells { .. } => 5,
+            Effect::Smoothing { .. } => 6,
+            Effect::Bias { .. } => 7,
+            Effect::Noise { .. } => 8,
+            Effect::Quantization { .. } => 9,
+            Effect::Dropout { .. } => 10,
+            Effect::PatchDropout { .. } => 11,
+            Effect::RowDropout { .. } => 12,
         }
     }
 
@@ -223,7 +286,12 @@ impl Effect {
         }
         match *self {
             Effect::Noise { sigma0, k } if sigma0 < 0.0 || k < 0.0 => Err("sigma0 and k must be >= 0".into()),
-            Effect::Dropout { p } | Effect::RowDropout { p } | Effect::Startup { p, .. } | Effect::EdgeHoles { p, .. }
+            Effect::Dropout { p }
+            | Effect::RowDropout { p }
+            | Effect::Startup { p, .. }
+            | Effect::EdgeHoles { p, .. }
+            | Effect::RimHoles { p, .. }
+            | Effect::PitFill { p, .. }
                 if !(0.0..=1.0).contains(&p) =>
             {
                 Err(format!("p = {p} is not a probability"))
@@ -232,7 +300,10 @@ impl Effect {
             Effect::PatchDropout { n, r } if !(0.0..=PATCH_SLOTS as f64).contains(&n) || r < 0.0 => {
                 Err(format!("n = {n} must be in [0, {PATCH_SLOTS}] and r = {r} >= 0"))
             }
-            Effect::EdgeHoles { g, .. } if g <= 0.0 => Err(format!("g = {g} must be > 0")),
+            Effect::EdgeHoles { g, .. } | Effect::RimHoles { g, .. } | Effect::PitFill { g, .. } if g <= 0.0 => {
+                Err(format!("g = {g} must be > 0"))
+            }
+            Effect::MixedCells { up, down } if up < 0.0 || down < 0.0 => Err(format!("up = {up} and down = {down} must be >= 0")),
             Effect::Occlusion { h, .. } if h <= 0.0 => Err(format!("sensor height h = {h} must be > 0")),
             Effect::Fov { x_min, x_max } if x_min >= x_max => Err(format!("x_min = {x_min} must be < x_max = {x_max}")),
             Effect::Smoothing { w } if !(w > 0.0 && w <= 1.0) => Err(format!("w = {w} must be in (0, 1]")),
@@ -243,8 +314,9 @@ impl Effect {
 
     /// Apply to one DEM with this effect's random stream for the record.
     /// Draws a fixed number of values whatever the parameters: 100 normals
-    /// (noise), 100 uniforms (dropout, edge-holes), 20 uniforms
-    /// (row-dropout), 2 (startup), 3 per slot (patch-dropout).
+    /// (noise), 100 uniforms (dropout, edge-holes, rim-holes, pit-fill), 20 uniforms
+    /// (row-dropout), 2 (startup), 3 per slot (patch-dropout), 19 + 95
+    /// (mixed-cells: a step position per row boundary, a reach per cell pair).
     pub fn apply(&self, d: &mut Dem, rng: &mut ChaCha8Rng) {
         self.apply_at(d, rng, None)
     }
@@ -291,6 +363,16 @@ impl Effect {
                     let x = row_center_x(r);
                     if x < x_min || x > x_max {
                         (0..COLS).for_each(|c| d.set_missing(r, c));
+                    }
+                }
+            }
+            Effect::ViewTop { h, t } => {
+                for r in 0..GRID_ROWS {
+                    let top = h - t * row_center_x(r);
+                    for c in 0..COLS {
+                        if d.is_valid(r, c) && d.height(r, c) as f64 > top {
+                            d.set_missing(r, c);
+                        }
                     }
                 }
             }
@@ -349,18 +431,24 @@ impl Effect {
                     }
                 }
             }
-            Effect::EdgeHoles { g, p } => {
+            Effect::MixedCells { up, down } => mix_cells(d, rng, up, down),
+            Effect::EdgeHoles { g, p } => jump_holes(d, rng, g, p, 1.0),
+            Effect::RimHoles { g, p } => jump_holes(d, rng, g, p, -1.0),
+            Effect::PitFill { g, p } => {
                 let z = heights(d);
+                let at = |r: usize, c: usize| if r < GRID_ROWS && c < COLS { z[r][c] } else { None };
                 for r in 0..GRID_ROWS {
                     for c in 0..COLS {
                         let u: f64 = rng.gen();
                         let Some(zc) = z[r][c] else { continue };
-                        let jump = [(r.wrapping_sub(1), c), (r + 1, c), (r, c.wrapping_sub(1)), (r, c + 1)]
+                        let rims = [(at(r.wrapping_sub(1), c), at(r + 1, c)), (at(r, c.wrapping_sub(1)), at(r, c + 1))];
+                        let fill = rims
                             .into_iter()
-                            .filter(|&(rr, cc)| rr < GRID_ROWS && cc < COLS)
-                            .any(|(rr, cc)| z[rr][cc].is_some_and(|zn| zn - zc > g));
-                        if jump && u < p {
-                            d.set_missing(r, c);
+                            .filter_map(|(a, b)| Some(a?.min(b?)))
+                            .filter(|&rim| rim - zc > g)
+                            .reduce(f64::max);
+                        if let (Some(rim), true) = (fill, u < p) {
+                            d.set_valid(r, c, rim as f32);
                         }
                     }
                 }
@@ -413,6 +501,83 @@ fn occlude(d: &mut Dem, h: f64, x0: f64) {
         for c in 0..COLS {
             if hidden(&z, t, c, h, x0) {
                 d.set_missing(t, c);
+            }
+        }
+    }
+}
+
+/// `edge-holes` (`sign` 1: a neighbour higher by more than g) and
+/// `rim-holes` (`sign` -1: lower by more than g): the cell is lost with
+/// probability p.
+fn jump_holes(d: &mut Dem, rng: &mut ChaCha8Rng, g: f64, p: f64, sign: f64) {
+    let z = heights(d);
+    for r in 0..GRID_ROWS {
+        for c in 0..COLS {
+            let u: f64 = rng.gen();
+            let Some(zc) = z[r][c] else { continue };
+            let jump = [(r.wrapping_sub(1), c), (r + 1, c), (r, c.wrapping_sub(1)), (r, c + 1)]
+                .into_iter()
+                .filter(|&(rr, cc)| rr < GRID_ROWS && cc < COLS)
+                .any(|(rr, cc)| z[rr][cc].is_some_and(|zn| sign * (zn - zc) > g));
+            if jump && u < p {
+                d.set_missing(r, c);
+            }
+        }
+    }
+}
+
+/// `mixed-cells` (formula in the module table). Each cell is two halves
+/// along x, back (toward row r - 1) and front; a half's centre lies
+/// [`HALF`] / 2 from its cell's boundary, the other half's 3/2 [`HALF`].
+/// Where neighbours both reach a half, the higher surface wins, as in a
+/// map cell that keeps the higher of two heights.
+fn mix_cells(d: &mut Dem, rng: &mut ChaCha8Rng, up: f64, down: f64) {
+    let z = heights(d);
+    // Per half: the height the higher neighbour spills in, the lower one's.
+    let mut raise = [[[f64::NEG_INFINITY; 2]; COLS]; GRID_ROWS];
+    let mut lower = [[[f64::INFINITY; 2]; COLS]; GRID_ROWS];
+    let (near, far) = (0.5 * HALF, 1.5 * HALF);
+    for b in 0..GRID_ROWS - 1 {
+        // The step's distance past the boundary into row b (negative: into b + 1).
+        let s = (1.0 - 2.0 * rng.gen::<f64>()) * HALF;
+        for c in 0..COLS {
+            let u: f64 = rng.gen();
+            let (Some(z0), Some(z1)) = (z[b][c], z[b + 1][c]) else { continue };
+            if (z1 - z0).abs() <= MIXED_JUMP {
+                continue;
+            }
+            // (lower row, its half at the boundary, higher row, its half, step depth into the lower row)
+            let (lo, lo_half, hi, hi_half, depth, reach) =
+                if z1 > z0 { (b, 1, b + 1, 0, s, up) } else { (b + 1, 0, b, 1, -s, down) };
+            let (zlo, zhi) = (z0.min(z1), z0.max(z1));
+            let into_low = depth + u * reach;
+            for (dist, h) in [(near, lo_half), (far, 1 - lo_half)] {
+                if into_low > dist {
+                    raise[lo][c][h] = raise[lo][c][h].max(zhi);
+                }
+            }
+            for (dist, h) in [(near, hi_half), (far, 1 - hi_half)] {
+                if -into_low > dist {
+                    lower[hi][c][h] = lower[hi][c][h].min(zlo);
+                }
+            }
+        }
+    }
+    for r in 0..GRID_ROWS {
+        for c in 0..COLS {
+            let Some(zc) = z[r][c] else { continue };
+            let half = |h: usize| {
+                if raise[r][c][h].is_finite() {
+                    raise[r][c][h]
+                } else if lower[r][c][h].is_finite() {
+                    lower[r][c][h]
+                } else {
+                    zc
+                }
+            };
+            let m = 0.5 * (half(0) + half(1));
+            if m != zc {
+                d.set_valid(r, c, m as f32);
             }
         }
     }
