@@ -31,6 +31,13 @@ heights relative to the robot centre; missing = mask -1, height 0):
                square lies within r of the centre missing
   edge-holes   a valid cell with a valid 4-neighbour more than g higher is
                missing with probability p
+  rim-holes    a valid cell with a valid 4-neighbour more than g lower is
+               missing with probability p
+  pit-fill     a valid cell more than g below both valid neighbours along x
+               (rows r-1, r+1) or along y (columns c-1, c+1) reads the lower of
+               the two with probability p (the higher such rim when both lines
+               qualify)
+  view-top     cells whose height is above h - t x missing
   mixed-cells  a cell is the mean of its back and front halves (centres 2.5
                cm and 7.5 cm from each boundary); at a boundary between
                valid x-neighbours more than 5 cm apart the step lies at s,
@@ -166,6 +173,34 @@ def edge_holes(d, rng, g, p):
     set_missing(d, jump & valid & (rng.random((20, 5)) < p))
 
 
+def rim_holes(d, rng, g, p):
+    z = d[:20, :, 0].astype(np.float64)
+    valid = d[:20, :, 1] > 0
+    zp = np.pad(np.where(valid, z, np.inf), 1, constant_values=np.inf)
+    jump = np.zeros((20, 5), bool)
+    for dr, dc in ((-1, 0), (1, 0), (0, -1), (0, 1)):
+        jump |= z - zp[1 + dr:21 + dr, 1 + dc:6 + dc] > g
+    set_missing(d, jump & valid & (rng.random((20, 5)) < p))
+
+
+def pit_fill(d, rng, g, p):
+    z = d[:20, :, 0].astype(np.float64)
+    valid = d[:20, :, 1] > 0
+    zp = np.pad(np.where(valid, z, -np.inf), 1, constant_values=-np.inf)
+    rims = []
+    for (a, b) in (((-1, 0), (1, 0)), ((0, -1), (0, 1))):
+        lo = np.minimum(zp[1 + a[0]:21 + a[0], 1 + a[1]:6 + a[1]], zp[1 + b[0]:21 + b[0], 1 + b[1]:6 + b[1]])
+        rims.append(np.where(lo - z > g, lo, -np.inf))
+    rim = np.maximum(*rims)
+    fill = valid & np.isfinite(rim) & (rng.random((20, 5)) < p)
+    d[:20, :, 0] = np.where(fill, rim, d[:20, :, 0])
+
+
+def view_top(d, rng, h, t):
+    valid = d[:20, :, 1] > 0
+    set_missing(d, valid & (d[:20, :, 0] > (h - t * X)[:, None]))
+
+
 def mixed_cells(d, rng, up, down):
     z = d[:20, :, 0].astype(np.float64)
     valid = d[:20, :, 1] > 0
@@ -195,7 +230,7 @@ def mixed_cells(d, rng, up, down):
 EFFECTS = {"noise": noise, "dropout": dropout, "row-dropout": row_dropout, "occlusion": occlusion,
            "fov": fov, "smoothing": smoothing, "bias": bias, "quantization": quantization,
            "startup": startup, "patch-dropout": patch_dropout, "edge-holes": edge_holes,
-           "mixed-cells": mixed_cells}
+           "mixed-cells": mixed_cells, "rim-holes": rim_holes, "pit-fill": pit_fill, "view-top": view_top}
 
 
 def main():

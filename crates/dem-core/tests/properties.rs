@@ -131,7 +131,9 @@ proptest! {
             "quantization" => format!(r#"{{"q":{a}}}"#),
             "startup" => format!(r#"{{"x0":{a},"v":{b},"p":{c}}}"#),
             "patch-dropout" => format!(r#"{{"n":{a},"r":{b}}}"#),
-            "edge-holes" => format!(r#"{{"g":{a},"p":{c}}}"#),
+            "edge-holes" | "rim-holes" | "pit-fill" => format!(r#"{{"g":{a},"p":{c}}}"#),
+            "mixed-cells" => format!(r#"{{"up":{a},"down":{b}}}"#),
+            "view-top" => format!(r#"{{"h":{a},"t":{b}}}"#),
             other => unreachable!("{other}"),
         };
         let json = format!(r#"{{"effects":[{{"effect":"{effect}","params":{params}}}]}}"#);

@@ -150,6 +150,44 @@ fn hidden_edge_holes() {
     }
 }
 
+#[test]
+fn hidden_rim_holes() {
+    // As edge-holes: g only below the jumps of the data.
+    let dir = tempdir();
+    let (sim, pairs) = setup(dir.path());
+    let real = hide(dir.path(), &sim, "real.npy", &["rim-holes:g=0.07,p=0.5"]);
+    for (p, out) in [(Some(pairs.as_str()), "paired"), (None, "unpaired")] {
+        let r = gap(dir.path(), &sim, &real, p, &[], out);
+        check_single(&r, "rim-holes", &[("p", 0.5, None)]);
+        assert!(param(&r, 0, "g") < 0.14, "{r:#}");
+    }
+}
+
+#[test]
+fn hidden_pit_fill() {
+    // The pits of the data (pallet gaps) are 0.1-0.2 m deep: g only below them.
+    let dir = tempdir();
+    let (sim, pairs) = setup(dir.path());
+    let real = hide(dir.path(), &sim, "real.npy", &["pit-fill:g=0.04,p=0.8"]);
+    for (p, out) in [(Some(pairs.as_str()), "paired"), (None, "unpaired")] {
+        let r = gap(dir.path(), &sim, &real, p, &[], out);
+        check_single(&r, "pit-fill", &[("p", 0.8, None)]);
+        assert!(param(&r, 0, "g") < 0.1, "{r:#}");
+    }
+}
+
+#[test]
+fn hidden_view_top() {
+    single("view-top", "view-top:h=0.5,t=0.3", &[("h", 0.5, None), ("t", 0.3, None)]);
+}
+
+#[test]
+fn hidden_mixed_cells() {
+    // The step's place is drawn anew by the numpy peer, so the paired gap
+    // keeps the draws' difference; reaches within 2 and 3 cm.
+    single("mixed-cells", "mixed-cells:up=0.04,down=0.09", &[("up", 0.04, Some(0.02)), ("down", 0.09, Some(0.03))]);
+}
+
 /// A fit on the edge of its box is flagged in report.json, report.md and
 /// on stderr: bias hidden beyond its box (b = 0.3 m, the box ends at 0.1 m
 /// and may widen to 0.5 m) is found after widening; hidden beyond the

@@ -660,6 +660,66 @@ mod tests {
         assert!((d.height(9, 1) - (-0.07 + 0.8 / 16.0 / (0.5 + 0.5))).abs() < 1e-6);
     }
 
+    /// Without reach, mixed-cells is the mean of two half cells with the
+    /// step uniform between the centres: the lower cell next to a riser
+    /// reads half way up when the step lies in its front quarter
+    /// (probability 1/4), else its own height; the higher cell half way down
+    /// with probability 1/4; slopes (jumps up to 5 cm) are left alone.
+    #[test]
+    fn mixed_cells_without_reach_is_the_mean_of_half_cells() {
+        let (mut low_half, mut high_half) = (0usize, 0usize);
+        let mut r1 = rng();
+        let n = 4000;
+        for _ in 0..n {
+            let mut d = flat();
+            for r in 10..GRID_ROWS {
+                (0..COLS).for_each(|c| d.set_valid(r, c, 0.13));
+            }
+            d.set_valid(5, 2, -0.03); // a 4 cm bump: a slope, not a step
+            Effect::MixedCells { up: 0.0, down: 0.0 }.apply(&mut d, &mut r1);
+            let (lo, hi) = (d.height(9, 0) as f64, d.height(10, 0) as f64);
+            assert!([-0.07, 0.03].iter().any(|v| (lo - v).abs() < 1e-6), "lower cell reads {lo}");
+            assert!([0.13, 0.03].iter().any(|v| (hi - v).abs() < 1e-6), "higher cell reads {hi}");
+            low_half += usize::from((lo - 0.03).abs() < 1e-6);
+            high_half += usize::from((hi - 0.03).abs() < 1e-6);
+            assert_eq!(d.height(5, 2), -0.03);
+            assert_eq!(d.height(8, 0), FLAT_GROUND);
+            assert!((0..COLS).all(|c| d.height(9, c) == d.height(9, 0)), "one step position per row boundary");
+        }
+        for k in [low_half, high_half] {
+            assert!((k as f64 / n as f64 - 0.25).abs() < 0.03, "{k} of {n}");
+        }
+        // A long reach past a drop: the cell beyond the edge reads the top
+        // unless the step lies deep in it and the reach is short.
+        let mut full = 0;
+        for _ in 0..n {
+            let mut d = flat();
+            for r in 0..10 {
+                (0..COLS).for_each(|c| d.set_valid(r, c, 0.13));
+            }
+            Effect::MixedCells { up: 0.0, down: 1.0 }.apply(&mut d, &mut r1);
+            full += usize::from((d.height(10, 0) - 0.13).abs() < 1e-6);
+            assert_eq!(d.height(11, 0), FLAT_GROUND);
+        }
+        assert!(full as f64 / n as f64 > 0.85, "{full}");
+    }
+
+    #[test]
+    fn pit_fill_rim_holes_and_view_top_follow_their_formulas() {
+        let mut d = flat();
+        d.set_valid(8, 1, -0.2); // a pallet gap: a pit along x and y
+        d.set_valid(12, 2, 0.2); // a post: its rim cell is lost
+        Effect::PitFill { g: 0.05, p: 1.0 }.apply(&mut d, &mut rng());
+        assert_eq!(d.height(8, 1), FLAT_GROUND);
+        Effect::RimHoles { g: 0.05, p: 1.0 }.apply(&mut d, &mut rng());
+        assert!(!d.is_valid(12, 2) && d.is_valid(11, 2) && d.is_valid(12, 1));
+        let mut d = flat();
+        d.set_valid(15, 0, 0.2); // x = 0.95: above 0.4 - 0.3 x = 0.115
+        d.set_valid(5, 0, 0.2); // x = -0.05: below 0.415
+        Effect::ViewTop { h: 0.4, t: 0.3 }.apply(&mut d, &mut rng());
+        assert!(!d.is_valid(15, 0) && d.is_valid(5, 0) && d.valid_cells() == 99);
+    }
+
     #[test]
     fn random_effects_have_their_rates_and_spread() {
         let (mut miss, mut rows, mut sq) = (0usize, 0usize, 0.0);
