@@ -17,7 +17,9 @@ heights relative to the robot centre; missing = mask -1, height 0):
   row-dropout  each row wholly missing with probability p
   occlusion    per column, sensor at (x0, h): a cell is hidden when the line
                to the far edge of its top passes more than 1 cm below the top
-               of a valid cell between them (tops are 10 cm wide)
+               of a valid cell between them (tops are 10 cm wide), or when
+               its top is more than 1 cm above the sensor and its valid
+               neighbour toward the sensor is not more than 1 cm lower
   fov          rows whose centre x is outside [x_min, x_max] missing
   smoothing    3x3 kernel, centre weight w, neighbours (1-w)/8, valid only,
                normalised by the weights used
@@ -91,6 +93,12 @@ def occlusion(d, rng, h, x0):
     for c in range(5):
         for t in range(20):
             if not valid[t, c] or abs(X[t] - x0) <= 0.05:
+                continue
+            # a top above the sensor is seen only where it holds the face
+            # toward the sensor (its near neighbour is lower)
+            near = t - 1 if X[t] > x0 else t + 1
+            if z[t, c] > h + 0.01 and 0 <= near < 20 and valid[near, c] and z[near, c] > z[t, c] - 0.01:
+                hide[t, c] = True
                 continue
             xf = X[t] + (0.05 if X[t] > x0 else -0.05)
             lo_x, hi_x = min(x0, xf), max(x0, xf)

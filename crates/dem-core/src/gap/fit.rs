@@ -70,7 +70,9 @@ pub fn limits(name: &str) -> Vec<(f64, f64, bool, bool)> {
         "quantization" => vec![(0.0005, 0.2, false, false)],
         "startup" => vec![(-0.6, 1.45, true, true), (0.005, 3.0, false, false), (0.0, 1.0, true, false)],
         "patch-dropout" => vec![(0.0, 8.0, true, false), (0.02, 0.5, true, false)],
-        "edge-holes" | "rim-holes" | "pit-fill" => vec![(0.005, 1.0, false, true), (0.0, 1.0, true, false)],
+        "edge-holes" | "rim-holes" => vec![(0.005, 1.0, false, true), (0.0, 1.0, true, false)],
+        // Every pit filled (p = 1) is a natural end: no gap is ever seen.
+        "pit-fill" => vec![(0.005, 1.0, false, true), (0.0, 1.0, true, true)],
         // Past 0.2 m the surface reaches past the far half of the lower
         // cell whatever the step's place: larger reaches change nothing.
         "mixed-cells" => vec![(0.0, 0.2, true, true), (0.0, 0.2, true, true)],

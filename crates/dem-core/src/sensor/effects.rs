@@ -11,7 +11,7 @@
 //! | `noise` | h += N(0, sigma^2), sigma = sigma0 + k d^2, d = distance from the nominal sensor mount [`NOISE_ORIGIN`] to the cell's centre at its height |
 //! | `dropout` | each valid cell missing with probability p |
 //! | `row-dropout` | each grid row wholly missing with probability p |
-//! | `occlusion` | in each column, a sensor at (x0, h) looks at the far edge of each cell's top; the cell is missing when the line of sight passes more than [`OCCLUSION_TOLERANCE`] below the top of a valid cell between |
+//! | `occlusion` | in each column, a sensor at (x0, h) looks at the far edge of each cell's top; the cell is missing when the line of sight passes more than [`OCCLUSION_TOLERANCE`] below the top of a valid cell between, or when its top is more than that above the sensor and its valid neighbour toward the sensor is not more than that lower (a top above the sensor faces away from it; only the cell holding the face is seen) |
 //! | `fov` | cells whose centre x is outside [x_min, x_max] missing |
 //! | `view-top` | cells whose height lies above the line z = h - t x (the upper edge of the camera's vertical field of view) missing |
 //! | `smoothing` | h = (w h + (1-w)/8 sum of valid 3x3 neighbours) / (w + (1-w)/8 n_valid) |
@@ -473,6 +473,14 @@ pub fn hidden(z: &[[Option<f64>; COLS]; GRID_ROWS], t: usize, c: usize, h: f64, 
         return false;
     }
     let dir = if xt > x0 { 1.0 } else { -1.0 };
+    // A top above the sensor faces away from it: only the cell that holds
+    // the face toward the sensor (its near neighbour lower) is seen.
+    if zt > h + OCCLUSION_TOLERANCE {
+        let near = if dir > 0.0 { t.checked_sub(1) } else { Some(t + 1).filter(|&n| n < GRID_ROWS) };
+        if near.and_then(|n| z[n][c]).is_some_and(|zn| zn > zt - OCCLUSION_TOLERANCE) {
+            return true;
+        }
+    }
     let xf = xt + dir * HALF;
     let line = |x: f64| h + (zt - h) * (x - x0) / (xf - x0);
     let rows: Box<dyn Iterator<Item = usize>> = if dir > 0.0 { Box::new(0..t) } else { Box::new(t + 1..GRID_ROWS) };
