@@ -32,7 +32,7 @@ use tract_onnx::pb::tensor_proto::DataType;
 const ALLOWED: &[&str] = &[
     "Conv", "InstanceNormalization", "LeakyRelu", "Relu", "Tanh", "Sigmoid", "Gemm", "Add", "Mul", "Transpose",
     "Slice", "Flatten", "Reshape", "Concat", "Constant", "Identity", "Shape", "Gather", "Unsqueeze", "Squeeze",
-    "Cast", "Split",
+    "Cast", "Split", "ConstantOfShape", "Expand",
 ];
 
 /// The generator weights of `proto`'s graph, or why it is not recognised as

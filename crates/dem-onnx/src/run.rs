@@ -24,7 +24,9 @@
 //! graph and weights by [`crate::native`]) runs on dem-nn's inference
 //! kernels instead ([`GeneratorInference`]: Winograd convolutions over blocks
 //! of records, fused norms, no tape), when they reproduce tract on a probe
-//! batch of [`NATIVE_PROBE`] records within [`NATIVE_TOLERANCE`] per value.
+//! batch of [`NATIVE_PROBE`] records within [`NATIVE_TOLERANCE`] per value
+//! (row 20 as tract gives it: the input's, or zeros for a model that writes
+//! zeros there, as a PyTorch generator padding its output may).
 //! Otherwise, or for any other model, tract runs it and
 //! [`OnnxModel::note`] says why (the tools print it).
 //!
@@ -80,6 +82,9 @@ pub struct OnnxModel {
     native: Option<Arc<GeneratorInference>>,
     /// Why the native path is not used, for the tools to print.
     note: Option<String>,
+    /// The native path writes row 20 as zeros (as tract does for this
+    /// model) instead of the input's.
+    zero_attitude: bool,
     name: String,
     input: String,
     output: String,
@@ -131,7 +136,7 @@ impl OnnxModel {
             .model_for_proto_model(proto)
             .map_err(|e| bad(name, format!("tract cannot read the ONNX graph: {e:#}")))?;
         let batched = plan(model.clone(), None).map_err(|e| bad(name, format!("{e:#}")))?;
-        let mut m = OnnxModel { batched, single: None, native: None, note: None, name: name.into(), input, output };
+        let mut m = OnnxModel { batched, single: None, native: None, note: None, zero_attitude: false, name: name.into(), input, output };
         // A model that refuses a batch of one, or that mixes records, keeps the batch plan.
         if let Ok(single) = plan(model, Some(1)) {
             let probe = probe_batch(3);
@@ -147,8 +152,16 @@ impl OnnxModel {
                 let native = GeneratorInference::new(&w);
                 let probe = probe_batch(NATIVE_PROBE);
                 let by_tract = m.run(&probe)?;
+                // Row 20: the input's (an export), or zeros (what a PyTorch
+                // generator that pads its output writes).
+                let row20 = ROWS * COLS * CHANNELS - COLS * CHANNELS..RECORD_LEN;
+                m.zero_attitude = by_tract.iter().all(|o| o[row20.clone()].iter().all(|v| *v == 0.0))
+                    && probe.iter().any(|x| x[row20.clone()].iter().any(|v| *v != 0.0));
                 let mut by_native = Vec::new();
                 SCRATCH.with_borrow_mut(|s| native.run(&probe, s, &mut by_native));
+                if m.zero_attitude {
+                    by_native.iter_mut().for_each(|o| o[row20.clone()].fill(0.0));
+                }
                 match max_diff(&by_tract, &by_native) {
                     Some(d) if d <= NATIVE_TOLERANCE => m.native = Some(Arc::new(native)),
                     d => {
@@ -223,6 +236,9 @@ impl OnnxModel {
         if let Some(g) = &self.native {
             let mut out = Vec::with_capacity(batch.len());
             SCRATCH.with_borrow_mut(|s| g.run(batch, s, &mut out));
+            if self.zero_attitude {
+                out.iter_mut().for_each(|o| o[RECORD_LEN - COLS * CHANNELS..].fill(0.0));
+            }
             return Ok(out);
         }
         if self.single.is_some() {

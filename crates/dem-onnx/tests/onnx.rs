@@ -416,3 +416,38 @@ fn a_lookalike_that_differs_from_tract_runs_on_tract() {
     let d = max_diff(&model.run(&input).unwrap(), &reference_outputs(&w, &input));
     assert!(d > 1e-3, "the doubled correction shows ({d})");
 }
+
+/// A generator that writes zeros in row 20 (as PyTorch's reference generator
+/// pads its output) runs natively too, and writes zeros there as tract does.
+#[test]
+fn a_generator_writing_zeros_in_row_20_runs_natively() {
+    let w = generator(8, 44);
+    let mut m = generator_model(&w, "g");
+    let g = m.graph.as_mut().unwrap();
+    g.initializer.push(pb::TensorProto {
+        name: "zero".into(),
+        dims: vec![1],
+        data_type: pb::tensor_proto::DataType::Float as i32,
+        float_data: vec![0.0],
+        ..Default::default()
+    });
+    let k = g.node.iter().position(|n| n.name == "out_nchw").unwrap();
+    g.node[k].input[1] = "attitude_zero".into();
+    g.node.insert(
+        k,
+        pb::NodeProto {
+            input: vec!["attitude".into(), "zero".into()],
+            output: vec!["attitude_zero".into()],
+            name: "attitude_zero".into(),
+            op_type: "Mul".into(),
+            ..Default::default()
+        },
+    );
+    let model = OnnxModel::from_proto(&m, "zeros.onnx").unwrap();
+    assert_eq!(model.engine(), Engine::Native, "{:?}", model.note());
+    let input = records(20);
+    let got = model.run(&input).unwrap();
+    let by_tract = model.clone().on_tract().run(&input).unwrap();
+    assert!(max_diff(&got, &by_tract) <= TOLERANCE);
+    assert!(got.iter().all(|o| o[at(ATTITUDE_ROW, 0, 0)..].iter().all(|v| *v == 0.0)));
+}
