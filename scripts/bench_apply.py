@@ -1,4 +1,4 @@
-"""Generator inference throughput: dem-apply (tract) against onnxruntime's
+"""Generator inference throughput: dem-apply (native path) against onnxruntime's
 Python InferenceSession, same model, same records, same thread count, in
 the same run.
 

@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Generator inference throughput: dem-apply (tract) against onnxruntime's
+# Generator inference throughput: dem-apply (its native path for a generator)
+# against onnxruntime's
 # Python InferenceSession on the same width-32 model, the same 100,000
 # records and the same 2 threads, in the same run; prints the ratio.
 # Details and knobs in scripts/bench_apply.py.

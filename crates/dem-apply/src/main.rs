@@ -68,6 +68,9 @@ fn main() -> ExitCode {
         }
         let pool = pool.build()?;
         let model = OnnxModel::load(&a.model)?;
+        if let Some(note) = model.note() {
+            cli::log(note);
+        }
         let start = Instant::now();
         let bar = cli::progress(estimate_records(&a.input), "records");
         let stats = pool.install(|| {
@@ -83,11 +86,12 @@ fn main() -> ExitCode {
         }
         let secs = start.elapsed().as_secs_f64();
         cli::log(format_args!(
-            "{} records in {secs:.2} s ({:.0} records/s), {} threads, batch {}",
+            "{} records in {secs:.2} s ({:.0} records/s), {} threads, batch {}, {}",
             stats.records,
             stats.records as f64 / secs.max(1e-9),
             pool.current_num_threads(),
-            a.batch
+            a.batch,
+            model.engine_name()
         ));
         Ok(())
     })

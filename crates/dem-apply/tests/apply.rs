@@ -164,3 +164,64 @@ fn bad_arguments_exit_2() {
     let o = run("dem-apply", &[], None);
     assert_eq!(o.status.code(), Some(2));
 }
+
+/// A dem-train generator (residual head, width 32) runs on the native path:
+/// the same bytes for any --threads and --batch, and onnxruntime's outputs
+/// within 1e-4.
+#[test]
+fn a_generator_runs_natively_the_same_for_any_threads_and_batch() {
+    use rand::Rng;
+    let dir = tempdir();
+    let model = arg(dir.path(), "g.onnx");
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    let mut w = GeneratorWeights::init_arch(&mut rng, 32, dem_nn::weights::Arch::Residual);
+    w.fc.weight[..100 * 210].iter_mut().for_each(|v| *v = rng.gen_range(-0.05..0.05));
+    let check = records(8);
+    let want: Vec<Dem> = check.iter().map(|d| reference::generator(&w, d)).collect();
+    export_checked(&w, &check, &want, &model).unwrap();
+    let input = records(203);
+    let inp = arg(dir.path(), "in.npy");
+    npy::write_all(&inp, &input).unwrap();
+    let mut first: Option<Vec<u8>> = None;
+    for (threads, batch) in [("2", "64"), ("1", "1"), ("2", "5"), ("1", "300"), ("2", "17")] {
+        let o = run("dem-apply", &["-m", &model, "--threads", threads, "--batch", batch, &inp], None);
+        ok(&o);
+        let err = stderr(&o);
+        assert!(err.contains("native generator (residual, width 32)") && !err.contains("runs on tract"), "{err}");
+        match &first {
+            None => first = Some(o.stdout.clone()),
+            Some(f) => assert!(*f == o.stdout, "--threads {threads} --batch {batch} changes the output"),
+        }
+    }
+    let got = npy::NpyReader::new(&first.unwrap()[..], "stdout", None).read_to_end().unwrap();
+    let out = arg(dir.path(), "ort.npy");
+    let said = py(
+        dir.path(),
+        &format!(
+            r#"
+import numpy as np, onnxruntime as ort
+s = ort.InferenceSession("{model}", providers=["CPUExecutionProvider"])
+np.save("{out}", s.run(["dem_out"], {{"dem": np.load("{inp}")}})[0])
+print("ok")
+"#
+        ),
+    );
+    assert_eq!(said.trim(), "ok");
+    let d = max_diff(&got, &npy::read_all(&out).unwrap());
+    assert!(d <= TOLERANCE, "max |dem-apply - onnxruntime| = {d}");
+}
+
+/// Any other conforming model runs on tract, with a note on stderr.
+#[test]
+fn another_model_runs_on_tract_with_a_note() {
+    let dir = tempdir();
+    let model = python_model(dir.path(), "neg.onnx", "Neg", "[None, 21, 5, 2]", "[None, 21, 5, 2]");
+    let input = records(30);
+    let inp = arg(dir.path(), "in.npy");
+    npy::write_all(&inp, &input).unwrap();
+    let o = run("dem-apply", &["-m", &model, "--batch", "4", &inp], None);
+    let err = stderr(&o);
+    assert!(err.contains("runs on tract: not recognised as a dem-train generator") && err.contains(", tract"), "{err}");
+    let got = npy::NpyReader::new(ok(&o), "stdout", None).read_to_end().unwrap();
+    assert!(got.iter().flatten().zip(input.iter().flatten()).all(|(y, x)| *y == -x));
+}

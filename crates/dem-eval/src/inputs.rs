@@ -284,6 +284,9 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
         Method::Model(path) => Some(dem_onnx::OnnxModel::load(path)?),
         _ => None,
     };
+    if let Some(note) = model.as_ref().and_then(|m| m.note()) {
+        cli::log(note);
+    }
     let mut acc = Acc::default();
     let mut emit = Emit::create(q)?;
     let mut sim_rdr = npy::open(&q.sim)?;

@@ -3,7 +3,9 @@
 //!
 //! The kernel takes raw pointers and strides; this module is the only place
 //! in the workspace allowed `unsafe`, and every call first checks that the
-//! largest index each stride pattern reaches lies inside its slice.
+//! largest index each stride pattern reaches lies inside its slice. The one
+//! other `unsafe` here, [`with_avx2`], calls a `target_feature` function
+//! after checking the CPU has the features.
 #![allow(unsafe_code)]
 
 use gemm::Parallelism;
@@ -24,6 +26,14 @@ impl<'a> Mat<'a> {
     pub fn new(data: &'a [f32], rows: usize, cols: usize) -> Self {
         assert!(data.len() >= rows * cols, "matrix {rows}x{cols} over {} values", data.len());
         Mat { data, rows, cols, rs: cols as isize, cs: 1 }
+    }
+
+    /// `rows x cols` values of `data` with consecutive rows `row_stride >= cols`
+    /// apart (a column block of a wider row-major matrix).
+    pub fn strided(data: &'a [f32], rows: usize, cols: usize, row_stride: usize) -> Self {
+        assert!(row_stride >= cols, "row stride {row_stride} below {cols} columns");
+        assert!(rows == 0 || data.len() >= (rows - 1) * row_stride + cols, "matrix {rows}x{cols} (stride {row_stride}) over {} values", data.len());
+        Mat { data, rows, cols, rs: row_stride as isize, cs: 1 }
     }
 
     /// The transpose (a view, nothing moves).
@@ -85,6 +95,40 @@ pub fn matmul(dst: &mut [f32], a: Mat, b: Mat, accumulate: bool) {
             parallelism(m * n * k),
         );
     }
+}
+
+/// Work to run with wider vector instructions by [`with_avx2`]: implement
+/// [`Widened::run`] with `#[inline(always)]`, and mark the functions it calls
+/// that should be widened `#[inline(always)]` too.
+pub trait Widened {
+    /// What the work returns.
+    type Output;
+    /// Do the work.
+    fn run(self) -> Self::Output;
+}
+
+/// Run `work` with the compiler allowed AVX2 and FMA instructions in the
+/// code inlined into it, when the CPU has them (checked at run time;
+/// otherwise it runs as compiled for the baseline target).
+///
+/// The workspace compiles for baseline x86-64 (SSE2), where the element-wise
+/// loops of the inference kernels (Winograd transforms, norms) run 4 lanes
+/// wide; the matrix products pick their kernels at run time already.
+#[inline]
+pub fn with_avx2<W: Widened>(work: W) -> W::Output {
+    #[cfg(target_arch = "x86_64")]
+    {
+        #[target_feature(enable = "avx2,fma")]
+        fn avx2<W: Widened>(work: W) -> W::Output {
+            work.run()
+        }
+        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
+            // SAFETY: the only requirement of a `target_feature` function is
+            // that the CPU has the features, checked on the line above.
+            return unsafe { avx2(work) };
+        }
+    }
+    work.run()
 }
 
 #[cfg(test)]

@@ -275,7 +275,8 @@ pub fn export_checked(
     }
     let name = std::path::Path::new(path).file_stem().map_or("generator".into(), |s| s.to_string_lossy().into_owned());
     let bytes = generator_model(w, &name).encode_to_vec();
-    let model = OnnxModel::from_bytes(&bytes, path)?;
+    // tract, not the native path: the file must be right for any runtime.
+    let model = OnnxModel::from_bytes(&bytes, path)?.on_tract();
     let mut max_abs_diff = 0.0f32;
     let mut worst = (0, 0);
     let mut nan = None;

@@ -8,6 +8,9 @@
 //!   from its [`GeneratorWeights`](dem_nn::weights::GeneratorWeights) with
 //!   tract's protobuf types; [`export_checked`] writes it only after tract
 //!   reproduces the trainer's forward pass within [`TOLERANCE`].
+//! - [`native`]: recognise a generator in an ONNX graph and read its
+//!   weights, so [`OnnxModel`] runs it on dem-nn's inference kernels (checked
+//!   against tract at load; any other model runs on tract).
 //! - [`apply`]: stream an NPY stream through a model in parallel batches,
 //!   order preserved (the body of `dem-apply`).
 //!
@@ -17,10 +20,11 @@
 
 pub mod apply;
 pub mod export;
+pub mod native;
 pub mod run;
 
 pub use export::{export_checked, generator_model, ExportReport, TOLERANCE};
-pub use run::OnnxModel;
+pub use run::{Engine, OnnxModel};
 
 /// The ONNX protobuf types (tract's generated `prost` messages), for callers
 /// that build or inspect models.

@@ -19,6 +19,17 @@
 //! should; otherwise the batch plan is. Runs share the plans and each gets
 //! its own state, so threads may call [`OnnxModel::run`] at the same time.
 //!
+//! **The native path.** A model that is a generator of `spec/network.md`
+//! (dem-train's export or PyTorch's of the same network, recognised from its
+//! graph and weights by [`crate::native`]) runs on dem-nn's inference
+//! kernels instead ([`GeneratorInference`]: Winograd convolutions over blocks
+//! of records, fused norms, no tape), when they reproduce tract on a probe
+//! batch of [`NATIVE_PROBE`] records within [`NATIVE_TOLERANCE`] per value
+//! (row 20 as tract gives it: the input's, or zeros for a model that writes
+//! zeros there, as a PyTorch generator padding its output may).
+//! Otherwise, or for any other model, tract runs it and
+//! [`OnnxModel::note`] says why (the tools print it).
+//!
 //! ```no_run
 //! # fn main() -> Result<(), dem_core::DemError> {
 //! let model = dem_onnx::OnnxModel::load("model.onnx")?;
@@ -27,10 +38,12 @@
 //! # Ok(()) }
 //! ```
 
+use std::cell::RefCell;
 use std::sync::Arc;
 
 use dem_core::format::{COLS, RECORD_LEN, ROWS, CHANNELS};
 use dem_core::{Dem, DemError};
+use dem_nn::net::{GeneratorInference, InferScratch};
 use anyhow::{bail, Context};
 use prost::Message;
 use tract_onnx::pb;
@@ -40,15 +53,48 @@ use tract_onnx::prelude::*;
 /// The record shape after the batch axis: `(21, 5, 2)`.
 pub const RECORD_SHAPE: [usize; 3] = [ROWS, COLS, CHANNELS];
 
+/// Records of the probe batch on which the native path must reproduce tract.
+pub const NATIVE_PROBE: usize = 32;
+/// Largest `|native - tract|` per output value the native path may show on
+/// the probe batch: the export's tolerance ([`crate::TOLERANCE`]); the two
+/// compute in `f32` with different summation orders (~1e-6 apart).
+pub const NATIVE_TOLERANCE: f32 = crate::TOLERANCE;
+
+/// What runs a model's batches.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Engine {
+    /// dem-nn's inference kernels (a recognised generator).
+    Native,
+    /// tract, record by record through the `N = 1` plan.
+    TractPerRecord,
+    /// tract, a batch per call.
+    TractBatch,
+}
+
 /// A loaded, optimised ONNX model mapping `(N, 21, 5, 2)` to `(N, 21, 5, 2)`.
 #[derive(Clone)]
 pub struct OnnxModel {
     batched: Arc<TypedRunnableModel>,
     /// The `N = 1` plan, when it reproduces `batched` (see the module docs).
     single: Option<Arc<TypedRunnableModel>>,
+    /// The native path, when the model is a recognised generator that
+    /// reproduces tract on the probe batch.
+    native: Option<Arc<GeneratorInference>>,
+    /// Why the native path is not used, for the tools to print.
+    note: Option<String>,
+    /// The native path writes row 20 as zeros (as tract does for this
+    /// model) instead of the input's.
+    zero_attitude: bool,
     name: String,
     input: String,
     output: String,
+}
+
+thread_local! {
+    /// Each thread's buffers for the native path (reused: a block's
+    /// activations are a few MB, which a fresh allocation per call would
+    /// page-fault in again).
+    static SCRATCH: RefCell<InferScratch> = RefCell::new(InferScratch::default());
 }
 
 impl std::fmt::Debug for OnnxModel {
@@ -57,7 +103,7 @@ impl std::fmt::Debug for OnnxModel {
             .field("name", &self.name)
             .field("input", &self.input)
             .field("output", &self.output)
-            .field("per_record", &self.single.is_some())
+            .field("engine", &self.engine())
             .finish_non_exhaustive()
     }
 }
@@ -90,17 +136,79 @@ impl OnnxModel {
             .model_for_proto_model(proto)
             .map_err(|e| bad(name, format!("tract cannot read the ONNX graph: {e:#}")))?;
         let batched = plan(model.clone(), None).map_err(|e| bad(name, format!("{e:#}")))?;
-        let mut m = OnnxModel { batched, single: None, name: name.into(), input, output };
+        let mut m = OnnxModel { batched, single: None, native: None, note: None, zero_attitude: false, name: name.into(), input, output };
         // A model that refuses a batch of one, or that mixes records, keeps the batch plan.
         if let Ok(single) = plan(model, Some(1)) {
-            let probe = probe_batch();
+            let probe = probe_batch(3);
             let by_batch = m.run_batched(&probe)?;
             m.single = Some(single);
             if !m.run_per_record(&probe).is_ok_and(|by_record| agree(&by_batch, &by_record)) {
                 m.single = None;
             }
         }
+        match crate::native::recognise(proto) {
+            Err(why) => m.note = Some(format!("{name} runs on tract: not recognised as a dem-train generator ({why})")),
+            Ok(w) => {
+                let native = GeneratorInference::new(&w);
+                let probe = probe_batch(NATIVE_PROBE);
+                let by_tract = m.run(&probe)?;
+                // Row 20: the input's (an export), or zeros (what a PyTorch
+                // generator that pads its output writes).
+                let row20 = ROWS * COLS * CHANNELS - COLS * CHANNELS..RECORD_LEN;
+                m.zero_attitude = by_tract.iter().all(|o| o[row20.clone()].iter().all(|v| *v == 0.0))
+                    && probe.iter().any(|x| x[row20.clone()].iter().any(|v| *v != 0.0));
+                let mut by_native = Vec::new();
+                SCRATCH.with_borrow_mut(|s| native.run(&probe, s, &mut by_native));
+                if m.zero_attitude {
+                    by_native.iter_mut().for_each(|o| o[row20.clone()].fill(0.0));
+                }
+                match max_diff(&by_tract, &by_native) {
+                    Some(d) if d <= NATIVE_TOLERANCE => m.native = Some(Arc::new(native)),
+                    d => {
+                        let by = d.map_or("a NaN".into(), |d| format!("{d:e}"));
+                        m.note = Some(format!(
+                            "{name} runs on tract: it looks like a {} generator of width {}, but the native path differs from tract by {by} on the probe batch (tolerance {NATIVE_TOLERANCE:e})",
+                            w.arch.name(),
+                            w.width
+                        ));
+                    }
+                }
+            }
+        }
         Ok(m)
+    }
+
+    /// The same model with the native path switched off: tract runs every
+    /// batch (to compare the two, or to rule the native path out).
+    pub fn on_tract(mut self) -> OnnxModel {
+        if self.native.take().is_some() {
+            self.note = Some(format!("{} runs on tract: the native path was switched off", self.name));
+        }
+        self
+    }
+
+    /// What runs the model's batches.
+    pub fn engine(&self) -> Engine {
+        match (&self.native, &self.single) {
+            (Some(_), _) => Engine::Native,
+            (None, Some(_)) => Engine::TractPerRecord,
+            (None, None) => Engine::TractBatch,
+        }
+    }
+
+    /// Why a model runs on tract rather than on the native path (one line,
+    /// naming the model), `None` when it runs natively.
+    pub fn note(&self) -> Option<&str> {
+        self.note.as_deref()
+    }
+
+    /// The engine in a few words, for a summary line: `native generator
+    /// (residual, width 32)` or `tract`.
+    pub fn engine_name(&self) -> String {
+        match &self.native {
+            Some(g) => format!("native generator ({}, width {})", g.arch().name(), g.width()),
+            None => "tract".into(),
+        }
     }
 
     /// The name given at load time (the path for [`OnnxModel::load`]).
@@ -124,6 +232,14 @@ impl OnnxModel {
     pub fn run(&self, batch: &[Dem]) -> Result<Vec<Dem>, DemError> {
         if batch.is_empty() {
             return Ok(Vec::new());
+        }
+        if let Some(g) = &self.native {
+            let mut out = Vec::with_capacity(batch.len());
+            SCRATCH.with_borrow_mut(|s| g.run(batch, s, &mut out));
+            if self.zero_attitude {
+                out.iter_mut().for_each(|o| o[RECORD_LEN - COLS * CHANNELS..].fill(0.0));
+            }
+            return Ok(out);
         }
         if self.single.is_some() {
             self.run_per_record(batch)
@@ -174,9 +290,9 @@ impl OnnxModel {
     }
 }
 
-/// Three DEM-like records (heights within +-0.5 m, masks +-1, an attitude)
-/// from a fixed sequence, to compare the two plans at load.
-fn probe_batch() -> Vec<Dem> {
+/// `n` DEM-like records (heights within +-0.5 m, masks +-1, an attitude)
+/// from a fixed sequence, to compare the plans and engines at load.
+fn probe_batch(n: usize) -> Vec<Dem> {
     let mut x: u32 = 0x9e37_79b9;
     let mut next = move || {
         x ^= x << 13;
@@ -184,7 +300,7 @@ fn probe_batch() -> Vec<Dem> {
         x ^= x << 5;
         x as f32 / u32::MAX as f32 - 0.5
     };
-    (0..3)
+    (0..n)
         .map(|_| {
             let mut d = [0.0; RECORD_LEN];
             for (k, v) in d.iter_mut().enumerate() {
@@ -198,6 +314,18 @@ fn probe_batch() -> Vec<Dem> {
             d
         })
         .collect()
+}
+
+/// Largest `|a - b|` over every value; `None` when some value is NaN (or the
+/// lengths differ).
+fn max_diff(a: &[Dem], b: &[Dem]) -> Option<f32> {
+    if a.len() != b.len() {
+        return None;
+    }
+    a.iter().flatten().zip(b.iter().flatten()).try_fold(0.0f32, |m, (x, y)| {
+        let d = (x - y).abs();
+        (!d.is_nan()).then_some(m.max(d))
+    })
 }
 
 /// Equal within 1e-5 + 1e-5 |b| per value, NaN matching NaN.

@@ -10,7 +10,7 @@ use dem_core::format::{at, ATTITUDE_ROW};
 use dem_core::Dem;
 use dem_nn::reference;
 use dem_nn::weights::{Arch, GeneratorWeights};
-use dem_onnx::{export_checked, generator_model, pb, OnnxModel, TOLERANCE};
+use dem_onnx::{export_checked, generator_model, pb, Engine, OnnxModel, TOLERANCE};
 use dem_testkit::{arg, py, tempdir, testdata};
 use prost::Message;
 use rand::SeedableRng;
@@ -61,7 +61,13 @@ fn reference_outputs(w: &GeneratorWeights, input: &[Dem]) -> Vec<Dem> {
     input.iter().map(|d| reference::generator(w, d)).collect()
 }
 
+/// The export of `w` on tract (the native path switched off).
 fn tract_model(w: &GeneratorWeights) -> OnnxModel {
+    native_model(w).on_tract()
+}
+
+/// The export of `w` as the tools load it: a generator runs natively.
+fn native_model(w: &GeneratorWeights) -> OnnxModel {
     OnnxModel::from_bytes(&generator_model(w, "g").encode_to_vec(), "g.onnx").unwrap()
 }
 
@@ -320,4 +326,128 @@ fn a_model_that_mixes_records_runs_as_one_batch() {
     }
     // The generator's records are independent: it runs record by record.
     assert!(tract_model(&generator(4, 9)).per_record());
+}
+
+/// dem-train's generators (both heads) run on the native path, which equals
+/// tract, the f64 reference and onnxruntime within 1e-4 per value.
+#[test]
+fn generators_run_natively_and_equal_tract_the_reference_and_onnxruntime() {
+    let dir = tempdir();
+    for (width, arch) in [(32, Arch::Thesis), (32, Arch::Residual), (8, Arch::Residual)] {
+        let w = if arch == Arch::Thesis { generator(width, 40) } else { residual(width, 41) };
+        let input = records(if width == 32 { 24 } else { 60 });
+        let want = reference_outputs(&w, &input);
+        let path = arg(dir.path(), &format!("native{width}{}.onnx", arch.name()));
+        export_checked(&w, &input, &want, &path).unwrap();
+        let model = OnnxModel::load(&path).unwrap();
+        assert_eq!(model.engine(), Engine::Native, "{:?}", model.note());
+        assert!(model.note().is_none());
+        let got = model.run(&input).unwrap();
+        let by_tract = model.clone().on_tract().run(&input).unwrap();
+        let d = max_diff(&got, &by_tract);
+        assert!(d <= TOLERANCE, "width {width} {arch:?}: max |native - tract| = {d}");
+        let d = max_diff(&got, &want);
+        assert!(d <= TOLERANCE, "width {width} {arch:?}: max |native - reference| = {d}");
+        for (g, x) in got.iter().zip(&input) {
+            assert_eq!(g[at(ATTITUDE_ROW, 0, 0)..], x[at(ATTITUDE_ROW, 0, 0)..], "row 20 passes through");
+        }
+        let (inp, out) = (arg(dir.path(), "in.npy"), arg(dir.path(), "out.npy"));
+        dem_core::npy::write_all(&inp, &input).unwrap();
+        let said = py(
+            dir.path(),
+            &format!(
+                r#"
+import numpy as np, onnxruntime as ort
+s = ort.InferenceSession("{path}", providers=["CPUExecutionProvider"])
+np.save("{out}", s.run(["dem_out"], {{"dem": np.load("{inp}")}})[0])
+print("ok")
+"#
+            ),
+        );
+        assert_eq!(said.trim(), "ok");
+        let d = max_diff(&got, &dem_core::npy::read_all(&out).unwrap());
+        assert!(d <= TOLERANCE, "width {width} {arch:?}: max |native - onnxruntime| = {d}");
+    }
+}
+
+/// Weights stored as `raw_data` (as PyTorch's exporter writes them) are read too.
+#[test]
+fn a_graph_with_raw_data_weights_runs_natively() {
+    let w = residual(8, 42);
+    let mut m = generator_model(&w, "g");
+    for t in &mut m.graph.as_mut().unwrap().initializer {
+        t.raw_data = t.float_data.iter().flat_map(|v| v.to_le_bytes()).collect();
+        t.float_data.clear();
+    }
+    let model = OnnxModel::from_proto(&m, "raw.onnx").unwrap();
+    assert_eq!(model.engine(), Engine::Native, "{:?}", model.note());
+    let input = records(20);
+    let d = max_diff(&model.run(&input).unwrap(), &reference_outputs(&w, &input));
+    assert!(d <= TOLERANCE, "max |native - reference| = {d}");
+}
+
+/// A model that is not a generator runs on tract, and says so.
+#[test]
+fn an_unrecognised_model_runs_on_tract_with_a_note() {
+    let model = OnnxModel::from_bytes(&tiny_model("Neg", 1, &[-1, 21, 5, 2], &[-1, 21, 5, 2]), "neg.onnx").unwrap();
+    assert_eq!(model.engine(), Engine::TractPerRecord);
+    let note = model.note().unwrap();
+    assert!(note.starts_with("neg.onnx runs on tract: not recognised") && note.contains("Neg"), "{note}");
+    let input = records(9);
+    let got = model.run(&input).unwrap();
+    assert!(got.iter().flatten().zip(input.iter().flatten()).all(|(y, x)| *y == -x));
+}
+
+/// A graph with a generator's layers that computes something else (here the
+/// residual head's correction scale doubled) fails the probe against tract
+/// and runs on tract, with a note.
+#[test]
+fn a_lookalike_that_differs_from_tract_runs_on_tract() {
+    let w = residual(8, 43);
+    let mut m = generator_model(&w, "g");
+    let scale = m.graph.as_mut().unwrap().initializer.iter_mut().find(|t| t.name == "correction.scale").unwrap();
+    scale.float_data[0] *= 2.0;
+    let model = OnnxModel::from_proto(&m, "lookalike.onnx").unwrap();
+    assert_eq!(model.engine(), Engine::TractPerRecord);
+    let note = model.note().unwrap();
+    assert!(note.contains("residual generator of width 8") && note.contains("differs from tract"), "{note}");
+    // And what runs is the file's model, not the recognised one.
+    let input = records(10);
+    let d = max_diff(&model.run(&input).unwrap(), &reference_outputs(&w, &input));
+    assert!(d > 1e-3, "the doubled correction shows ({d})");
+}
+
+/// A generator that writes zeros in row 20 (as PyTorch's reference generator
+/// pads its output) runs natively too, and writes zeros there as tract does.
+#[test]
+fn a_generator_writing_zeros_in_row_20_runs_natively() {
+    let w = generator(8, 44);
+    let mut m = generator_model(&w, "g");
+    let g = m.graph.as_mut().unwrap();
+    g.initializer.push(pb::TensorProto {
+        name: "zero".into(),
+        dims: vec![1],
+        data_type: pb::tensor_proto::DataType::Float as i32,
+        float_data: vec![0.0],
+        ..Default::default()
+    });
+    let k = g.node.iter().position(|n| n.name == "out_nchw").unwrap();
+    g.node[k].input[1] = "attitude_zero".into();
+    g.node.insert(
+        k,
+        pb::NodeProto {
+            input: vec!["attitude".into(), "zero".into()],
+            output: vec!["attitude_zero".into()],
+            name: "attitude_zero".into(),
+            op_type: "Mul".into(),
+            ..Default::default()
+        },
+    );
+    let model = OnnxModel::from_proto(&m, "zeros.onnx").unwrap();
+    assert_eq!(model.engine(), Engine::Native, "{:?}", model.note());
+    let input = records(20);
+    let got = model.run(&input).unwrap();
+    let by_tract = model.clone().on_tract().run(&input).unwrap();
+    assert!(max_diff(&got, &by_tract) <= TOLERANCE);
+    assert!(got.iter().all(|o| o[at(ATTITUDE_ROW, 0, 0)..].iter().all(|v| *v == 0.0)));
 }

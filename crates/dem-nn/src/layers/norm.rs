@@ -126,6 +126,49 @@ fn forward_with(
         });
 }
 
+/// Inference: `x <- act(gamma * xhat + beta)` in place on `x [n, p, c]`
+/// (`c = gamma.len()`), the formula of [`forward`] with nothing kept for a
+/// backward pass, one sample after another on the calling thread. Computed
+/// as `act(x * s + t)` with `s = gamma / sqrt(var + eps)` and
+/// `t = beta - mean * s` per sample and channel.
+#[inline(always)]
+pub fn forward_inplace(x: &mut [f32], p: usize, gamma: &[f32], beta: &[f32], act: Act) {
+    match act {
+        Act::None => inplace_with(x, p, gamma, beta, |v| v),
+        Act::Relu => inplace_with(x, p, gamma, beta, |v| v.max(0.0)),
+        Act::Leaky => inplace_with(x, p, gamma, beta, |v| v.max(LEAK * v)),
+    }
+}
+
+#[inline(always)]
+fn inplace_with(x: &mut [f32], p: usize, gamma: &[f32], beta: &[f32], act: impl Fn(f32) -> f32) {
+    let c = gamma.len();
+    assert_eq!(beta.len(), c, "gamma and beta");
+    assert_eq!(x.len() % (p * c), 0, "x is [n, p, c]");
+    let (mut mean, mut var) = (vec![0.0f32; c], vec![0.0f32; c]);
+    let (mut scale, mut shift) = (vec![0.0f32; c], vec![0.0f32; c]);
+    for xs in x.chunks_exact_mut(p * c) {
+        mean.fill(0.0);
+        var.fill(0.0);
+        for row in xs.chunks_exact(c) {
+            mean.iter_mut().zip(row).for_each(|(m, v)| *m += v);
+        }
+        mean.iter_mut().for_each(|m| *m /= p as f32);
+        for row in xs.chunks_exact(c) {
+            var.iter_mut().zip(row).zip(&mean).for_each(|((s, v), m)| *s += (v - m) * (v - m));
+        }
+        for ((((s, t), v), m), (g, b)) in
+            scale.iter_mut().zip(shift.iter_mut()).zip(&var).zip(&mean).zip(gamma.iter().zip(beta))
+        {
+            *s = g / (v / p as f32 + NORM_EPS).sqrt();
+            *t = b - m * *s;
+        }
+        for row in xs.chunks_exact_mut(c) {
+            row.iter_mut().zip(scale.iter().zip(&shift)).for_each(|(v, (s, t))| *v = act(*v * s + t));
+        }
+    }
+}
+
 /// Backward of [`forward`]: accumulates `dgamma`, `dbeta`; returns `dx` in
 /// place of `dz` (which must hold the gradient of `z`).
 #[allow(clippy::too_many_arguments)]

@@ -185,18 +185,45 @@ fn weight_transform_adjoint(g: &ConvGeom, du: &[f32], dw: &mut [f32]) {
 
 /// `y = conv(x) + b`; keeps `V` and `U` for backward.
 pub fn forward(g: &ConvGeom, w: &[f32], b: &[f32], x: &[f32], cache: &mut WinoCache, m: &mut Vec<f32>, y: &mut Vec<f32>) {
+    weight_transform(g, w, &mut cache.u);
+    cache.tiles = forward_transformed(g, &cache.u, b, x, &mut cache.v, m, y);
+}
+
+/// The transformed weights `U [16, c_in, c_out]` of the kernel layout
+/// `w [(ky, kx, ci), co]`, for [`forward_transformed`] (inference computes
+/// them once per model instead of once per call).
+pub fn transform_weights(g: &ConvGeom, w: &[f32]) -> Vec<f32> {
+    assert!(supports(g), "Winograd F(2x2, 3x3) needs a 3x3 stride-1 same conv");
+    assert_eq!(w.len(), g.weight_len(), "conv weights");
+    let mut u = Vec::new();
+    weight_transform(g, w, &mut u);
+    u
+}
+
+/// `y = conv(x) + b` with the weights already transformed (`u` from
+/// [`transform_weights`]); `v` and `m` are scratch (`V` and `M` of the module
+/// docs). Returns the number of tiles `T`. Each sample's output depends only
+/// on that sample, and the operations it goes through depend only on the
+/// shapes, not on the sample's place in the batch.
+pub fn forward_transformed(
+    g: &ConvGeom,
+    u: &[f32],
+    b: &[f32],
+    x: &[f32],
+    v: &mut Vec<f32>,
+    m: &mut Vec<f32>,
+    y: &mut Vec<f32>,
+) -> usize {
     debug_assert!(supports(g));
     let n = x.len() / g.in_len();
-    let t_all = input_transform(g, x, n, &mut cache.v);
-    cache.tiles = t_all;
-    weight_transform(g, w, &mut cache.u);
+    let t_all = input_transform(g, x, n, v);
     let (ci, co) = (g.c_in, g.c_out);
     fit(m, 16 * t_all * co);
     for xi in 0..16 {
         matmul(
             &mut m[xi * t_all * co..][..t_all * co],
-            Mat::new(&cache.v[xi * t_all * ci..][..t_all * ci], t_all, ci),
-            Mat::new(&cache.u[xi * ci * co..][..ci * co], ci, co),
+            Mat::new(&v[xi * t_all * ci..][..t_all * ci], t_all, ci),
+            Mat::new(&u[xi * ci * co..][..ci * co], ci, co),
             false,
         );
     }
@@ -238,6 +265,7 @@ pub fn forward(g: &ConvGeom, w: &[f32], b: &[f32], x: &[f32], cache: &mut WinoCa
             }
         }
     }
+    t_all
 }
 
 /// Backward of [`forward`]: `grads = Some((dw, db))` accumulates the
