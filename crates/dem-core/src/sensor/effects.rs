@@ -437,10 +437,10 @@ impl Effect {
             Effect::PitFill { g, p } => {
                 let z = heights(d);
                 let at = |r: usize, c: usize| if r < GRID_ROWS && c < COLS { z[r][c] } else { None };
-                for r in 0..GRID_ROWS {
-                    for c in 0..COLS {
+                for (r, row) in z.iter().enumerate() {
+                    for (c, &zc) in row.iter().enumerate() {
                         let u: f64 = rng.gen();
-                        let Some(zc) = z[r][c] else { continue };
+                        let Some(zc) = zc else { continue };
                         let rims = [(at(r.wrapping_sub(1), c), at(r + 1, c)), (at(r, c.wrapping_sub(1)), at(r, c + 1))];
                         let fill = rims
                             .into_iter()
