@@ -2,7 +2,7 @@
 # dem-gap end to end on 20,000 sim and 1,000 real records (issue 7: under 2
 # minutes on this machine). The data is made by dem-synth (400 runs, the
 # first 21 measured); the run is unpaired with labels, so every sim record
-# is compared, and the loop fits all eight effects at every step.
+# is compared, and the loop fits every effect of the vocabulary at every step.
 set -euo pipefail
 BIN=${BIN:-target/release}
 OUT=${OUT:-.bench}
