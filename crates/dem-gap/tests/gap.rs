@@ -136,44 +136,35 @@ fn hidden_patch_dropout() {
     single("patch-dropout", "patch-dropout:n=1.3,r=0.09", &[("n", 1.3, Some(0.35)), ("r", 0.09, Some(0.03))]);
 }
 
-#[test]
-fn hidden_edge_holes() {
-    // Jumps in the sim data are 0.14-0.2 m (stairs, pallets): any g below
-    // them gives the same holes, so g is only checked to be below them.
+/// An effect at height jumps hidden with probability `p`: named first, p
+/// back, paired and unpaired; g only checked to be below `g_below`, the
+/// smallest jumps of the data (any g below them gives the same cells).
+fn single_at_jumps(effect: &str, spec: &str, p: f64, g_below: f64) {
     let dir = tempdir();
     let (sim, pairs) = setup(dir.path());
-    let real = hide(dir.path(), &sim, "real.npy", &["edge-holes:g=0.07,p=0.6"]);
-    for (p, out) in [(Some(pairs.as_str()), "paired"), (None, "unpaired")] {
-        let r = gap(dir.path(), &sim, &real, p, &[], out);
-        check_single(&r, "edge-holes", &[("p", 0.6, None)]);
-        assert!(param(&r, 0, "g") < 0.14, "{r:#}");
+    let real = hide(dir.path(), &sim, "real.npy", &[spec]);
+    for (pp, out) in [(Some(pairs.as_str()), "paired"), (None, "unpaired")] {
+        let r = gap(dir.path(), &sim, &real, pp, &[], out);
+        check_single(&r, effect, &[("p", p, None)]);
+        assert!(param(&r, 0, "g") < g_below, "{r:#}");
     }
+}
+
+#[test]
+fn hidden_edge_holes() {
+    // Jumps in the sim data are 0.14-0.2 m (stairs, pallets).
+    single_at_jumps("edge-holes", "edge-holes:g=0.07,p=0.6", 0.6, 0.14);
 }
 
 #[test]
 fn hidden_rim_holes() {
-    // As edge-holes: g only below the jumps of the data.
-    let dir = tempdir();
-    let (sim, pairs) = setup(dir.path());
-    let real = hide(dir.path(), &sim, "real.npy", &["rim-holes:g=0.07,p=0.5"]);
-    for (p, out) in [(Some(pairs.as_str()), "paired"), (None, "unpaired")] {
-        let r = gap(dir.path(), &sim, &real, p, &[], out);
-        check_single(&r, "rim-holes", &[("p", 0.5, None)]);
-        assert!(param(&r, 0, "g") < 0.14, "{r:#}");
-    }
+    single_at_jumps("rim-holes", "rim-holes:g=0.07,p=0.5", 0.5, 0.14);
 }
 
 #[test]
 fn hidden_pit_fill() {
-    // The pits of the data (pallet gaps) are 0.1-0.2 m deep: g only below them.
-    let dir = tempdir();
-    let (sim, pairs) = setup(dir.path());
-    let real = hide(dir.path(), &sim, "real.npy", &["pit-fill:g=0.04,p=0.8"]);
-    for (p, out) in [(Some(pairs.as_str()), "paired"), (None, "unpaired")] {
-        let r = gap(dir.path(), &sim, &real, p, &[], out);
-        check_single(&r, "pit-fill", &[("p", 0.8, None)]);
-        assert!(param(&r, 0, "g") < 0.1, "{r:#}");
-    }
+    // The pits of the data (pallet gaps) are 0.1-0.2 m deep.
+    single_at_jumps("pit-fill", "pit-fill:g=0.04,p=0.8", 0.8, 0.1);
 }
 
 #[test]
