@@ -68,9 +68,6 @@ fn main() -> ExitCode {
         }
         let pool = pool.build()?;
         let model = OnnxModel::load(&a.model)?;
-        if let Some(note) = model.note() {
-            cli::log(note);
-        }
         let start = Instant::now();
         let bar = cli::progress(estimate_records(&a.input), "records");
         let stats = pool.install(|| {
@@ -93,6 +90,10 @@ fn main() -> ExitCode {
             a.batch,
             model.engine_name()
         ));
+        // After the run: a refused input still gets exactly one line.
+        if let Some(note) = model.note() {
+            cli::log(note);
+        }
         Ok(())
     })
 }

@@ -284,9 +284,6 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
         Method::Model(path) => Some(dem_onnx::OnnxModel::load(path)?),
         _ => None,
     };
-    if let Some(note) = model.as_ref().and_then(|m| m.note()) {
-        cli::log(note);
-    }
     let mut acc = Acc::default();
     let mut emit = Emit::create(q)?;
     let mut sim_rdr = npy::open(&q.sim)?;
@@ -352,6 +349,10 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
             wanted.iter().map(|j| m[j]).collect()
         };
         gaps.insert(key, stats::gap(&stats::stats(&sample.preds, None), &stats::stats(&real_records, None)));
+    }
+    // After the run: a refused input still gets exactly one line.
+    if let Some(note) = model.as_ref().and_then(|m| m.note()) {
+        cli::log(note);
     }
     Ok(Evaluation { rows: acc.rows, gaps })
 }
