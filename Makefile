@@ -43,8 +43,7 @@ venv-torch: $(TORCH_VENV)/.stamp
 $(TORCH_VENV)/.stamp:
 	$(PYTHON) -m venv $(TORCH_VENV)
 	$(TORCH_VENV)/bin/pip install -q --upgrade pip
-	$(TORCH_VENV)/bin/pip install -q torch --index-url https://download.pytorch.org/whl/cpu \
-	  || $(TORCH_VENV)/bin/pip install -q torch
+	$(TORCH_VENV)/bin/pip install -q torch onnx numpy
 	touch $@
 
 # The validation error table against testdata/eval_baseline.csv (exit 1 when worse).
@@ -69,9 +68,11 @@ bench: build venv
 	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench_memory.sh
 	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench_import.sh
 	$(MAKE) venv-torch
+	$(TORCH_VENV)/bin/python scripts/torch_export.py .bench/apply_torch_w32.onnx --width 32 --seed 1
+	MODEL=.bench/apply_torch_w32.onnx REPORT=apply_torch.txt PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench_apply.sh
 	$(CARGO) build --release -p dem-nn --example step_speed
 	TORCH_PY=$(TORCH_VENV)/bin/python BIN=$(BIN) OUT=.bench bash scripts/bench_train.sh
-	@echo "Reports: .bench/npy.txt .bench/synth.txt .bench/prep.txt .bench/gap.txt .bench/apply.txt .bench/import.txt .bench/train.txt"
+	@echo "Reports: .bench/npy.txt .bench/synth.txt .bench/prep.txt .bench/gap.txt .bench/apply.txt .bench/apply_torch.txt .bench/import.txt .bench/train.txt"
 
 # Records of testdata/real.npy (and the same poses in testdata/sim.npy) that
 # show the effects: a startup frame, flat ground, stairs up (approach, on

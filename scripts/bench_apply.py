@@ -11,6 +11,7 @@ makes the model). Environment:
   THREADS   threads for both                           (default 2)
   RUNS      timed runs of each command                 (default 3)
   BATCHES   batch sizes tried for each, comma-separated (default 64,256,1024)
+  REPORT    report file name under OUT                 (default apply.txt)
 
 Fair batches: each contestant first runs a 10,000-record slice of the input
 once per batch size in BATCHES (untimed warm-up, then timed), and runs the
@@ -39,6 +40,7 @@ RECORDS = int(os.environ.get("RECORDS", "100000"))
 THREADS = int(os.environ.get("THREADS", "2"))
 RUNS = int(os.environ.get("RUNS", "3"))
 BATCHES = [int(b) for b in os.environ.get("BATCHES", "64,256,1024").split(",")]
+REPORT = os.path.join(OUT, os.environ.get("REPORT", "apply.txt"))
 DEM_APPLY = os.path.join(BIN, "dem-apply")
 
 # The peer: what a user would write with onnxruntime's Python API.
@@ -142,11 +144,11 @@ def main():
     ]
     report = "\n".join(lines) + "\n"
     sys.stdout.write(report)
-    with open(os.path.join(OUT, "apply.txt"), "w") as f:
+    with open(REPORT, "w") as f:
         f.write(report)
     for p in outs.values():
         os.remove(p)
-    print(f"written to {os.path.join(OUT, 'apply.txt')}")
+    print(f"written to {REPORT}")
 
 
 if __name__ == "__main__":

@@ -1,43 +1,55 @@
 #!/usr/bin/env bash
-# Training speed against the PyTorch peer (shared/reference/torch_cyclegan.py):
-# samples/s of the full step (both generators, both discriminators, paired
-# term) at width 32, batch 64, on the same thread count, measured in the same
-# run, alternating the two so machine noise hits both. Then dem-train end to
-# end on testdata (data sampling, logs, checkpoint included).
+# Training speed against the PyTorch peer (shared/reference/torch_cyclegan.py,
+# the thesis network and losses): samples/s of the full step (both
+# generators, both discriminators, paired term) at width 32, batch 64,
+# measured in the same run, alternating the two so machine noise hits both,
+# on 1 thread, 2 threads and all cores. Then dem-train end to end on testdata
+# with the same network (`--arch thesis`): data sampling, losses.csv every
+# step, validation and checkpoint included, as its own rate and as
+# whole-process wall clock (start-up and data loading included), each
+# against the peer's step rate at the same thread count.
 set -euo pipefail
 BIN=${BIN:-target/release}
 OUT=${OUT:-.bench}
 TORCH_PY=${TORCH_PY:-.venv-torch/bin/python}
 REF=${REF:-../shared/reference/torch_cyclegan.py}
-THREADS=${THREADS:-2}
 WIDTH=${WIDTH:-32}
 BATCH=${BATCH:-64}
 STEPS=${STEPS:-20}
 ROUNDS=${ROUNDS:-3}
+TRAIN_STEPS=${TRAIN_STEPS:-60}
+THREADS_LIST=${THREADS_LIST:-$(printf '%s\n' 1 2 "$(nproc)" | sort -nu | tr '\n' ' ')}
 mkdir -p "$OUT"
 report="$OUT/train.txt"
 : > "$report"
 speed() { sed -n 's/.*samples\/s=\([0-9.]*\).*/\1/p'; }
 median() { sort -g | awk '{a[NR]=$1} END {print a[int((NR+1)/2)]}'; }
-ours=() theirs=()
-for r in $(seq "$ROUNDS"); do
-  t=$(OMP_NUM_THREADS=$THREADS "$TORCH_PY" "$REF" "$WIDTH" "$BATCH" "$STEPS" | speed)
-  o=$(RAYON_NUM_THREADS=$THREADS "$BIN/examples/step_speed" "$WIDTH" "$BATCH" "$STEPS" | speed)
-  echo "round $r: torch $t samples/s, dem-nn $o samples/s" | tee -a "$report"
-  theirs+=("$t") ours+=("$o")
+ratio() { awk -v o="$1" -v t="$2" 'BEGIN { printf "%.2fx", o / t }'; }
+echo "torch $("$TORCH_PY" -c 'import torch; print(torch.__version__)'), width $WIDTH, batch $BATCH, $(nproc) cores, load $(cut -d' ' -f1-3 /proc/loadavg)" | tee -a "$report"
+echo "commands: $TORCH_PY $REF $WIDTH $BATCH $STEPS ; $BIN/examples/step_speed $WIDTH $BATCH $STEPS ;" \
+  "$BIN/dem-train --arch thesis --width $WIDTH --batch $BATCH --max-steps $TRAIN_STEPS --threads T ..." | tee -a "$report"
+for threads in $THREADS_LIST; do
+  ours=() theirs=()
+  for r in $(seq "$ROUNDS"); do
+    t=$(OMP_NUM_THREADS=$threads "$TORCH_PY" "$REF" "$WIDTH" "$BATCH" "$STEPS" | speed)
+    o=$(RAYON_NUM_THREADS=$threads "$BIN/examples/step_speed" "$WIDTH" "$BATCH" "$STEPS" | speed)
+    echo "  $threads threads, round $r: torch $t samples/s, dem-nn $o samples/s" >> "$report"
+    theirs+=("$t") ours+=("$o")
+  done
+  t=$(printf '%s\n' "${theirs[@]}" | median)
+  o=$(printf '%s\n' "${ours[@]}" | median)
+  # dem-train end to end, the peer's network and losses.
+  start=$(date +%s.%N)
+  line=$("$BIN/dem-train" --sim testdata/sim.npy --real testdata/real.npy --pairs testdata/pairs.csv \
+    --out "$OUT/train-run" --arch thesis --width "$WIDTH" --batch "$BATCH" --max-steps "$TRAIN_STEPS" \
+    --threads "$threads" --seed 1 2>&1 | grep 'samples/s')
+  end=$(date +%s.%N)
+  rm -rf "$OUT/train-run"
+  run=$(echo "$line" | sed -n 's/.* \([0-9.]*\) samples\/s.*/\1/p')
+  wall=$(awk -v s="$start" -v e="$end" -v n="$TRAIN_STEPS" -v b="$BATCH" 'BEGIN { printf "%.1f", n * b / (e - s) }')
+  {
+    echo "$threads threads (median of $ROUNDS rounds): torch step $t samples/s; dem-nn step $o ($(ratio "$o" "$t"));" \
+      "dem-train $run ($(ratio "$run" "$t")), whole process $wall ($(ratio "$wall" "$t"))"
+  } | tee -a "$report"
 done
-t=$(printf '%s\n' "${theirs[@]}" | median)
-o=$(printf '%s\n' "${ours[@]}" | median)
-{
-  echo "median of $ROUNDS rounds, width $WIDTH, batch $BATCH, $THREADS threads, load $(cut -d' ' -f1-3 /proc/loadavg):"
-  echo "  torch $("$TORCH_PY" -c 'import torch; print(torch.__version__)'): $t samples/s"
-  echo "  dem-nn step:  $o samples/s"
-  awk -v o="$o" -v t="$t" 'BEGIN { printf "  ratio dem-nn / torch: %.2fx\n", o / t }'
-  echo "  commands: $TORCH_PY $REF $WIDTH $BATCH $STEPS ; $BIN/examples/step_speed $WIDTH $BATCH $STEPS"
-} | tee -a "$report"
-# dem-train end to end on the bundled data.
-line=$("$BIN/dem-train" --sim testdata/sim.npy --real testdata/real.npy --pairs testdata/pairs.csv \
-  --out "$OUT/train-run" --width "$WIDTH" --batch "$BATCH" --max-steps 40 --threads "$THREADS" --seed 1 2>&1 | grep 'samples/s')
-rm -rf "$OUT/train-run"
-echo "dem-train on testdata (40 steps): ${line#dem-train: }" | tee -a "$report"
 echo "written to $report"

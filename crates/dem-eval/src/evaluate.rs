@@ -65,20 +65,35 @@ pub struct EvalArgs {
     /// which must pass through); without it, such a model gets a warning.
     #[arg(long, requires = "model")]
     strict: bool,
+    /// Index of the sim file's first record in the whole data set, when it
+    /// is a shard (`dem-split` prints it): the pairs keep the whole set's
+    /// indices and only this shard's sims are scored; `dem-eval merge` joins
+    /// the shards' --records (and --emit-pred) into the whole table.
+    #[arg(long)]
+    first_index: Option<u64>,
     /// Records per model call with --model.
     #[arg(long, default_value_t = 512, value_parser = cli::value::at_least_one::<usize>)]
     batch: usize,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
-enum SplitArg {
+pub(crate) enum SplitArg {
     Train,
     Val,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
-enum By {
+pub(crate) enum By {
     Terrain,
+}
+
+impl SplitArg {
+    pub(crate) fn split(self) -> Split {
+        match self {
+            SplitArg::Train => Split::Train,
+            SplitArg::Val => Split::Val,
+        }
+    }
 }
 
 fn stem(path: &str) -> String {
@@ -116,10 +131,7 @@ pub fn run(a: EvalArgs) -> anyhow::Result<()> {
         sim: need(a.sim, "--sim")?,
         real: need(a.real, "--real")?,
         pairs: need(a.pairs, "--pairs")?,
-        split: a.split.map(|s| match s {
-            SplitArg::Train => Split::Train,
-            SplitArg::Val => Split::Val,
-        }),
+        split: a.split.map(SplitArg::split),
         labels_sim: a.labels_sim,
         method,
         records: a.records,
@@ -129,6 +141,7 @@ pub fn run(a: EvalArgs) -> anyhow::Result<()> {
         emit_input: a.emit_input,
         emit_pred: a.emit_pred,
         emit_closest: a.emit_closest,
+        first_index: a.first_index,
     };
     let ev = inputs::run(&q)?;
     let rows = ev.table(a.name.as_deref().unwrap_or(&name), a.by.is_some());

@@ -64,6 +64,10 @@ pub struct Request {
     pub emit_pred: Option<String>,
     /// Write the closest real record of each result here.
     pub emit_closest: Option<String>,
+    /// Index of the sim file's first record in the whole data set (a shard
+    /// of `dem-split`): the pairs name whole-set indices, and only those of
+    /// this shard's records are evaluated.
+    pub first_index: Option<u64>,
 }
 
 /// The outcome: each table row's accumulated results and gap.
@@ -74,6 +78,11 @@ pub struct Evaluation {
 }
 
 impl Evaluation {
+    /// The outcome of rows accumulated elsewhere (`dem-eval merge`).
+    pub(crate) fn new(rows: std::collections::BTreeMap<Option<Terrain>, RowAcc>, gaps: HashMap<Option<Terrain>, f64>) -> Self {
+        Evaluation { rows, gaps }
+    }
+
     /// The table of `method`: the row over all records, then with
     /// `by_terrain` one per terrain present, in label order.
     pub fn table(&self, method: &str, by_terrain: bool) -> Vec<TableRow> {
@@ -89,13 +98,13 @@ impl Evaluation {
 /// The first line of the pairs CSV holding the largest index of a column,
 /// and that index: what a range check needs once the file's length is known.
 #[derive(Clone, Copy, Default)]
-struct Largest {
+pub(crate) struct Largest {
     index: u64,
     line: u64,
 }
 
 impl Largest {
-    fn check(&self, pairs_path: &str, len: u64, file: &str, col: &str) -> anyhow::Result<()> {
+    pub(crate) fn check(&self, pairs_path: &str, len: u64, file: &str, col: &str) -> anyhow::Result<()> {
         if self.line > 0 && self.index >= len {
             return Err(DemError::Table {
                 path: pairs_path.into(),
@@ -108,16 +117,15 @@ impl Largest {
     }
 }
 
-/// The pairs to evaluate ([`eval::select`]) and the number of sims.
-struct Pairs {
-    pairs: Vec<(u64, u64)>,
-    sims: u64,
+/// The pairs to evaluate ([`eval::select`]), sorted by sim index.
+pub(crate) struct Pairs {
+    pub(crate) pairs: Vec<(u64, u64)>,
 }
 
 impl Pairs {
     /// Read the pairs CSV; every row is range-checked later, also those of
     /// the split not evaluated.
-    fn read(path: &str, split: Option<Split>) -> anyhow::Result<(Pairs, Largest, Largest)> {
+    pub(crate) fn read(path: &str, split: Option<Split>) -> anyhow::Result<(Pairs, Largest, Largest)> {
         let all = table::read_pairs(path)?;
         if split.is_some() && all.iter().all(|p| p.split.is_none()) {
             return Err(DemError::input(path, "has no split column for --split (dem-pair writes one)").into());
@@ -134,12 +142,11 @@ impl Pairs {
         }
         let kept = eval::select(&all, split);
         drop(all);
-        let sims = kept.chunk_by(|a, b| a.0 == b.0).count() as u64;
-        Ok((Pairs { pairs: kept, sims }, sim_max, real_max))
+        Ok((Pairs { pairs: kept }, sim_max, real_max))
     }
 
     /// The pairs of the sims with indices in `range`.
-    fn within(&self, range: std::ops::Range<u64>) -> &[(u64, u64)] {
+    pub(crate) fn within(&self, range: std::ops::Range<u64>) -> &[(u64, u64)] {
         let lo = self.pairs.partition_point(|p| p.0 < range.start);
         let hi = self.pairs.partition_point(|p| p.0 < range.end);
         &self.pairs[lo..hi]
@@ -153,19 +160,19 @@ fn sample_hash(i: u64) -> u64 {
 }
 
 /// Keeps index i of a set of `n` with probability GAP_SAMPLE / n, by hash.
-fn in_sample(i: u64, n: u64) -> bool {
+pub(crate) fn in_sample(i: u64, n: u64) -> bool {
     n <= GAP_SAMPLE || (sample_hash(i) as f64) < GAP_SAMPLE as f64 / n as f64 * u64::MAX as f64
 }
 
 /// The real records the pairs name: by index from a file, or (stdin, which
 /// cannot seek) the needed ones read once and held.
-enum Reals {
+pub(crate) enum Reals {
     Indexed(RecordIndex),
     Held(HashMap<u64, Dem>),
 }
 
 impl Reals {
-    fn open(path: &str, needed: &BTreeSet<u64>) -> anyhow::Result<(Reals, u64)> {
+    pub(crate) fn open(path: &str, needed: &BTreeSet<u64>) -> anyhow::Result<(Reals, u64)> {
         if path == "-" {
             let (n, held) = read_selected(path, needed)?;
             return Ok((Reals::Held(held), n));
@@ -204,7 +211,7 @@ fn read_selected(path: &str, wanted: &BTreeSet<u64>) -> anyhow::Result<(u64, Has
 /// The writers of --records and --emit-input, --emit-pred, --emit-closest:
 /// each gets a block's rows as it finishes; files appear only on success.
 struct Emit {
-    records: Option<crate::report::RecordsWriter>,
+    records: Option<crate::records::RecordsWriter>,
     input: Option<npy::NpyWriter>,
     pred: Option<npy::NpyWriter>,
     closest: Option<npy::NpyWriter>,
@@ -214,7 +221,7 @@ impl Emit {
     fn create(q: &Request) -> anyhow::Result<Self> {
         let open = |p: &Option<String>| p.as_deref().map(npy::create).transpose();
         Ok(Emit {
-            records: q.records.as_deref().map(crate::report::RecordsWriter::create).transpose()?,
+            records: q.records.as_deref().map(crate::records::RecordsWriter::create).transpose()?,
             input: open(&q.emit_input)?,
             pred: open(&q.emit_pred)?,
             closest: open(&q.emit_closest)?,
@@ -235,9 +242,34 @@ impl Emit {
 /// One table row's gap sample: sampled predictions, and the real indices
 /// paired with the row's records.
 #[derive(Default)]
-struct GapSample {
-    preds: Vec<Dem>,
-    reals: BTreeSet<u64>,
+pub(crate) struct GapSample {
+    pub(crate) preds: Vec<Dem>,
+    pub(crate) reals: BTreeSet<u64>,
+}
+
+/// The gap of each table row from its sample: the sampled predictions
+/// against the row's real set (sampled the same way, by index); `sizes` are
+/// the rows' record counts, for the note on stderr when a row was sampled.
+pub(crate) fn row_gaps(
+    samples: HashMap<Option<Terrain>, GapSample>,
+    sizes: &HashMap<Option<Terrain>, u64>,
+    reals: &mut Reals,
+) -> anyhow::Result<HashMap<Option<Terrain>, f64>> {
+    let mut gaps = HashMap::new();
+    for (key, sample) in samples {
+        let n = sizes.get(&key).copied().unwrap_or(0);
+        if n > GAP_SAMPLE {
+            let row = key.map_or("all".to_string(), |t| t.to_string());
+            cli::log(format_args!("gap of row {row}: a sample of {} of its {n} records (at most {GAP_SAMPLE}, chosen by index)", sample.preds.len()));
+        }
+        let wanted: BTreeSet<u64> = sample.reals.iter().copied().filter(|&j| in_sample(j, sample.reals.len() as u64)).collect();
+        let real_records: Vec<Dem> = {
+            let m = reals.fetch(&wanted)?;
+            wanted.iter().map(|j| m[j]).collect()
+        };
+        gaps.insert(key, stats::gap(&stats::stats(&sample.preds, None), &stats::stats(&real_records, None)));
+    }
+    Ok(gaps)
 }
 
 /// Everything accumulated over the blocks.
@@ -272,11 +304,26 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
     real_max.check(&q.pairs, n_real, &q.real, "real_index")?;
     // One terrain byte per sim record; the labels' other columns are not kept.
     let terrains: Option<Vec<Terrain>> = q.labels_sim.as_deref().map(|p| table::read_labels(p).map(|l| l.into_iter().map(|l| l.terrain).collect())).transpose()?;
-    let terrain_of = |i: u64| -> Option<Terrain> { terrains.as_ref().and_then(|t| t.get(i as usize)).copied() };
+    // Labels are the sim file's own (a shard's are indexed from 0).
+    let first_index = q.first_index.unwrap_or(0);
+    let terrain_of = |i: u64| -> Option<Terrain> { terrains.as_ref().and_then(|t| t.get((i - first_index) as usize)).copied() };
+    // The sims this run scores: the whole set, or a shard's range (its
+    // length from the labels or the file; a shard on stdin runs to the end).
+    let scored = if q.first_index.is_none() {
+        pairs.pairs.as_slice()
+    } else {
+        let len = match (&terrains, q.sim.as_str()) {
+            (Some(t), _) => t.len() as u64,
+            (None, "-") => u64::MAX - first_index,
+            (None, path) => RecordIndex::build(path)?.len(),
+        };
+        pairs.within(first_index..first_index.saturating_add(len))
+    };
     // Rows of the table and their sizes, for the gap samples' rates.
-    let mut row_sizes: HashMap<Option<Terrain>, u64> = HashMap::from([(None, pairs.sims)]);
-    if q.by_terrain {
-        for g in pairs.pairs.chunk_by(|a, b| a.0 == b.0) {
+    let mut row_sizes: HashMap<Option<Terrain>, u64> = HashMap::new();
+    for g in scored.chunk_by(|a, b| a.0 == b.0) {
+        *row_sizes.entry(None).or_default() += 1;
+        if q.by_terrain {
             *row_sizes.entry(terrain_of(g[0].0)).or_default() += 1;
         }
     }
@@ -296,7 +343,7 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
     let mut block: Vec<(u64, Dem, Dem)> = Vec::with_capacity(BLOCK);
     loop {
         chunk.clear();
-        let first = sim_rdr.records_read();
+        let first = first_index + sim_rdr.records_read();
         let n = sim_rdr.read_chunk(&mut chunk, CHUNK_RECORDS)?;
         if let Some((path, r)) = &mut pred_rdr {
             pchunk.clear();
@@ -318,7 +365,10 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
         }
     }
     let n_sim = sim_rdr.records_read();
-    sim_max.check(&q.pairs, n_sim, &q.sim, "sim_index")?;
+    // A shard's pairs name the whole set, most of it in other shards.
+    if q.first_index.is_none() {
+        sim_max.check(&q.pairs, n_sim, &q.sim, "sim_index")?;
+    }
     if let Some((path, r)) = &mut pred_rdr {
         let mut rest = Vec::new();
         if r.read_up_to(&mut rest, 1)? > 0 {
@@ -336,20 +386,7 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
         }
     }
     emit.finish()?;
-    let mut gaps = HashMap::new();
-    for (key, sample) in acc.samples {
-        let n = row_sizes.get(&key).copied().unwrap_or(0);
-        if n > GAP_SAMPLE {
-            let row = key.map_or("all".to_string(), |t| t.to_string());
-            cli::log(format_args!("gap of row {row}: a sample of {} of its {n} records (at most {GAP_SAMPLE}, chosen by index)", sample.preds.len()));
-        }
-        let wanted: BTreeSet<u64> = sample.reals.iter().copied().filter(|&j| in_sample(j, sample.reals.len() as u64)).collect();
-        let real_records: Vec<Dem> = {
-            let m = reals.fetch(&wanted)?;
-            wanted.iter().map(|j| m[j]).collect()
-        };
-        gaps.insert(key, stats::gap(&stats::stats(&sample.preds, None), &stats::stats(&real_records, None)));
-    }
+    let gaps = row_gaps(acc.samples, &row_sizes, &mut reals)?;
     // After the run: a refused input still gets exactly one line.
     if let Some(note) = model.as_ref().and_then(|m| m.note()) {
         cli::log(note);

@@ -4,7 +4,9 @@
 mod compare;
 mod evaluate;
 mod inputs;
+mod merge;
 mod model;
+mod records;
 mod report;
 mod transfer;
 
@@ -58,6 +60,19 @@ enum Cmd {
   dem-apply --model gy.onnx sim.npy -o gy_sim.npy     # G_Y(sim) has sim's labels
   scripts/transfer.sh                                  # the whole test on testdata/")]
     Transfer(transfer::TransferArgs),
+    /// The table of the whole from shards: each shard evaluated with
+    /// `--first-index N --records FILE --emit-pred FILE` (the pairs and real
+    /// file of the whole), then the records files merged in shard order, and
+    /// the predictions joined for the gap. The table equals one run's on
+    /// the whole, bit for bit.
+    #[command(after_long_help = "Examples:
+  dem-split --shards 4 --labels sim_labels.csv --out part sim.npy > shards.csv
+  parallel --will-cite --colsep , --header : dem-eval --sim {shard} --labels-sim {labels} \\
+      --first-index {first_index} --real real.npy --pairs pairs.csv --split val --model gy.onnx \\
+      --records {shard}.rec.csv --emit-pred {shard}.pred.npy -o /dev/null :::: shards.csv
+  dem-cat part-*.npy.pred.npy | dem-eval merge part-*.npy.rec.csv --name gy --by terrain \\
+      --emitted-pred - --real real.npy --pairs pairs.csv --split val --format csv")]
+    Merge(merge::MergeArgs),
     /// Compare a table against a baseline; exit 1 when a row got worse.
     ///
     /// Rows match by (method, terrain). A row is worse when CURRENT's mean or
@@ -111,6 +126,7 @@ fn main() -> ExitCode {
                 compare::run(&baseline, &current, &tol, format)
             }
             Some(Cmd::Transfer(t)) => transfer::run(t),
+            Some(Cmd::Merge(m)) => merge::run(m),
             None => evaluate::run(a.eval),
         }
     })

@@ -7,7 +7,7 @@
 use std::io::Write;
 
 use clap::ValueEnum;
-use dem_core::eval::{Compared, Measure, RecordResult, Status, TableRow, TABLE_HEADER};
+use dem_core::eval::{Compared, Measure, Status, TableRow, TABLE_HEADER};
 use dem_core::output::AtomicOutput;
 use dem_core::DemError;
 use serde::Serialize;
@@ -263,36 +263,4 @@ pub fn write_comparison(path: &str, rows: &[Compared], f: Format) -> anyhow::Res
             .collect();
         Grid { cols, rows: grid_rows }.write(w, f)
     })
-}
-
-/// Per-record results as CSV, written a row at a time:
-/// `sim_index,real_index,error,terrain,height_cm` (terrain empty without
-/// labels; height_cm, the mean abs height error against that real record on
-/// cells valid in both, empty without such cells). By hand rather than
-/// through a CSV writer, so a closed stdout stays a broken pipe (exit 0).
-pub struct RecordsWriter {
-    out: AtomicOutput,
-    path: String,
-}
-
-impl RecordsWriter {
-    /// Start writing `path` (`-` for stdout), header first.
-    pub fn create(path: &str) -> anyhow::Result<Self> {
-        let mut out = AtomicOutput::create(path)?;
-        writeln!(out, "sim_index,real_index,error,terrain,height_cm").map_err(|e| DemError::io(path, e))?;
-        Ok(RecordsWriter { out, path: path.into() })
-    }
-
-    /// Append one result.
-    pub fn write(&mut self, r: &RecordResult) -> anyhow::Result<()> {
-        let h = r.height.mean_cm().map_or(String::new(), |h| h.to_string());
-        writeln!(self.out, "{},{},{},{},{h}", r.sim_index, r.real_index, r.error, r.terrain.as_deref().unwrap_or(""))
-            .map_err(|e| DemError::io(self.path.as_str(), e))?;
-        Ok(())
-    }
-
-    /// Flush and move the file into place.
-    pub fn finish(self) -> anyhow::Result<()> {
-        Ok(self.out.commit()?)
-    }
 }

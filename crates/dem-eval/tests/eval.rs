@@ -157,7 +157,7 @@ print(json.dumps(out))
         // Per-record results: same best real record, same error, terrain.
         let text = std::fs::read_to_string(&rec).unwrap();
         let lines: Vec<&str> = text.lines().collect();
-        assert_eq!(lines[0], "sim_index,real_index,error,terrain,height_cm");
+        assert!(lines[0].starts_with("sim_index,real_index,error,terrain,height_cm,height_sum_m,height_n,"), "{}", lines[0]);
         let recs = want[method]["records"].as_array().unwrap();
         assert_eq!(lines.len() - 1, recs.len());
         for (line, w) in lines[1..].iter().zip(recs) {

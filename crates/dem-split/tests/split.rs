@@ -212,3 +212,72 @@ fn dem_synth_by_run_ranges_equals_the_whole_world() {
     joined.extend(rows(&d("b/sim_labels.csv")));
     assert_eq!(joined, rows(&d("whole/sim_labels.csv")));
 }
+
+/// dem-eval over shards: each shard scored with `--first-index`, then
+/// `dem-eval merge` of the per-record results (and, for the gap, the
+/// predictions joined) gives the table of one run on the whole, byte for
+/// byte, by terrain, for a model and for Identity.
+#[test]
+fn dem_eval_shard_tables_merge_into_the_whole() {
+    let dir = tempdir();
+    let d = dir.path();
+    let model = dem_testkit::onnx_one_node(d, "tanh.onnx", "Tanh");
+    let (sim, real, pairs, labels) = (td("sim.npy"), td("real.npy"), td("pairs.csv"), td("sim_labels.csv"));
+    // testdata's pairs name sims 0..965: shards of 400 give three with
+    // pairs and five without (an empty records file must merge too).
+    let rows = manifest(ok(&run("dem-split", &["--records", "400", "--labels", &labels, "--out", &arg(d, "p"), &sim], None)));
+    assert_eq!(rows.len(), 8);
+    for method in [vec!["--model", model.as_str()], vec!["--identity"]] {
+        let common = |sim: &str, labels: &str| -> Vec<String> {
+            let mut a: Vec<String> = ["--sim", sim, "--real", &real, "--pairs", &pairs, "--labels-sim", labels, "--by", "terrain", "--name", "m", "--format", "csv"]
+                .map(String::from)
+                .to_vec();
+            a.extend(method.iter().map(|s| s.to_string()));
+            a
+        };
+        let whole = ok(&run("dem-eval", &common(&sim, &labels).iter().map(String::as_str).collect::<Vec<_>>(), None)).to_vec();
+        let (mut recs, mut preds) = (Vec::new(), Vec::new());
+        for r in &rows {
+            let (rec, pred) = (format!("{}.rec.csv", r[0]), format!("{}.pred.npy", r[0]));
+            let mut a = common(&r[0], &r[3]);
+            a.extend(["--first-index", &r[1], "--records", &rec, "--emit-pred", &pred, "-o", "/dev/null"].map(String::from));
+            ok(&run("dem-eval", &a.iter().map(String::as_str).collect::<Vec<_>>(), None));
+            recs.push(rec);
+            preds.push(pred);
+        }
+        let mut cat: Vec<&str> = preds.iter().map(String::as_str).collect();
+        cat.push("-");
+        let joined = ok(&run("dem-cat", &cat, None)).to_vec();
+        let mut m: Vec<&str> = vec!["merge", "--name", "m", "--by", "terrain", "--format", "csv"];
+        m.extend(recs.iter().map(String::as_str));
+        m.extend(["--emitted-pred", "-", "--real", &real, "--pairs", &pairs]);
+        let merged = ok(&run("dem-eval", &m, Some(joined.clone()))).to_vec();
+        assert!(String::from_utf8_lossy(&whole).lines().count() >= 4, "{}", String::from_utf8_lossy(&whole));
+        assert_eq!(String::from_utf8_lossy(&merged), String::from_utf8_lossy(&whole), "{method:?}: merged shards differ from the whole");
+        // Without the predictions: the same table without the gap, and a note.
+        let o = run("dem-eval", &m[..m.len() - 6], None);
+        let no_gap = String::from_utf8_lossy(ok(&o)).into_owned();
+        assert!(stderr(&o).contains("gap not computed"), "{}", stderr(&o));
+        for (a, b) in no_gap.lines().zip(String::from_utf8_lossy(&whole).lines()).skip(1) {
+            assert_eq!(a, &b[..b.rfind(',').unwrap() + 1], "no gap: the other columns are the same");
+        }
+        // Shards out of order, or one missing: refused, one line, exit 2.
+        let mut swapped = m.clone();
+        let k = swapped.iter().position(|a| *a == recs[0]).unwrap();
+        swapped.swap(k, k + 1);
+        let o = run("dem-eval", &swapped, Some(joined.clone()));
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        assert!(stderr(&o).contains("does not follow") && stderr(&o).lines().count() == 1, "{}", stderr(&o));
+        let mut missing = m.clone();
+        missing.remove(k + 1);
+        let o = run("dem-eval", &missing, Some(joined.clone()));
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        assert!(stderr(&o).contains("a shard is missing"), "{}", stderr(&o));
+    }
+    // A records file of another kind (a table) is refused by name.
+    let table = arg(d, "table.csv");
+    fs::write(&table, "method,terrain,count\n").unwrap();
+    let o = run("dem-eval", &["merge", "--name", "m", &table], None);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("table.csv") && stderr(&o).contains("--records"), "{}", stderr(&o));
+}

@@ -1,0 +1,173 @@
+//! `dem-eval merge`: the table of the whole from the shards' per-record
+//! results. Medians and the gap do not merge from shard tables, so a shard
+//! run keeps what they are made of: its `--records` CSV (errors and the
+//! exact height and roughness sums) and, for the gap, its `--emit-pred`
+//! records. Added in index order, they give the one-run table bit for bit.
+
+use std::collections::{BTreeMap, BTreeSet, HashMap};
+
+use clap::Args as ClapArgs;
+use dem_core::eval::{RecordResult, RowAcc};
+use dem_core::npy::{self, CHUNK_RECORDS};
+use dem_core::{cli, DemError, Terrain};
+
+use crate::evaluate::{By, SplitArg};
+use crate::inputs::{in_sample, row_gaps, Evaluation, GapSample, Pairs, Reals};
+use crate::report::{self, Format};
+
+/// The arguments of `dem-eval merge`.
+#[derive(ClapArgs)]
+pub struct MergeArgs {
+    /// The shards' per-record results (`dem-eval --first-index N --records
+    /// FILE`), in shard order.
+    #[arg(required = true, value_name = "RECORDS")]
+    records: Vec<String>,
+    /// Name of the table row (the method; a shard table's `method`).
+    #[arg(long)]
+    name: String,
+    /// The shards' `--emit-pred` files joined in the same order (`dem-cat`,
+    /// or `-` for a pipe): record j is the prediction of row j of the
+    /// records. With --real and --pairs it gives the gap column.
+    #[arg(long, value_name = "FILE", requires_all = ["real", "pairs"])]
+    emitted_pred: Option<String>,
+    /// Real NPY of the evaluation (for the gap).
+    #[arg(long, requires = "emitted_pred")]
+    real: Option<String>,
+    /// Pairs CSV of the evaluation (for the gap: every partner of a sim is in its row's real set).
+    #[arg(long, requires = "emitted_pred")]
+    pairs: Option<String>,
+    /// The split the shards evaluated.
+    #[arg(long, value_enum, requires = "pairs")]
+    split: Option<SplitArg>,
+    /// Split the table: one row over all records, then one per terrain
+    /// (the shards ran with --labels-sim).
+    #[arg(long, value_enum)]
+    by: Option<By>,
+    /// Table format.
+    #[arg(long, value_enum, default_value = "text")]
+    format: Format,
+    /// Table output (`-` for stdout).
+    #[arg(short, long, default_value = "-")]
+    output: String,
+}
+
+/// Read every records file, in order; sim indices must rise across them
+/// (shards in order, none twice).
+fn read_all(paths: &[String]) -> anyhow::Result<Vec<RecordResult>> {
+    let mut all: Vec<RecordResult> = Vec::new();
+    for path in paths {
+        let rows = crate::records::read(path)?;
+        for (k, r) in rows.iter().enumerate() {
+            if let Some(prev) = all.last().filter(|p| p.sim_index >= r.sim_index) {
+                return Err(DemError::Table {
+                    path: path.clone(),
+                    line: k as u64 + 2,
+                    reason: format!(
+                        "sim_index {} does not follow {} of the records before it: give the shards in order, each once",
+                        r.sim_index, prev.sim_index
+                    ),
+                }
+                .into());
+            }
+            all.push(r.clone());
+        }
+    }
+    Ok(all)
+}
+
+/// The table rows a record belongs to.
+fn keys(r: &RecordResult, by_terrain: bool) -> Vec<Option<Terrain>> {
+    let mut k = vec![None];
+    if by_terrain {
+        k.push(r.terrain.as_deref().and_then(|t| t.parse().ok()));
+    }
+    k
+}
+
+/// The gap of every row: the emitted predictions sampled as one run samples
+/// them, against the real partners the pairs give the rows' sims.
+fn gaps(a: &MergeArgs, recs: &[RecordResult], sizes: &HashMap<Option<Terrain>, u64>) -> anyhow::Result<HashMap<Option<Terrain>, f64>> {
+    let (Some(pred_path), Some(real), Some(pairs_path)) = (&a.emitted_pred, &a.real, &a.pairs) else {
+        cli::log("gap not computed: give --emitted-pred (the shards' --emit-pred joined), --real and --pairs");
+        return Ok(HashMap::new());
+    };
+    let (pairs, _, real_max) = Pairs::read(pairs_path, a.split.map(SplitArg::split))?;
+    let sims: Vec<u64> = pairs.pairs.chunk_by(|x, y| x.0 == y.0).map(|g| g[0].0).collect();
+    if !sims.iter().copied().eq(recs.iter().map(|r| r.sim_index)) {
+        return Err(DemError::input(
+            pairs_path.as_str(),
+            format!(
+                "pairs {} sims{} but the records hold {}, or other ones: a shard is missing, or the pairs or split differ from the shards'",
+                sims.len(),
+                if a.split.is_some() { " of the split" } else { "" },
+                recs.len()
+            ),
+        )
+        .into());
+    }
+    let needed: BTreeSet<u64> = if real == "-" { pairs.pairs.iter().map(|p| p.1).collect() } else { BTreeSet::new() };
+    let (mut reals, n_real) = Reals::open(real, &needed)?;
+    real_max.check(pairs_path, n_real, real, "real_index")?;
+    let mut samples: HashMap<Option<Terrain>, GapSample> = HashMap::new();
+    let mut rdr = npy::open(pred_path)?;
+    let mut chunk = Vec::with_capacity(CHUNK_RECORDS);
+    let mut rows = recs.iter();
+    loop {
+        chunk.clear();
+        if rdr.read_chunk(&mut chunk, CHUNK_RECORDS)? == 0 {
+            break;
+        }
+        for pred in &chunk {
+            let Some(r) = rows.next() else {
+                return Err(DemError::input(pred_path.as_str(), format!("has more records than the {} rows of the records files", recs.len())).into());
+            };
+            for key in keys(r, a.by.is_some()) {
+                let s = samples.entry(key).or_default();
+                if in_sample(r.sim_index, sizes.get(&key).copied().unwrap_or(0)) {
+                    s.preds.push(*pred);
+                }
+                s.reals.extend(pairs.within(r.sim_index..r.sim_index + 1).iter().map(|p| p.1));
+            }
+        }
+    }
+    if rows.next().is_some() {
+        return Err(DemError::input(
+            pred_path.as_str(),
+            format!("has {} records but the records files {} rows: join every shard's --emit-pred, in order", rdr.records_read(), recs.len()),
+        )
+        .into());
+    }
+    row_gaps(samples, sizes, &mut reals)
+}
+
+/// Merge as `a` asks and write the table.
+pub fn run(a: MergeArgs) -> anyhow::Result<()> {
+    let inputs: Vec<&str> = a.records.iter().chain([&a.emitted_pred, &a.real, &a.pairs].into_iter().flatten()).map(String::as_str).collect();
+    if inputs.iter().filter(|p| **p == "-").count() > 1 {
+        return Err(cli::usage("only one input can be `-` (stdin)"));
+    }
+    dem_core::output::check_outputs(&inputs, &[a.output.as_str()])?;
+    let recs = read_all(&a.records)?;
+    if recs.is_empty() {
+        return Err(cli::usage("the records files hold no records"));
+    }
+    if a.by.is_some() {
+        if let Some(r) = recs.iter().find(|r| r.terrain.as_deref().and_then(|t| t.parse::<Terrain>().ok()).is_none()) {
+            return Err(cli::usage(format!(
+                "--by terrain: sim record {} has no terrain in its records file (run the shards with --labels-sim)",
+                r.sim_index
+            )));
+        }
+    }
+    let mut rows: BTreeMap<Option<Terrain>, RowAcc> = BTreeMap::new();
+    let mut sizes: HashMap<Option<Terrain>, u64> = HashMap::new();
+    for r in &recs {
+        for key in keys(r, a.by.is_some()) {
+            rows.entry(key).or_default().add(r);
+            *sizes.entry(key).or_default() += 1;
+        }
+    }
+    let gaps = gaps(&a, &recs, &sizes)?;
+    let table = Evaluation::new(rows, gaps).table(&a.name, a.by.is_some());
+    report::write_table(&a.output, &table, a.format)
+}
