@@ -42,7 +42,7 @@ for threads in $THREADS_LIST; do
   start=$(date +%s.%N)
   line=$("$BIN/dem-train" --sim testdata/sim.npy --real testdata/real.npy --pairs testdata/pairs.csv \
     --out "$OUT/train-run" --arch thesis --width "$WIDTH" --batch "$BATCH" --max-steps "$TRAIN_STEPS" \
-    --threads "$threads" --seed 1 2>&1 | grep 'samples/s')
+    --threads "$threads" --seed 1 2>&1 | grep ' steps of ' | tail -n 1)
   end=$(date +%s.%N)
   rm -rf "$OUT/train-run"
   run=$(echo "$line" | sed -n 's/.* \([0-9.]*\) samples\/s.*/\1/p')

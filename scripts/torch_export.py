@@ -74,6 +74,7 @@ def main():
     # InstanceNorm2d without running stats normalises by the input's own
     # statistics in eval mode too; the exporter warns about it all the same.
     warnings.filterwarnings("ignore", message=".*instance_norm.*")
+    warnings.filterwarnings("ignore", category=DeprecationWarning)
     torch.manual_seed(a.seed)
     g = Gen(a.width, a.arch == "residual").eval()
     with torch.no_grad():

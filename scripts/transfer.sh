@@ -85,6 +85,14 @@ for v in gy gy_sampled; do
     "$BIN/dem-sensor" apply --model "$OUT/gap/sensor.json" --only startup --labels "$OUT/sim_labels.csv" \
         --seed "$SEED" "$OUT/${v}_sim.npy" -o "$OUT/${v}_startup_sim.npy"
 done
+# G_Y, then what is left: dem-gap fitted between G_Y(sim) and the measured
+# DEMs (with times, so startup is by time), applied to G_Y(sim).
+rm -rf "$OUT/gap_gy"
+"$BIN/dem-gap" --sim "$OUT/gy_sim.npy" --real "$OUT/real.npy" --labels-sim "$OUT/sim_labels.csv" \
+    --labels-real "$OUT/real_labels.csv" --out "$OUT/gap_gy" --seed "$SEED" 2> "$OUT/gap_gy.log" \
+    || { cat "$OUT/gap_gy.log" >&2; exit 1; }
+"$BIN/dem-sensor" apply --model "$OUT/gap_gy/sensor.json" --labels "$OUT/sim_labels.csv" --seed "$SEED" \
+    "$OUT/gy_sim.npy" -o "$OUT/gy_residual_sim.npy"
 
 # 3. The transfer table.
 for fmt in text csv md; do
@@ -95,6 +103,7 @@ for fmt in text csv md; do
         --train gy-sampled "$OUT/gy_sampled_sim.npy" "$OUT/sim_labels.csv" \
         --train gy+startup "$OUT/gy_startup_sim.npy" "$OUT/sim_labels.csv" \
         --train gy-sampled+startup "$OUT/gy_sampled_startup_sim.npy" "$OUT/sim_labels.csv" \
+        --train gy+residual "$OUT/gy_residual_sim.npy" "$OUT/sim_labels.csv" \
         --train sensor "$OUT/sensor_sim.npy" "$OUT/sim_labels.csv" \
         --train measured "$OUT/real.npy" "$OUT/real_labels.csv" \
         --by-terrain --seed "$SEED" --format "$fmt" -o "$OUT/transfer.$ext"

@@ -194,19 +194,25 @@ fn a_generator_runs_natively_the_same_for_any_threads_and_batch() {
         }
     }
     let got = npy::NpyReader::new(&first.unwrap()[..], "stdout", None).read_to_end().unwrap();
-    let out = arg(dir.path(), "ort.npy");
-    let said = py(
-        dir.path(),
-        &format!(
-            r#"
-import numpy as np, onnxruntime as ort
-s = ort.InferenceSession("{model}", providers=["CPUExecutionProvider"])
-np.save("{out}", s.run(["dem_out"], {{"dem": np.load("{inp}")}})[0])
-print("ok")
-"#
-        ),
-    );
-    assert_eq!(said.trim(), "ok");
+    let out = dem_testkit::onnxruntime(dir.path(), &model, &inp, 4096, "ort.npy");
+    let d = max_diff(&got, &npy::read_all(&out).unwrap());
+    assert!(d <= TOLERANCE, "max |dem-apply - onnxruntime| = {d}");
+}
+
+/// A generator built and exported by PyTorch (testdata/torch_gen_w4.onnx,
+/// `scripts/torch_export.py --width 4 --seed 7 --arch residual`: PyTorch's
+/// own nodes, not dem-onnx's) is recognised and runs on the native path,
+/// with onnxruntime's outputs within 1e-4.
+#[test]
+fn a_pytorch_export_runs_natively_like_onnxruntime() {
+    let dir = tempdir();
+    let model = td("torch_gen_w4.onnx");
+    let inp = td("sim.npy");
+    let o = run("dem-apply", &["--model", &model, &inp], None);
+    let err = stderr(&o);
+    assert!(err.contains("native generator (residual, width 4)") && !err.contains("runs on tract"), "{err}");
+    let got = npy::NpyReader::new(ok(&o), "stdout", None).read_to_end().unwrap();
+    let out = dem_testkit::onnxruntime(dir.path(), &model, &inp, 4096, "ort.npy");
     let d = max_diff(&got, &npy::read_all(&out).unwrap());
     assert!(d <= TOLERANCE, "max |dem-apply - onnxruntime| = {d}");
 }

@@ -571,3 +571,19 @@ fn output_through_a_symlink_replaces_its_target_and_a_directory_input_is_refused
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("is a directory"), "{}", stderr(&o));
 }
+
+/// Binary NPY is never written to a terminal (as dem-render refuses PNGs):
+/// run under `script`, which gives the tool a pseudo-terminal as stdout.
+#[test]
+fn binary_is_refused_on_a_terminal_stdout() {
+    if !Command::new("sh").args(["-c", "command -v script"]).output().is_ok_and(|o| o.status.success()) {
+        eprintln!("no `script` (util-linux): the terminal check was not run");
+        return;
+    }
+    let sim = dem_testkit::testdata("sim.npy").to_string_lossy().into_owned();
+    let cmd = format!("{} {sim}; echo \"exit=$?\"", bin("dem-cat").display());
+    let o = Command::new("script").args(["-qec", &cmd, "/dev/null"]).stdin(Stdio::null()).output().unwrap();
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("refusing to write binary NPY to a terminal") && text.contains("exit=2"), "{text}");
+    assert!(!text.contains("NUMPY"), "no binary reached the terminal: {text}");
+}

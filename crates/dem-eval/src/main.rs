@@ -34,7 +34,7 @@ use report::Format;
   dem-eval --sim sim.npy --real real.npy --pairs pairs.csv --split val --identity
   dem-eval --sim sim.npy --real real.npy --pairs pairs.csv --split val --model g.onnx \\
       --labels-sim sim_labels.csv --by terrain --records per_record.csv --format md
-  dem-apply g.onnx sim.npy -o gen.npy && dem-eval --sim sim.npy --real real.npy --pairs pairs.csv --pred gen.npy
+  dem-apply --model g.onnx sim.npy -o gen.npy && dem-eval --sim sim.npy --real real.npy --pairs pairs.csv --pred gen.npy
   dem-eval ... --identity --records r.csv --emit-input in.npy --emit-closest real.npy && \\
       dem-render --compare in.npy real.npy --row-labels input,closest --error-rows 2,1 -o fig.png
   cat identity.csv model.csv > table.csv      # CSV tables join with cat

@@ -162,13 +162,12 @@ fn onnxruntime_and_the_onnx_checker_accept_the_export() {
         let report = export_checked(&w, &input, &want, &model).unwrap();
         assert!(report.max_abs_diff <= TOLERANCE && report.records == input.len());
         let inp = arg(dir.path(), "in.npy");
-        let out = arg(dir.path(), "out.npy");
         dem_core::npy::write_all(&inp, &input).unwrap();
         let said = py(
             dir.path(),
             &format!(
                 r#"
-import numpy as np, onnx, onnxruntime as ort
+import onnx
 m = onnx.load("{model}")
 onnx.checker.check_model(m, full_check=True)
 assert [i.name for i in m.graph.input] == ["dem"] and [o.name for o in m.graph.output] == ["dem_out"]
@@ -177,16 +176,13 @@ for v in (m.graph.input[0], m.graph.output[0]):
     assert d[0].dim_param == "N" and [x.dim_value for x in d[1:]] == [21, 5, 2], d
 assert v.type.tensor_type.elem_type == onnx.TensorProto.FLOAT
 assert m.opset_import[0].version >= 13
-s = ort.InferenceSession("{model}", providers=["CPUExecutionProvider"])
-x = np.load("{inp}")
-y = np.concatenate([s.run(["dem_out"], {{"dem": x[i:i + 7]}})[0] for i in range(0, len(x), 7)])
-assert y.dtype == np.float32 and y.shape == x.shape
-np.save("{out}", y)
 print("ok")
 "#
             ),
         );
         assert_eq!(said.trim(), "ok");
+        // Batches of 7: the batch axis is dynamic.
+        let out = dem_testkit::onnxruntime(dir.path(), &model, &inp, 7, "out.npy");
         let got = dem_core::npy::read_all(&out).unwrap();
         let d = max_diff(&got, &want);
         assert!(d <= TOLERANCE, "width {width} {arch:?}: max |onnxruntime - reference| = {d}");
@@ -351,20 +347,9 @@ fn generators_run_natively_and_equal_tract_the_reference_and_onnxruntime() {
         for (g, x) in got.iter().zip(&input) {
             assert_eq!(g[at(ATTITUDE_ROW, 0, 0)..], x[at(ATTITUDE_ROW, 0, 0)..], "row 20 passes through");
         }
-        let (inp, out) = (arg(dir.path(), "in.npy"), arg(dir.path(), "out.npy"));
+        let inp = arg(dir.path(), "in.npy");
         dem_core::npy::write_all(&inp, &input).unwrap();
-        let said = py(
-            dir.path(),
-            &format!(
-                r#"
-import numpy as np, onnxruntime as ort
-s = ort.InferenceSession("{path}", providers=["CPUExecutionProvider"])
-np.save("{out}", s.run(["dem_out"], {{"dem": np.load("{inp}")}})[0])
-print("ok")
-"#
-            ),
-        );
-        assert_eq!(said.trim(), "ok");
+        let out = dem_testkit::onnxruntime(dir.path(), &path, &inp, 4096, "out.npy");
         let d = max_diff(&got, &dem_core::npy::read_all(&out).unwrap());
         assert!(d <= TOLERANCE, "width {width} {arch:?}: max |native - onnxruntime| = {d}");
     }

@@ -120,3 +120,26 @@ onnx.save(m, "{path}")
     );
     path
 }
+
+/// The onnxruntime peer: run `model` (input `dem`, output `dem_out`) with the
+/// venv's onnxruntime on the records of the NPY file `input`, in batches of
+/// `batch` records, and write its outputs to `dir/name`. Returns that path.
+pub fn onnxruntime(dir: &Path, model: &str, input: &str, batch: usize, name: &str) -> String {
+    let out = arg(dir, name);
+    let said = py(
+        dir,
+        &format!(
+            r#"
+import numpy as np, onnxruntime as ort
+s = ort.InferenceSession("{model}", providers=["CPUExecutionProvider"])
+x = np.load("{input}")
+y = np.concatenate([s.run(["dem_out"], {{"dem": x[i:i + {batch}]}})[0] for i in range(0, len(x), {batch})])
+assert y.dtype == np.float32 and y.shape == x.shape, (y.dtype, y.shape)
+np.save("{out}", y)
+print("ok")
+"#
+        ),
+    );
+    assert_eq!(said.trim(), "ok");
+    out
+}

@@ -24,9 +24,9 @@ use dem_nn::weights::Arch;
 /// exactly where its last checkpoint left it.
 #[derive(Parser)]
 #[command(version, args_conflicts_with_subcommands = true, after_long_help = "Examples:
-  dem-pair --sim-labels sim_labels.csv --real-labels real_labels.csv --val-fraction 0.5 -o pairs.csv
+  dem-pair --by pose --sim-labels sim_labels.csv --real-labels real_labels.csv --val-fraction 0.5 -o pairs.csv
   dem-train --sim sim.npy --real real.npy --pairs pairs.csv --out run/ --epochs 20
-  dem-train --out run/ --epochs 40 --resume             # go on to 40 epochs
+  dem-train --sim sim.npy --real real.npy --pairs pairs.csv --out run/ --epochs 40 --resume   # go on to 40
   dem-train export run/ -o gy.onnx
   dem-train curves run/ -o curves.png                   # losses and val error per epoch
   dem-apply --model gy.onnx < sim.npy > realistic.npy")]

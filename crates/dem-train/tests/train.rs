@@ -113,20 +113,9 @@ fn export_matches_the_trainer_in_onnxruntime_and_dem_apply() {
     let (_, gan) = checkpoint::load(&arg(Path::new(&r), "checkpoint.bin")).unwrap();
     let check = npy::read_all(&arg(Path::new(&r), "check_sim.npy")).unwrap();
     let want = gan.generate(true, &check);
-    let want_path = arg(d.path(), "want.npy");
-    npy::write_all(&want_path, &want).unwrap();
-    let worst = py(
-        d.path(),
-        &format!(
-            "import numpy as np, onnxruntime as ort\n\
-             s = ort.InferenceSession({model:?}, providers=['CPUExecutionProvider'])\n\
-             x = np.load({c:?})\n\
-             y = s.run(['dem_out'], {{'dem': x}})[0]\n\
-             print(float(np.abs(y - np.load({want_path:?})).max()))",
-            c = arg(Path::new(&r), "check_sim.npy")
-        ),
-    );
-    let worst: f64 = worst.trim().parse().unwrap();
+    let by_ort = npy::read_all(&dem_testkit::onnxruntime(d.path(), &model, &arg(Path::new(&r), "check_sim.npy"), 4096, "ort.npy")).unwrap();
+    assert_eq!(by_ort.len(), want.len());
+    let worst = by_ort.iter().flatten().zip(want.iter().flatten()).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
     assert!(worst < 1e-4, "onnxruntime differs from the trainer by {worst}");
     // dem-apply streams the same records through tract.
     let applied = arg(d.path(), "applied.npy");

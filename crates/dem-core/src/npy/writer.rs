@@ -58,6 +58,9 @@ impl Drop for NpyWriter {
 pub fn create(path: &str) -> Result<NpyWriter> {
     let io_err = |e| DemError::io(path, e);
     let sink = if path == "-" {
+        if std::io::IsTerminal::is_terminal(&std::io::stdout()) {
+            return Err(DemError::Usage("refusing to write binary NPY to a terminal: give -o FILE, or redirect or pipe stdout".into()));
+        }
         match stdout_fd() {
             // `>>` (append mode) cannot patch a header: it gets a stream of
             // arrays, which every stream reader takes whole.
