@@ -40,15 +40,8 @@ pub struct EvalArgs {
     /// Labels CSV of the sim file: terrain of each record (--records, --by terrain).
     #[arg(long)]
     labels_sim: Option<String>,
-    /// Split the table: one row over all records, then one per terrain.
-    #[arg(long, value_enum)]
-    by: Option<By>,
-    /// Table format; csv or json is what `compare` reads.
-    #[arg(long, value_enum, default_value = "text")]
-    format: Format,
-    /// Table output (`-` for stdout).
-    #[arg(short, long, default_value = "-")]
-    output: String,
+    #[command(flatten)]
+    table: TableOut,
     /// Write per-record results here: sim_index,real_index (the best pair),error,terrain,height_cm.
     #[arg(long, value_name = "FILE")]
     records: Option<String>,
@@ -74,6 +67,28 @@ pub struct EvalArgs {
     /// Records per model call with --model.
     #[arg(long, default_value_t = 512, value_parser = cli::value::at_least_one::<usize>)]
     batch: usize,
+}
+
+/// How the table is split and written (an evaluation's and a merge's).
+#[derive(ClapArgs)]
+pub(crate) struct TableOut {
+    /// Split the table: one row over all records, then one per terrain
+    /// (the terrain comes from --labels-sim).
+    #[arg(long, value_enum)]
+    pub(crate) by: Option<By>,
+    /// Table format; csv or json is what `compare` reads.
+    #[arg(long, value_enum, default_value = "text")]
+    pub(crate) format: Format,
+    /// Table output (`-` for stdout).
+    #[arg(short, long, default_value = "-")]
+    pub(crate) output: String,
+}
+
+impl TableOut {
+    /// Write `ev`'s table of `method`.
+    pub(crate) fn write(&self, ev: &crate::inputs::Evaluation, method: &str) -> anyhow::Result<()> {
+        report::write_table(&self.output, &ev.table(method, self.by.is_some()), self.format)
+    }
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -109,10 +124,10 @@ pub fn run(a: EvalArgs) -> anyhow::Result<()> {
         _ => return Err(cli::usage("choose what to evaluate: --identity, --pred FILE or --model FILE")),
     };
     let need = |v: Option<String>, flag: &str| v.ok_or_else(|| cli::usage(format!("{flag} is required")));
-    if a.by.is_some() && a.labels_sim.is_none() {
+    if a.table.by.is_some() && a.labels_sim.is_none() {
         return Err(cli::usage("--by terrain needs --labels-sim"));
     }
-    let to_stdout = [Some(&a.output), a.records.as_ref(), a.emit_input.as_ref(), a.emit_pred.as_ref(), a.emit_closest.as_ref()];
+    let to_stdout = [Some(&a.table.output), a.records.as_ref(), a.emit_input.as_ref(), a.emit_pred.as_ref(), a.emit_closest.as_ref()];
     if to_stdout.iter().filter(|p| p.is_some_and(|p| p == "-")).count() > 1 {
         return Err(cli::usage("only one output can be `-` (stdout); give the table a file with -o"));
     }
@@ -135,7 +150,7 @@ pub fn run(a: EvalArgs) -> anyhow::Result<()> {
         labels_sim: a.labels_sim,
         method,
         records: a.records,
-        by_terrain: a.by.is_some(),
+        by_terrain: a.table.by.is_some(),
         batch: a.batch,
         strict: a.strict,
         emit_input: a.emit_input,
@@ -144,6 +159,5 @@ pub fn run(a: EvalArgs) -> anyhow::Result<()> {
         first_index: a.first_index,
     };
     let ev = inputs::run(&q)?;
-    let rows = ev.table(a.name.as_deref().unwrap_or(&name), a.by.is_some());
-    report::write_table(&a.output, &rows, a.format)
+    a.table.write(&ev, a.name.as_deref().unwrap_or(&name))
 }

@@ -11,9 +11,8 @@ use dem_core::eval::{RecordResult, RowAcc};
 use dem_core::npy::{self, CHUNK_RECORDS};
 use dem_core::{cli, DemError, Terrain};
 
-use crate::evaluate::{By, SplitArg};
+use crate::evaluate::{SplitArg, TableOut};
 use crate::inputs::{in_sample, row_gaps, Evaluation, GapSample, Pairs, Reals};
-use crate::report::{self, Format};
 
 /// The arguments of `dem-eval merge`.
 #[derive(ClapArgs)]
@@ -39,16 +38,8 @@ pub struct MergeArgs {
     /// The split the shards evaluated.
     #[arg(long, value_enum, requires = "pairs")]
     split: Option<SplitArg>,
-    /// Split the table: one row over all records, then one per terrain
-    /// (the shards ran with --labels-sim).
-    #[arg(long, value_enum)]
-    by: Option<By>,
-    /// Table format.
-    #[arg(long, value_enum, default_value = "text")]
-    format: Format,
-    /// Table output (`-` for stdout).
-    #[arg(short, long, default_value = "-")]
-    output: String,
+    #[command(flatten)]
+    table: TableOut,
 }
 
 /// Read every records file, in order; sim indices must rise across them
@@ -121,7 +112,7 @@ fn gaps(a: &MergeArgs, recs: &[RecordResult], sizes: &HashMap<Option<Terrain>, u
             let Some(r) = rows.next() else {
                 return Err(DemError::input(pred_path.as_str(), format!("has more records than the {} rows of the records files", recs.len())).into());
             };
-            for key in keys(r, a.by.is_some()) {
+            for key in keys(r, a.table.by.is_some()) {
                 let s = samples.entry(key).or_default();
                 if in_sample(r.sim_index, sizes.get(&key).copied().unwrap_or(0)) {
                     s.preds.push(*pred);
@@ -146,12 +137,12 @@ pub fn run(a: MergeArgs) -> anyhow::Result<()> {
     if inputs.iter().filter(|p| **p == "-").count() > 1 {
         return Err(cli::usage("only one input can be `-` (stdin)"));
     }
-    dem_core::output::check_outputs(&inputs, &[a.output.as_str()])?;
+    dem_core::output::check_outputs(&inputs, &[a.table.output.as_str()])?;
     let recs = read_all(&a.records)?;
     if recs.is_empty() {
         return Err(cli::usage("the records files hold no records"));
     }
-    if a.by.is_some() {
+    if a.table.by.is_some() {
         if let Some(r) = recs.iter().find(|r| r.terrain.as_deref().and_then(|t| t.parse::<Terrain>().ok()).is_none()) {
             return Err(cli::usage(format!(
                 "--by terrain: sim record {} has no terrain in its records file (run the shards with --labels-sim)",
@@ -162,12 +153,11 @@ pub fn run(a: MergeArgs) -> anyhow::Result<()> {
     let mut rows: BTreeMap<Option<Terrain>, RowAcc> = BTreeMap::new();
     let mut sizes: HashMap<Option<Terrain>, u64> = HashMap::new();
     for r in &recs {
-        for key in keys(r, a.by.is_some()) {
+        for key in keys(r, a.table.by.is_some()) {
             rows.entry(key).or_default().add(r);
             *sizes.entry(key).or_default() += 1;
         }
     }
     let gaps = gaps(&a, &recs, &sizes)?;
-    let table = Evaluation::new(rows, gaps).table(&a.name, a.by.is_some());
-    report::write_table(&a.output, &table, a.format)
+    a.table.write(&Evaluation::new(rows, gaps), &a.name)
 }
