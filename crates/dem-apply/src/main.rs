@@ -98,11 +98,12 @@ fn main() -> ExitCode {
     })
 }
 
-/// Records in a named input file, from its size (one `.npy` header of 128
-/// bytes, 840 bytes a record); 0 when unknown (stdin).
+/// Records in a named input file, from its size (one `.npy` header, then
+/// the records as f32); 0 when unknown (stdin). For the progress bar only.
 fn estimate_records(input: &str) -> u64 {
     if input == "-" {
         return 0;
     }
-    std::fs::metadata(input).map_or(0, |m| m.len().saturating_sub(128) / 840)
+    let (header, record) = (dem_core::npy::header::HEADER_LEN as u64, (dem_core::format::RECORD_LEN * 4) as u64);
+    std::fs::metadata(input).map_or(0, |m| m.len().saturating_sub(header) / record)
 }
