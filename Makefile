@@ -96,7 +96,7 @@ demo: build venv
 	$(BIN)/dem-render --compare $(TD)/sim.npy $(TD)/real.npy $(foreach s,$(STAGES),$(OUT)/no-$(s)/real.npy) \
 	    --row-labels sim,measured,$(subst $(eval) ,$(comma),$(foreach s,$(STAGES),no-$(s))) \
 	    --indices $(DEMO_RECORDS) --title "measured with each emulator stage switched off" -o $(OUT)/effects.png
-	$(PY) scripts/effect_table.py $(TD)/sim.npy measured=$(TD)/real.npy $(foreach s,$(STAGES),no-$(s)=$(OUT)/no-$(s)/real.npy) \
+	BIN=$(BIN) $(PY) scripts/effect_table.py $(TD)/sim.npy measured=$(TD)/real.npy $(foreach s,$(STAGES),no-$(s)=$(OUT)/no-$(s)/real.npy) \
 	    | tee $(OUT)/effects.md
 	@echo "== 3. data preparation: filter -> pair -> clean pallets -> fill startup frames"
 	$(BIN)/dem-filter --labels $(TD)/sim_labels.csv --drop-other --unique $(TD)/sim.npy -o $(OUT)/prep/sim.npy \
