@@ -10,8 +10,9 @@ mkdir -p "$OUT"
 report="$OUT/gap.txt"
 data="$OUT/gap-data"
 "$BIN/dem-synth" --out "$data" --runs 400 --real-runs 21 --seed 1 2>/dev/null
-sim=$("$BIN/dem-filter" "$data/sim.npy" -o /dev/null 2>&1 | sed -n 's/.*kept \([0-9]*\) of.*/\1/p')
-real=$("$BIN/dem-filter" "$data/real.npy" -o /dev/null 2>&1 | sed -n 's/.*kept \([0-9]*\) of.*/\1/p')
+# Records: one labels row each (the labels CSV is the data's own count).
+sim=$(($(wc -l < "$data/sim_labels.csv") - 1))
+real=$(($(wc -l < "$data/real_labels.csv") - 1))
 start=$(date +%s.%N)
 "$BIN/dem-gap" --sim "$data/sim.npy" --real "$data/real.npy" --labels-sim "$data/sim_labels.csv" \
     --labels-real "$data/real_labels.csv" --out "$OUT/gap-run" --seed 1 2> "$OUT/gap-run.log"
@@ -20,7 +21,14 @@ secs=$(echo "$end - $start" | bc)
 {
   printf 'dem-gap, %s sim + %s real records, unpaired with labels: %.1f s (limit 120 s), %s cores\n' \
       "$sim" "$real" "$secs" "$(nproc)"
-  printf '    result: %s\n' "$(tail -1 "$OUT/gap-run.log" | sed 's/^dem-gap: //')"
+  # The result from report.json, dem-gap's machine-readable report (not its log).
+  printf '    result: %s\n' "$("${PY:-python3}" -c '
+import json, sys
+r = json.load(open(sys.argv[1]))
+names = ", ".join(s.get("effect", "?") for s in r["steps"])
+a, b = r["gap_initial"], r["gap_final"]
+print(f"gap {a:.3f} -> {b:.3f} ({1 - b / a:.1%} removed) with {names}")
+' "$OUT/gap-run/report.json")"
   printf '    command: dem-gap --sim %s/sim.npy --real %s/real.npy --labels-sim ... --labels-real ... --out %s/gap-run --seed 1\n' \
       "$data" "$data" "$OUT"
 } | tee "$report"
