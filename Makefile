@@ -111,10 +111,9 @@ demo: build venv
 	$(BIN)/dem-filter --labels $(OUT)/prep/sim_labels.csv --terrain pallet $(OUT)/prep/sim_clean.npy -o $(OUT)/prep/pallets_clean.npy
 	$(BIN)/dem-render --compare $(OUT)/prep/pallets.npy $(OUT)/prep/pallets_clean.npy --row-labels sim,cleaned \
 	    --start 6 --count 12 --title "dem-clean-pallet: sim pallets before and after" -o $(OUT)/pallets_cleaned.png
-	$(BIN)/dem-filter --index <(awk -F, 'NR>1 && $$7==0 {print $$1}' $(OUT)/prep/real_labels.csv | sed '1i index') \
-	    $(OUT)/prep/real.npy -o $(OUT)/prep/startup.npy
-	$(BIN)/dem-filter --index <(awk -F, 'NR>1 && $$7==0 {print $$1}' $(OUT)/prep/real_labels.csv | sed '1i index') \
-	    $(OUT)/prep/real_filled.npy -o $(OUT)/prep/startup_filled.npy
+	$(BIN)/dem-filter --labels $(OUT)/prep/real_labels.csv --max-time 0 $(OUT)/prep/real.npy -o $(OUT)/prep/startup.npy
+	$(BIN)/dem-filter --labels $(OUT)/prep/real_labels.csv --max-time 0 $(OUT)/prep/real_filled.npy \
+	    -o $(OUT)/prep/startup_filled.npy
 	$(BIN)/dem-render --compare $(OUT)/prep/startup.npy $(OUT)/prep/startup_filled.npy --row-labels measured,filled \
 	    --title "dem-fill-nans: the first frame of each run before and after" -o $(OUT)/startup_filled.png
 	@echo "== 4. train G_Y on the prepared data (Cycle GAN + pairs), export to ONNX, evaluate on the val split"

@@ -19,6 +19,7 @@ use dem_core::{output, Terrain};
 #[derive(Parser)]
 #[command(version, after_long_help = "Examples:
   dem-filter --labels l.csv --terrain stairs-up,pallet < sim.npy | dem-render - -o stairs.png
+  dem-filter --labels real_labels.csv --max-time 0 real.npy -o first_frames.npy   # each run's first frame
   dem-filter --labels sim_labels.csv --drop-other --unique --emit-index keep.csv sim.npy -o sim_clean.npy
   dem-filter --index keep.csv --invert sim.npy -o rest.npy     # the complement
   dem-filter --rows 6..20 --min-valid 0.5 real.npy -o seen_ahead.npy")]
@@ -38,6 +39,10 @@ struct Args {
     /// Drop records labelled `other` (section 5.1).
     #[arg(long)]
     drop_other: bool,
+    /// Keep records at most this many seconds into their run (the labels'
+    /// `time`): `--max-time 0` keeps the first frame of every run.
+    #[arg(long, value_parser = value::non_negative::<f64>)]
+    max_time: Option<f64>,
     /// Keep only the records listed in this index CSV (header `index`).
     #[arg(long)]
     index: Option<String>,
@@ -76,8 +81,8 @@ fn parse_rows(s: &str) -> Result<std::ops::Range<usize>, String> {
 fn main() -> ExitCode {
     cli::run(|| {
         let a: Args = cli::parse();
-        if (a.terrain.is_some() || a.drop_other) && a.labels.is_none() {
-            return Err(cli::usage("--terrain and --drop-other need --labels"));
+        if (a.terrain.is_some() || a.drop_other || a.max_time.is_some()) && a.labels.is_none() {
+            return Err(cli::usage("--terrain, --drop-other and --max-time need --labels"));
         }
         let inputs: Vec<&str> = [Some(&a.input), a.labels.as_ref(), a.index.as_ref()].into_iter().flatten().map(String::as_str).collect();
         let outputs: Vec<&str> = [Some(&a.output), a.emit_index.as_ref(), a.emit_labels.as_ref()].into_iter().flatten().map(String::as_str).collect();
@@ -97,6 +102,7 @@ fn main() -> ExitCode {
             labels,
             terrains: a.terrain,
             drop_other: a.drop_other,
+            max_time: a.max_time,
             index,
             invert_index: a.invert,
             min_valid: a.min_valid,
@@ -131,8 +137,8 @@ fn main() -> ExitCode {
         }
         let c = &filter.borrow().counts;
         cli::log(format_args!(
-            "kept {} of {} records (dropped: {} terrain, {} index, {} valid cells, {} rows, {} duplicates)",
-            c.kept, c.read, c.terrain, c.index, c.valid, c.rows, c.duplicate
+            "kept {} of {} records (dropped: {} terrain, {} time, {} index, {} valid cells, {} rows, {} duplicates)",
+            c.kept, c.read, c.terrain, c.time, c.index, c.valid, c.rows, c.duplicate
         ));
         Ok(())
     })

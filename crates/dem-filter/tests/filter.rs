@@ -51,6 +51,36 @@ fn terrain_and_other_rules_follow_the_labels_and_labels_follow_the_records() {
     assert!(stderr(&o).contains(&format!("kept {expected} of 3025")));
 }
 
+/// --max-time keeps the records at most that far into their run: 0 gives
+/// each run's first frame (what `make demo` shows as startup frames), the
+/// labels' records with time <= t in general; labels without a time are
+/// refused, naming the file and line.
+#[test]
+fn max_time_keeps_the_first_seconds_of_every_run() {
+    let dir = tempdir();
+    let all = table::read_labels(&td("real_labels.csv")).unwrap();
+    let real = npy::read_all(&td("real.npy")).unwrap();
+    for t in ["0", "1.5"] {
+        let (out, idx) = (arg(dir.path(), "t.npy"), arg(dir.path(), "t.csv"));
+        ok(&run("dem-filter", &["--labels", &td("real_labels.csv"), "--max-time", t, &td("real.npy"), "-o", &out, "--emit-index", &idx], None));
+        let max: f64 = t.parse().unwrap();
+        let want: Vec<usize> = all.iter().filter(|l| l.time.unwrap() <= max).map(|l| l.index as usize).collect();
+        assert_eq!(table::read_index(&idx).unwrap(), want.iter().map(|&i| i as u64).collect::<Vec<_>>());
+        assert_eq!(npy::read_all(&out).unwrap(), want.iter().map(|&i| real[i]).collect::<Vec<_>>());
+        if t == "0" {
+            let runs: std::collections::BTreeSet<_> = all.iter().map(|l| l.sequence).collect();
+            assert_eq!(want.len(), runs.len(), "one first frame per run");
+        }
+    }
+    let bare = arg(dir.path(), "bare.csv");
+    std::fs::write(&bare, "index,terrain\n0,flat\n1,flat\n").unwrap();
+    let o = run("dem-filter", &["--labels", &bare, "--max-time", "0", &td("real.npy")], None);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("bare.csv") && stderr(&o).contains("line 2") && stderr(&o).contains("no time"), "{}", stderr(&o));
+    let o = run("dem-filter", &["--max-time", "0", &td("real.npy")], None);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+}
+
 #[test]
 fn unique_drops_exact_duplicates_and_valid_rules_hold() {
     let dir = tempdir();

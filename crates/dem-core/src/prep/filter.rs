@@ -28,6 +28,9 @@ pub struct FilterRules {
     pub terrains: Option<Vec<Terrain>>,
     /// Drop records labelled `other`.
     pub drop_other: bool,
+    /// Keep records at most this many seconds into their run (the labels'
+    /// `time`; 0 keeps the first frame of every run).
+    pub max_time: Option<f64>,
     /// Keep only these indices (or all but these, with `invert_index`): the
     /// index CSV's path and its rows in file order.
     pub index: Option<(String, Vec<u64>)>,
@@ -50,6 +53,8 @@ pub struct FilterCounts {
     pub kept: u64,
     /// Dropped by terrain (including `other`).
     pub terrain: u64,
+    /// Dropped by time in the run.
+    pub time: u64,
     /// Dropped by the index rule.
     pub index: u64,
     /// Dropped for too few valid cells.
@@ -85,8 +90,8 @@ impl Filter {
     pub fn keep(&mut self, input: &str, index: u64, d: &Dem) -> Result<bool> {
         self.counts.read += 1;
         let r = &self.rules;
-        if r.terrains.is_some() || r.drop_other {
-            let (path, labels) = r.labels.as_ref().ok_or_else(|| DemError::Usage("terrain rules need --labels".into()))?;
+        if r.terrains.is_some() || r.drop_other || r.max_time.is_some() {
+            let (path, labels) = r.labels.as_ref().ok_or_else(|| DemError::Usage("terrain and time rules need --labels".into()))?;
             let label = labels.get(index as usize).ok_or_else(|| {
                 DemError::input(
                     path.as_str(),
@@ -97,6 +102,17 @@ impl Filter {
             if !wanted || (r.drop_other && label.terrain == Terrain::Other) {
                 self.counts.terrain += 1;
                 return Ok(false);
+            }
+            if let Some(max) = r.max_time {
+                let t = label.time.ok_or_else(|| DemError::Table {
+                    path: path.clone(),
+                    line: index + 2,
+                    reason: format!("record {index} has no time, which the time rule reads"),
+                })?;
+                if t > max {
+                    self.counts.time += 1;
+                    return Ok(false);
+                }
             }
         }
         if let Some(set) = &self.index {
