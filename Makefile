@@ -104,7 +104,7 @@ demo: build venv
 	$(BIN)/dem-filter --labels $(TD)/real_labels.csv --drop-other $(TD)/real.npy -o $(OUT)/prep/real.npy \
 	    --emit-labels $(OUT)/prep/real_labels.csv
 	$(BIN)/dem-pair --by content --sim $(OUT)/prep/sim.npy --real $(OUT)/prep/real.npy \
-	    --sim-labels $(OUT)/prep/sim_labels.csv --k 3 --seed 1 -o $(OUT)/prep/pairs.csv
+	    --sim-labels $(OUT)/prep/sim_labels.csv --k 3 --val-fraction 0.5 --seed 1 -o $(OUT)/prep/pairs.csv
 	$(BIN)/dem-clean-pallet --labels $(OUT)/prep/sim_labels.csv $(OUT)/prep/sim.npy -o $(OUT)/prep/sim_clean.npy
 	$(BIN)/dem-fill-nans --min-missing 0.3 --keep-fraction 0.2 --seed 1 $(OUT)/prep/real.npy -o $(OUT)/prep/real_filled.npy
 	$(BIN)/dem-filter --labels $(OUT)/prep/sim_labels.csv --terrain pallet $(OUT)/prep/sim.npy -o $(OUT)/prep/pallets.npy
@@ -118,15 +118,13 @@ demo: build venv
 	    --title "dem-fill-nans: the first frame of each run before and after" -o $(OUT)/startup_filled.png
 	@echo "== 4. train G_Y on the prepared data (Cycle GAN + pairs), export to ONNX, evaluate on the val split"
 	rm -rf $(OUT)/train
-	$(BIN)/dem-pair --by content --sim $(OUT)/prep/sim.npy --real $(OUT)/prep/real.npy \
-	    --sim-labels $(OUT)/prep/sim_labels.csv --k 3 --val-fraction 0.5 --seed 1 -o $(OUT)/prep/pairs_split.csv
-	$(BIN)/dem-train --sim $(OUT)/prep/sim.npy --real $(OUT)/prep/real.npy --pairs $(OUT)/prep/pairs_split.csv \
+	$(BIN)/dem-train --sim $(OUT)/prep/sim.npy --real $(OUT)/prep/real.npy --pairs $(OUT)/prep/pairs.csv \
 	    --out $(OUT)/train --epochs $(DEMO_EPOCHS) --seed 1
 	$(BIN)/dem-train export $(OUT)/train -o $(OUT)/gy.onnx
 	$(BIN)/dem-train curves $(OUT)/train -o $(OUT)/curves.png
-	$(BIN)/dem-eval --sim $(OUT)/prep/sim.npy --real $(OUT)/prep/real.npy --pairs $(OUT)/prep/pairs_split.csv \
+	$(BIN)/dem-eval --sim $(OUT)/prep/sim.npy --real $(OUT)/prep/real.npy --pairs $(OUT)/prep/pairs.csv \
 	    --split val --identity --format csv -o $(OUT)/train/identity.csv
-	$(BIN)/dem-eval --sim $(OUT)/prep/sim.npy --real $(OUT)/prep/real.npy --pairs $(OUT)/prep/pairs_split.csv \
+	$(BIN)/dem-eval --sim $(OUT)/prep/sim.npy --real $(OUT)/prep/real.npy --pairs $(OUT)/prep/pairs.csv \
 	    --split val --model $(OUT)/gy.onnx --name paired-data --format csv -o $(OUT)/train/model.csv \
 	    --emit-input $(OUT)/train/input.npy --emit-pred $(OUT)/train/pred.npy --emit-closest $(OUT)/train/closest.npy
 	awk 'NR == 1 || FNR > 1' $(OUT)/train/identity.csv $(OUT)/train/model.csv > $(OUT)/train/table.csv
@@ -134,9 +132,9 @@ demo: build venv
 	$(BIN)/dem-render --compare $(OUT)/train/input.npy $(OUT)/train/closest.npy $(OUT)/train/pred.npy \
 	    --row-labels input,closest-real,generated --error-rows 2,1 --start 0 --count 12 \
 	    --title "G_Y on val keys: sim input, closest real, generated (eq. 7.1 pair error under each)" -o $(OUT)/generated.png
-	$(BIN)/dem-eval --sim $(OUT)/prep/sim.npy --real $(OUT)/prep/real.npy --pairs $(OUT)/prep/pairs_split.csv \
+	$(BIN)/dem-eval --sim $(OUT)/prep/sim.npy --real $(OUT)/prep/real.npy --pairs $(OUT)/prep/pairs.csv \
 	    --split val --identity --name identity --format md -o $(OUT)/train/identity.md
-	$(BIN)/dem-eval --sim $(OUT)/prep/sim.npy --real $(OUT)/prep/real.npy --pairs $(OUT)/prep/pairs_split.csv \
+	$(BIN)/dem-eval --sim $(OUT)/prep/sim.npy --real $(OUT)/prep/real.npy --pairs $(OUT)/prep/pairs.csv \
 	    --split val --model $(OUT)/gy.onnx --name paired-data --format md -o $(OUT)/train/model.md
 	cat $(OUT)/train/identity.md <(tail -n +3 $(OUT)/train/model.md) | tee $(OUT)/train/table.md
 	@echo "== 4b. downstream: flipper regressor and terrain classifier trained on sim, G_Y(sim) (holes thresholded and drawn, then startup by time), sensor(sim), measured"
