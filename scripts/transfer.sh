@@ -73,12 +73,18 @@ fi
 # 2. dem-gap's sensor model of the same gap, with the labels' times (so
 #    `startup` is fitted as the blind edge receding in each run's first
 #    frames), applied to the same sims with their times.
-rm -rf "$OUT/gap"
-"$BIN/dem-gap" --sim "$OUT/sim.npy" --real "$OUT/real.npy" --labels-sim "$OUT/sim_labels.csv" \
-    --labels-real "$OUT/real_labels.csv" --out "$OUT/gap" --seed "$SEED" 2> "$OUT/gap.log" \
-    || { cat "$OUT/gap.log" >&2; exit 1; }
-"$BIN/dem-sensor" apply --model "$OUT/gap/sensor.json" --labels "$OUT/sim_labels.csv" --seed "$SEED" \
-    "$OUT/sim.npy" -o "$OUT/sensor_sim.npy"
+# fit_and_apply SIM NAME OUT_NPY: dem-gap of SIM (records of sim.npy, so
+# with its labels) against the measured training runs into $OUT/NAME, then
+# its model applied to SIM.
+fit_and_apply() {
+    rm -rf "${OUT:?}/$2"
+    "$BIN/dem-gap" --sim "$1" --real "$OUT/real.npy" --labels-sim "$OUT/sim_labels.csv" \
+        --labels-real "$OUT/real_labels.csv" --out "$OUT/$2" --seed "$SEED" 2> "$OUT/$2.log" \
+        || { cat "$OUT/$2.log" >&2; exit 1; }
+    "$BIN/dem-sensor" apply --model "$OUT/$2/sensor.json" --labels "$OUT/sim_labels.csv" --seed "$SEED" \
+        "$1" -o "$3"
+}
+fit_and_apply "$OUT/sim.npy" gap "$OUT/sensor_sim.npy"
 # The virtual sensor: G_Y (terrain-made effects), then the one effect a sim
 # DEM cannot carry, the startup rows of a run's first frames, by time.
 for v in gy gy_sampled; do
@@ -87,12 +93,7 @@ for v in gy gy_sampled; do
 done
 # G_Y, then what is left: dem-gap fitted between G_Y(sim) and the measured
 # DEMs (with times, so startup is by time), applied to G_Y(sim).
-rm -rf "$OUT/gap_gy"
-"$BIN/dem-gap" --sim "$OUT/gy_sim.npy" --real "$OUT/real.npy" --labels-sim "$OUT/sim_labels.csv" \
-    --labels-real "$OUT/real_labels.csv" --out "$OUT/gap_gy" --seed "$SEED" 2> "$OUT/gap_gy.log" \
-    || { cat "$OUT/gap_gy.log" >&2; exit 1; }
-"$BIN/dem-sensor" apply --model "$OUT/gap_gy/sensor.json" --labels "$OUT/sim_labels.csv" --seed "$SEED" \
-    "$OUT/gy_sim.npy" -o "$OUT/gy_residual_sim.npy"
+fit_and_apply "$OUT/gy_sim.npy" gap_gy "$OUT/gy_residual_sim.npy"
 
 # 3. The transfer table.
 for fmt in text csv md; do
