@@ -194,8 +194,13 @@ fn a_generator_runs_natively_the_same_for_any_threads_and_batch() {
         }
     }
     let got = npy::NpyReader::new(&first.unwrap()[..], "stdout", None).read_to_end().unwrap();
-    let out = dem_testkit::onnxruntime(dir.path(), &model, &inp, 4096, "ort.npy");
-    let d = max_diff(&got, &npy::read_all(&out).unwrap());
+    assert_like_onnxruntime(dir.path(), &model, &inp, &got);
+}
+
+/// `got` (dem-apply's output of `model` on `inp`) is onnxruntime's within 1e-4.
+fn assert_like_onnxruntime(dir: &std::path::Path, model: &str, inp: &str, got: &[Dem]) {
+    let out = dem_testkit::onnxruntime(dir, model, inp, 4096, "ort.npy");
+    let d = max_diff(got, &npy::read_all(&out).unwrap());
     assert!(d <= TOLERANCE, "max |dem-apply - onnxruntime| = {d}");
 }
 
@@ -212,9 +217,7 @@ fn a_pytorch_export_runs_natively_like_onnxruntime() {
     let err = stderr(&o);
     assert!(err.contains("native generator (residual, width 4)") && !err.contains("runs on tract"), "{err}");
     let got = npy::NpyReader::new(ok(&o), "stdout", None).read_to_end().unwrap();
-    let out = dem_testkit::onnxruntime(dir.path(), &model, &inp, 4096, "ort.npy");
-    let d = max_diff(&got, &npy::read_all(&out).unwrap());
-    assert!(d <= TOLERANCE, "max |dem-apply - onnxruntime| = {d}");
+    assert_like_onnxruntime(dir.path(), &model, &inp, &got);
 }
 
 /// Any other conforming model runs on tract, with a note on stderr.

@@ -160,7 +160,7 @@ fn sample_hash(i: u64) -> u64 {
 }
 
 /// Keeps index i of a set of `n` with probability GAP_SAMPLE / n, by hash.
-pub(crate) fn in_sample(i: u64, n: u64) -> bool {
+fn in_sample(i: u64, n: u64) -> bool {
     n <= GAP_SAMPLE || (sample_hash(i) as f64) < GAP_SAMPLE as f64 / n as f64 * u64::MAX as f64
 }
 
@@ -243,8 +243,19 @@ impl Emit {
 /// paired with the row's records.
 #[derive(Default)]
 pub(crate) struct GapSample {
-    pub(crate) preds: Vec<Dem>,
-    pub(crate) reals: BTreeSet<u64>,
+    preds: Vec<Dem>,
+    reals: BTreeSet<u64>,
+}
+
+impl GapSample {
+    /// Add sim record `index` of a row of `row_size` records: its
+    /// prediction when the sample keeps the index, and its real partners.
+    pub(crate) fn add(&mut self, index: u64, pred: &Dem, partners: impl Iterator<Item = u64>, row_size: u64) {
+        if in_sample(index, row_size) {
+            self.preds.push(*pred);
+        }
+        self.reals.extend(partners);
+    }
 }
 
 /// The gap of each table row from its sample: the sampled predictions
@@ -437,11 +448,8 @@ fn evaluate_block(ctx: &BlockCtx, mut block: Vec<(u64, Dem, Dem)>, reals: &mut R
         }
         for key in keys {
             acc.rows.entry(key).or_default().add(r);
-            let s = acc.samples.entry(key).or_default();
-            if in_sample(b.0, ctx.row_sizes.get(&key).copied().unwrap_or(0)) {
-                s.preds.push(b.2);
-            }
-            s.reals.extend(sub[&b.0].iter().copied());
+            let size = ctx.row_sizes.get(&key).copied().unwrap_or(0);
+            acc.samples.entry(key).or_default().add(b.0, &b.2, sub[&b.0].iter().copied(), size);
         }
     }
     Ok(())

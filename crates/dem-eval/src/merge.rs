@@ -12,7 +12,7 @@ use dem_core::npy::{self, CHUNK_RECORDS};
 use dem_core::{cli, DemError, Terrain};
 
 use crate::evaluate::{SplitArg, TableOut};
-use crate::inputs::{in_sample, row_gaps, Evaluation, GapSample, Pairs, Reals};
+use crate::inputs::{row_gaps, Evaluation, GapSample, Pairs, Reals};
 
 /// The arguments of `dem-eval merge`.
 #[derive(ClapArgs)]
@@ -48,7 +48,7 @@ fn read_all(paths: &[String]) -> anyhow::Result<Vec<RecordResult>> {
     let mut all: Vec<RecordResult> = Vec::new();
     for path in paths {
         let rows = crate::records::read(path)?;
-        for (k, r) in rows.iter().enumerate() {
+        for (k, r) in rows.into_iter().enumerate() {
             if let Some(prev) = all.last().filter(|p| p.sim_index >= r.sim_index) {
                 return Err(DemError::Table {
                     path: path.clone(),
@@ -60,7 +60,7 @@ fn read_all(paths: &[String]) -> anyhow::Result<Vec<RecordResult>> {
                 }
                 .into());
             }
-            all.push(r.clone());
+            all.push(r);
         }
     }
     Ok(all)
@@ -113,11 +113,8 @@ fn gaps(a: &MergeArgs, recs: &[RecordResult], sizes: &HashMap<Option<Terrain>, u
                 return Err(DemError::input(pred_path.as_str(), format!("has more records than the {} rows of the records files", recs.len())).into());
             };
             for key in keys(r, a.table.by.is_some()) {
-                let s = samples.entry(key).or_default();
-                if in_sample(r.sim_index, sizes.get(&key).copied().unwrap_or(0)) {
-                    s.preds.push(*pred);
-                }
-                s.reals.extend(pairs.within(r.sim_index..r.sim_index + 1).iter().map(|p| p.1));
+                let partners = pairs.within(r.sim_index..r.sim_index + 1).iter().map(|p| p.1);
+                samples.entry(key).or_default().add(r.sim_index, pred, partners, sizes.get(&key).copied().unwrap_or(0));
             }
         }
     }
