@@ -54,10 +54,10 @@ d, stages = sys.argv[1], sys.argv[2:]
 expect = {
     "fov": {"fov", "startup", "view-top"},
     "occlusion": {"occlusion", "pit-fill", "mixed-cells"},
-    "smoothing": {"smoothing", "edge-holes", "rim-holes", "mixed-cells"},
+    "smoothing": {"smoothing", "hole-growth", "edge-holes", "rim-holes", "mixed-cells"},
     "noise": {"noise"},
     "dropout": {"patch-dropout", "dropout"},
-    "holes": {"edge-holes", "rim-holes", "dropout", "patch-dropout"},
+    "holes": {"hole-growth", "edge-holes", "rim-holes", "dropout", "patch-dropout"},
 }
 cases = [(f"no-{s}-{m}", f"{s} ({m})", s) for s in stages for m in ("paired", "unpaired")]
 cases += [("exact-paired", "exact sim -> all (paired)", None), ("exact-unpaired", "exact sim -> all (unpaired)", None)]

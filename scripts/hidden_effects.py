@@ -40,6 +40,9 @@ heights relative to the robot centre; missing = mask -1, height 0):
                the two with probability p (the higher such rim when both lines
                qualify)
   view-top     cells whose height is above h - t x missing
+  hole-growth  a valid cell with k missing 4-neighbours (inside the grid)
+               is missing with probability 1 - (1 - p)^k, k counted before
+               any cell is removed
   mixed-cells  a cell is the mean of its back and front halves (centres 2.5
                cm and 7.5 cm from each boundary); at a boundary between
                valid x-neighbours more than 5 cm apart the step lies at s,
@@ -204,6 +207,13 @@ def pit_fill(d, rng, g, p):
     d[:20, :, 0] = np.where(fill, rim, d[:20, :, 0])
 
 
+def hole_growth(d, rng, p):
+    missing = np.pad(d[:20, :, 1] <= 0, 1, constant_values=False)
+    k = sum(missing[1 + dr:21 + dr, 1 + dc:6 + dc].astype(int) for dr, dc in ((-1, 0), (1, 0), (0, -1), (0, 1)))
+    lose = rng.random((20, 5)) < 1.0 - (1.0 - p) ** k
+    set_missing(d, lose & (d[:20, :, 1] > 0))
+
+
 def view_top(d, rng, h, t):
     valid = d[:20, :, 1] > 0
     set_missing(d, valid & (d[:20, :, 0] > (h - t * X)[:, None]))
@@ -238,7 +248,8 @@ def mixed_cells(d, rng, up, down):
 EFFECTS = {"noise": noise, "dropout": dropout, "row-dropout": row_dropout, "occlusion": occlusion,
            "fov": fov, "smoothing": smoothing, "bias": bias, "quantization": quantization,
            "startup": startup, "patch-dropout": patch_dropout, "edge-holes": edge_holes,
-           "mixed-cells": mixed_cells, "rim-holes": rim_holes, "pit-fill": pit_fill, "view-top": view_top}
+           "mixed-cells": mixed_cells, "rim-holes": rim_holes, "pit-fill": pit_fill, "view-top": view_top,
+           "hole-growth": hole_growth}
 
 
 def main():

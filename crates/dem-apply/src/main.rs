@@ -1,6 +1,7 @@
 //! dem-apply: run an ONNX model (a generator exported by dem-train) over an
 //! NPY stream of DEMs.
 
+use std::io::Write;
 use std::process::ExitCode;
 use std::time::Instant;
 
@@ -20,6 +21,7 @@ use dem_onnx::OnnxModel;
 #[derive(Parser)]
 #[command(version, after_long_help = "Examples:
   dem-apply --model g_y.onnx sim.npy -o realistic.npy
+  dem-apply --model g_y.onnx --info                 # what it was trained on, how, its val table
   dem-apply --model g_y.onnx --sample-masks --seed 1 sim.npy -o realistic.npy   # holes drawn at the model's rate
   dem-synth --out w --runs 20 --seed 3 && dem-apply --model g_y.onnx w/sim.npy | dem-render - -o fake.png
   dem-filter --labels l.csv --terrain pallet sim.npy | dem-apply --model g_y.onnx --threads 2 > pallets_real.npy
@@ -56,11 +58,20 @@ struct Args {
     /// Worker threads (default: one per core).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
     threads: Option<u32>,
+    /// Print what the model says about itself (producer, opset, the engine
+    /// that runs it, and dem-train's metadata: data files with record counts
+    /// and SHA-256, seed, architecture, steps, validation table) on stdout,
+    /// and run nothing.
+    #[arg(long)]
+    info: bool,
 }
 
 fn main() -> ExitCode {
     cli::run(|| {
         let a: Args = cli::parse();
+        if a.info {
+            return print_info(&a.model);
+        }
         output::check_outputs(&[&a.input, &a.model], &[&a.output])?;
         let mut pool = rayon::ThreadPoolBuilder::new();
         if let Some(n) = a.threads {
@@ -106,4 +117,35 @@ fn estimate_records(input: &str) -> u64 {
     }
     let (header, record) = (dem_core::npy::header::HEADER_LEN as u64, (dem_core::format::RECORD_LEN * 4) as u64);
     std::fs::metadata(input).map_or(0, |m| m.len().saturating_sub(header) / record)
+}
+
+/// `--info`: one `key: value` line each; a multi-line value (the validation
+/// table) follows its key, indented.
+fn print_info(path: &str) -> anyhow::Result<()> {
+    let info = dem_onnx::read_info(path)?;
+    let engine = OnnxModel::load(path)?.engine_name();
+    let mut lines = vec![
+        format!("model: {path}"),
+        format!("producer: {}", info.producer),
+        format!("opset: {}", info.opset.map_or("none".into(), |o| o.to_string())),
+        format!("description: {}", info.description),
+        format!("engine: {engine}"),
+    ];
+    if info.metadata.is_empty() {
+        lines.push("metadata: none (not exported by dem-train, or by a version before models carried it)".into());
+    }
+    for (k, v) in &info.metadata {
+        if v.contains('\n') {
+            lines.push(format!("{k}:"));
+            lines.extend(v.lines().map(|l| format!("  {l}")));
+        } else {
+            lines.push(format!("{k}: {v}"));
+        }
+    }
+    let mut out = std::io::stdout().lock();
+    for l in lines {
+        writeln!(out, "{l}")?;
+    }
+    out.flush()?;
+    Ok(())
 }

@@ -136,6 +136,22 @@ fn hidden_patch_dropout() {
     single("patch-dropout", "patch-dropout:n=1.3,r=0.09", &[("n", 1.3, Some(0.35)), ("r", 0.09, Some(0.03))]);
 }
 
+#[test]
+fn hidden_hole_growth() {
+    // Holes only grow where there are holes: the sim side already has the
+    // shadows of a sensor and dark patches (both sides alike), real has
+    // them grown. The patches give the ~4,000 hole borders that pin p down
+    // to a few hundredths; shadows alone give 900.
+    let dir = tempdir();
+    let (sim, pairs) = setup(dir.path());
+    let shadowed = hide(dir.path(), &sim, "shadowed.npy", &["occlusion:h=0.5,x0=0.1", "patch-dropout:n=2,r=0.08"]);
+    let real = hide(dir.path(), &shadowed, "real.npy", &["hole-growth:p=0.3"]);
+    for (pp, out) in [(Some(pairs.as_str()), "paired"), (None, "unpaired")] {
+        let r = gap(dir.path(), &shadowed, &real, pp, &[], out);
+        check_single(&r, "hole-growth", &[("p", 0.3, None)]);
+    }
+}
+
 /// An effect at height jumps hidden with probability `p`: named first, p
 /// back, paired and unpaired; g only checked to be below `g_below`, the
 /// smallest jumps of the data (any g below them gives the same cells).

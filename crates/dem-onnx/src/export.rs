@@ -266,6 +266,19 @@ pub fn export_checked(
     expected: &[Dem],
     path: &str,
 ) -> Result<ExportReport, DemError> {
+    export_checked_with(w, check_inputs, expected, path, &[])
+}
+
+/// [`export_checked`], with `metadata` stored as the model's
+/// `metadata_props` (key, value): what it was trained on and how, so the
+/// file says what it is (`dem-apply --info`).
+pub fn export_checked_with(
+    w: &GeneratorWeights,
+    check_inputs: &[Dem],
+    expected: &[Dem],
+    path: &str,
+    metadata: &[(String, String)],
+) -> Result<ExportReport, DemError> {
     if check_inputs.is_empty() || check_inputs.len() != expected.len() {
         return Err(DemError::Usage(format!(
             "export to {path}: need check records and as many expected outputs (got {} and {})",
@@ -274,7 +287,10 @@ pub fn export_checked(
         )));
     }
     let name = std::path::Path::new(path).file_stem().map_or("generator".into(), |s| s.to_string_lossy().into_owned());
-    let bytes = generator_model(w, &name).encode_to_vec();
+    let mut proto = generator_model(w, &name);
+    proto.metadata_props =
+        metadata.iter().map(|(key, value)| pb::StringStringEntryProto { key: key.clone(), value: value.clone() }).collect();
+    let bytes = proto.encode_to_vec();
     // tract, not the native path: the file must be right for any runtime.
     let model = OnnxModel::from_bytes(&bytes, path)?.on_tract();
     let mut max_abs_diff = 0.0f32;
@@ -308,4 +324,30 @@ pub fn export_checked(
     }
     write_atomic(path, |f| f.write_all(&bytes))?;
     Ok(ExportReport { path: path.into(), bytes: bytes.len(), records: check_inputs.len(), max_abs_diff })
+}
+
+/// What an ONNX file says about itself: producer, description and the
+/// `metadata_props` an export stored ([`export_checked_with`]), in file order.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ModelInfo {
+    /// `producer_name producer_version`.
+    pub producer: String,
+    /// The model's `doc_string`.
+    pub description: String,
+    /// The ONNX operator set imported from the default domain.
+    pub opset: Option<i64>,
+    /// `metadata_props`, key and value.
+    pub metadata: Vec<(String, String)>,
+}
+
+/// Read [`ModelInfo`] from the ONNX file at `path` (the graph is not built).
+pub fn read_info(path: &str) -> Result<ModelInfo, DemError> {
+    let bytes = std::fs::read(path).map_err(|e| DemError::input(path, format!("cannot read: {e}")))?;
+    let m = pb::ModelProto::decode(&bytes[..]).map_err(|e| DemError::input(path, format!("not an ONNX model: {e}")))?;
+    Ok(ModelInfo {
+        producer: format!("{} {}", m.producer_name, m.producer_version).trim().to_string(),
+        description: m.doc_string,
+        opset: m.opset_import.iter().find(|o| o.domain.is_empty() || o.domain == "ai.onnx").map(|o| o.version),
+        metadata: m.metadata_props.into_iter().map(|e| (e.key, e.value)).collect(),
+    })
 }

@@ -23,7 +23,7 @@ pub mod export;
 pub mod native;
 pub mod run;
 
-pub use export::{export_checked, generator_model, ExportReport, TOLERANCE};
+pub use export::{export_checked, export_checked_with, generator_model, read_info, ExportReport, ModelInfo, TOLERANCE};
 pub use run::{Engine, OnnxModel};
 
 /// The ONNX protobuf types (tract's generated `prost` messages), for callers

@@ -2,6 +2,7 @@
 //! export a trained generator to ONNX.
 
 mod curves;
+mod provenance;
 
 use std::process::ExitCode;
 
@@ -188,11 +189,12 @@ fn run_file(dir: &str, name: &str) -> String {
 fn export(e: &ExportArgs) -> anyhow::Result<()> {
     let inputs = [run_file(&e.run, "checkpoint.bin"), run_file(&e.run, "check_sim.npy"), run_file(&e.run, "check_real.npy")];
     output::check_outputs(&inputs.iter().map(String::as_str).collect::<Vec<_>>(), &[&e.output])?;
-    let (_, gan) = checkpoint::load(&run_file(&e.run, "checkpoint.bin"))?;
+    let (meta, gan) = checkpoint::load(&run_file(&e.run, "checkpoint.bin"))?;
     let y = e.generator == "y";
     let check = npy::read_all(&run_file(&e.run, if y { "check_sim.npy" } else { "check_real.npy" }))?;
     let expected = gan.generate(y, &check);
-    let report = dem_onnx::export::export_checked(&gan.generator_weights(y), &check, &expected, &e.output)?;
+    let metadata = provenance::export_metadata(&meta, &e.generator, std::fs::read_to_string(run_file(&e.run, "val.csv")).ok());
+    let report = dem_onnx::export::export_checked_with(&gan.generator_weights(y), &check, &expected, &e.output, &metadata)?;
     cli::log(format!(
         "wrote {} ({} bytes): G_{} of {}, tract reproduces the trainer on {} check records (max |diff| {:.2e})",
         report.path,
@@ -226,6 +228,14 @@ fn train(a: TrainArgs) -> anyhow::Result<()> {
         None => Vec::new(),
     };
     let sensor = a.sensor.as_deref().map(SensorModel::read).transpose()?;
+    let mut files =
+        vec![provenance::data_file("sim", &sim_path, Some(sim.len()))?, provenance::data_file("real", &real_path, Some(real.len()))?];
+    if let Some(p) = &a.pairs {
+        files.push(provenance::data_file("pairs", p, Some(pairs.len()))?);
+    }
+    if let Some(p) = &a.sensor {
+        files.push(provenance::data_file("sensor", p, None)?);
+    }
     let sensor_json = sensor.as_ref().map(|m| serde_json::from_str::<serde_json::Value>(&m.to_json()).expect("json"));
     // A resumed run keeps its settings (and its seed, which the sensor draw uses).
     let resumed = if a.resume {
@@ -281,6 +291,7 @@ fn train(a: TrainArgs) -> anyhow::Result<()> {
             let pf = a.paired_fraction.unwrap_or(0.5);
             let mut meta = checkpoint::meta(&gan, seed, batch, pf, 0, data.steps_per_epoch(batch));
             meta.sensor = sensor_json;
+            meta.data = files;
             (meta, gan)
         }
     };

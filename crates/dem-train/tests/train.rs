@@ -126,6 +126,29 @@ fn export_matches_the_trainer_in_onnxruntime_and_dem_apply() {
     assert!(diff < 1e-4, "dem-apply differs from the trainer by {diff}");
     // G_X exports too.
     ok(&run("dem-train", &["export", &r, "-o", &arg(d.path(), "gx.onnx"), "--generator", "x"], None));
+    // The file says what it is: read by onnxruntime (the peer) and by
+    // dem-apply --info, the same data hashes as Python's hashlib.
+    let peer = py(
+        d.path(),
+        &format!(
+            "import hashlib, onnxruntime as ort\n\
+             m = ort.InferenceSession({model:?}).get_modelmeta().custom_metadata_map\n\
+             print(m['dem.seed']); print(m['dem.architecture']); print(m['dem.data.sim']); print(m['dem.validation'].splitlines()[0])\n\
+             print(hashlib.sha256(open({:?}, 'rb').read()).hexdigest())",
+            td("sim.npy")
+        ),
+    );
+    let peer: Vec<&str> = peer.lines().collect();
+    assert_eq!(&peer[..2], ["0", "residual head, width 4"]);
+    assert_eq!(peer[2], format!("{}, 3025 records, sha256 {}", td("sim.npy"), peer[4]));
+    assert_eq!(peer[3], "epoch,step,count,lowest,highest,mean,median");
+    let info = run("dem-apply", &["--model", &model, "--info"], None);
+    ok(&info);
+    let text = String::from_utf8_lossy(&info.stdout);
+    for want in ["engine: native generator (residual, width 4)", "dem.seed: 0", &format!("dem.data.sim: {}", peer[2]), "dem.validation:", "  epoch,step"] {
+        assert!(text.contains(want), "no {want:?} in\n{text}");
+    }
+    assert!(text.contains("dem.trained: 8 steps"), "{text}");
 }
 
 #[test]

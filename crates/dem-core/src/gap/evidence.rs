@@ -160,6 +160,17 @@ pub fn evidence(effect: &Effect, before: &Stats, after: &Stats, real: &Stats, ga
                 if r > b { "holes at height jumps" } else { "no more of them in real: the holes are the closest effect, not a clear one" }
             )
         }
+        Effect::HoleGrowth { .. } => {
+            let (r, b) = (real.mean_over("missing-pair", 0..20), before.mean_over("missing-pair", 0..20));
+            format!(
+                "missing cells real {} vs model {}; both cells of an across-robot neighbour pair missing (in rows not wholly missing): real {} vs model {}: {}",
+                pct(real.mean_over("missing", 0..20)),
+                pct(before.mean_over("missing", 0..20)),
+                pct(r),
+                pct(b),
+                if r > b { "holes are wider in real: cells at their edges are lost" } else { "no more paired misses in real: grown holes are the closest effect, not a clear one" }
+            )
+        }
         Effect::ViewTop { h, t } => {
             let far = |s: &Stats| s.mean_over("missing", 15..20);
             format!(

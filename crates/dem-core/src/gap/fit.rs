@@ -30,7 +30,7 @@ const fn lin(lo: f64, hi: f64) -> Range {
 pub fn ranges(name: &str) -> Vec<Range> {
     match name {
         "noise" => vec![lin(0.0, 0.03), lin(0.0, 0.03)],
-        "dropout" | "row-dropout" => vec![lin(0.0, 0.6)],
+        "dropout" | "row-dropout" | "hole-growth" => vec![lin(0.0, 0.6)],
         // A sensor mounted on the robot: above C by 0.2 to 1.2 m, along x
         // within the tracks and flippers.
         "occlusion" => vec![lin(0.2, 1.2), lin(-0.4, 0.5)],
@@ -60,7 +60,7 @@ pub fn ranges(name: &str) -> Vec<Range> {
 pub fn limits(name: &str) -> Vec<(f64, f64, bool, bool)> {
     match name {
         "noise" => vec![(0.0, 0.1, true, false), (0.0, 0.1, true, false)],
-        "dropout" | "row-dropout" => vec![(0.0, 1.0, true, false)],
+        "dropout" | "row-dropout" | "hole-growth" => vec![(0.0, 1.0, true, false)],
         "occlusion" => vec![(0.05, 3.0, false, false), (-1.0, 1.2, false, false)],
         "fov" => vec![(-0.65, 0.55, true, false), (0.35, 1.45, false, true)],
         // High enough or flat enough, the ray clears everything: natural ends.

@@ -14,7 +14,7 @@
 //! 3. **add** the best one when it removes more than `min_gain` of the gap
 //!    and more than half the draw floor (the gap a perfect model still shows
 //!    against itself with other random draws, [`draw_floor`]); unpaired, it
-//!    must also hold on each half of real (blocks of 50 records): the gap to
+//!    must also hold on each half of real ([`real_halves`]): the gap to
 //!    each half shrinks, so fitting which records happen to be in the set
 //!    does not pass. Re-measure on all data, repeat. The report
 //!    also gives the unpaired sampling floor, two halves of real scaled to
@@ -259,10 +259,8 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
     let split_floor = if paired { 0.0 } else { noise_floor(sets) };
     let times = sets.sim_time.as_deref();
     let floor_of = |m: &SensorModel| split_floor.max(draw_floor(m, &sets.sim, times, paired, cfg.seed));
-    let halves: Option<Vec<Stats>> = (!paired && sets.real.len() >= 100).then(|| {
-        let (a, b): (Vec<usize>, Vec<usize>) = (0..sets.real.len()).partition(|i| (i / 50) % 2 == 0);
-        [a, b].iter().map(|h| stats::stats(&pick(&sets.real, h), None)).collect()
-    });
+    let halves: Option<Vec<Stats>> = (!paired && sets.real.len() >= 100)
+        .then(|| real_halves(sets).iter().map(|h| stats::stats(&pick(&sets.real, h), None)).collect());
     let measure = |m: &SensorModel, sim: &[Dem], paired: bool, seed: u64| measure_at(m, sim, times, paired, seed);
     // The fitting subsample (all records when few).
     let mut rng = ChaCha8Rng::seed_from_u64(crate::sensor::mix(cfg.seed ^ 0x5eed));
@@ -446,8 +444,37 @@ pub fn draw_floor(model: &SensorModel, sim: &[Dem], times: Option<&[f64]>, paire
     gap(&a, &b)
 }
 
-/// The gap two halves of real show from sampling alone (blocks of 50
-/// records alternate, so neighbouring frames of a run stay together),
+/// Records per block of [`real_halves`]: neighbouring frames of a run
+/// look alike, so they go to the same half.
+const HALF_BLOCK: usize = 50;
+
+/// Two halves of the real records, for the sampling checks: blocks of
+/// consecutive records alternate between them so that neighbouring frames
+/// of a run stay together. With terrain labels the blocks are dealt per
+/// terrain, each to the half with fewer records of that terrain so far, so
+/// both halves have the set's terrain mix: halves of 10 runs each differ
+/// in stairs and pallets by chance, and an effect that only shows at steps
+/// then "gains on one half and loses on the other" for that reason alone.
+pub fn real_halves(sets: &Sets) -> [Vec<usize>; 2] {
+    let n = sets.real.len();
+    let mut halves = [Vec::new(), Vec::new()];
+    let groups: Vec<Vec<usize>> = match &sets.real_terrain {
+        Some(t) => Terrain::ALL.iter().map(|&k| (0..n).filter(|&i| t[i] == k).collect()).collect(),
+        None => vec![(0..n).collect()],
+    };
+    for group in groups {
+        let mut count = [0usize; 2];
+        for block in group.chunks(HALF_BLOCK) {
+            let h = usize::from(count[1] < count[0]);
+            count[h] += block.len();
+            halves[h].extend_from_slice(block);
+        }
+    }
+    halves.iter_mut().for_each(|h| h.sort_unstable());
+    halves
+}
+
+/// The gap two halves of real show from sampling alone ([`real_halves`]),
 /// scaled to the sizes compared: var of a difference of means goes as
 /// 1/n_a + 1/n_b, so floor = split gap x (1/n_sim + 1/n_real) / (4/n_real).
 pub fn noise_floor(sets: &Sets) -> f64 {
@@ -455,7 +482,7 @@ pub fn noise_floor(sets: &Sets) -> f64 {
     if n < 100 {
         return 0.0;
     }
-    let (a, b): (Vec<usize>, Vec<usize>) = (0..n).partition(|i| (i / 50) % 2 == 0);
+    let [a, b] = real_halves(sets);
     let side = |idx: &[usize]| {
         let r = pick(&sets.real, idx);
         if sets.paired {

@@ -21,6 +21,7 @@
 //! | `patch-dropout` | blobs: each of [`PATCH_SLOTS`] slots holds a blob with probability n / slots, centred uniformly over the grid; cells whose square lies within r of a blob centre missing |
 //! | `edge-holes` | a valid cell whose valid 4-neighbour is higher by more than g is missing with probability p (the foot of a height jump) |
 //! | `rim-holes` | a valid cell whose valid 4-neighbour is lower by more than g is missing with probability p (the rim of a height jump) |
+//! | `hole-growth` | a valid cell with k missing 4-neighbours (inside the grid) is missing with probability 1 - (1 - p)^k (the edge of a hole, where a 10 cm cell holds fewer seen map cells than the two of four the map needs) |
 //! | `pit-fill` | a valid cell lower by more than g than both valid neighbours of a line through it (rows r +- 1, or columns c +- 1) reads the lower of the two with probability p |
 //! | `mixed-cells` | a cell is the mean of its two half cells along x; at a jump of more than [`MIXED_JUMP`] between valid x-neighbours the step lies at s, uniform over the 10 cm between their centres (one draw per row boundary), and the higher surface reaches e = u r past it into the lower cell (u uniform per cell; r = `up` when the higher cell lies ahead, `down` when it lies behind, i.e. beyond a drop): a half of the lower cell whose centre the higher surface reaches reads the higher height, a half of the higher cell the lower surface reaches (the step lies in it, deeper than e) reads the lower height |
 
@@ -147,6 +148,13 @@ pub enum Effect {
         /// Probability that such a cell is lost.
         p: f64,
     },
+    /// Holes grow by thin cells at their edges: a 10 cm DEM cell needs two
+    /// of its four 5 cm map cells seen, and beside a hole (a shadow, the
+    /// blind band of the first frames, a dark patch) some of them were not.
+    HoleGrowth {
+        /// Probability per missing 4-neighbour that the cell is lost.
+        p: f64,
+    },
     /// Narrow pits read as their rims: a gap narrower than a map cell (between
     /// pallet boards, say) is never seen to its bottom, and a map cell over it
     /// keeps the tops around it.
@@ -171,7 +179,7 @@ pub enum Effect {
 }
 
 /// Every effect name, in the vocabulary's order.
-pub const NAMES: [&str; 15] = [
+pub const NAMES: [&str; 16] = [
     "noise",
     "dropout",
     "row-dropout",
@@ -187,6 +195,7 @@ pub const NAMES: [&str; 15] = [
     "rim-holes",
     "pit-fill",
     "view-top",
+    "hole-growth",
 ];
 
 impl Effect {
@@ -208,6 +217,7 @@ impl Effect {
             Effect::RimHoles { .. } => "rim-holes",
             Effect::PitFill { .. } => "pit-fill",
             Effect::ViewTop { .. } => "view-top",
+            Effect::HoleGrowth { .. } => "hole-growth",
         }
     }
 
@@ -215,7 +225,7 @@ impl Effect {
     pub fn params(&self) -> Vec<(&'static str, f64)> {
         match *self {
             Effect::Noise { sigma0, k } => vec![("sigma0", sigma0), ("k", k)],
-            Effect::Dropout { p } | Effect::RowDropout { p } => vec![("p", p)],
+            Effect::Dropout { p } | Effect::RowDropout { p } | Effect::HoleGrowth { p } => vec![("p", p)],
             Effect::Occlusion { h, x0 } => vec![("h", h), ("x0", x0)],
             Effect::Fov { x_min, x_max } => vec![("x_min", x_min), ("x_max", x_max)],
             Effect::ViewTop { h, t } => vec![("h", h), ("t", t)],
@@ -248,6 +258,7 @@ impl Effect {
             "rim-holes" => Effect::RimHoles { g: g(0)?, p: g(1)? },
             "pit-fill" => Effect::PitFill { g: g(0)?, p: g(1)? },
             "view-top" => Effect::ViewTop { h: g(0)?, t: g(1)? },
+            "hole-growth" => Effect::HoleGrowth { p: g(0)? },
             _ => return None,
         })
     }
@@ -271,7 +282,8 @@ impl Effect {
             Effect::Quantization { .. } => 9,
             Effect::Dropout { .. } => 10,
             Effect::PatchDropout { .. } => 11,
-            Effect::RowDropout { .. } => 12,
+            Effect::HoleGrowth { .. } => 12,
+            Effect::RowDropout { .. } => 13,
         }
     }
 
@@ -292,6 +304,7 @@ impl Effect {
             | Effect::EdgeHoles { p, .. }
             | Effect::RimHoles { p, .. }
             | Effect::PitFill { p, .. }
+            | Effect::HoleGrowth { p }
                 if !(0.0..=1.0).contains(&p) =>
             {
                 Err(format!("p = {p} is not a probability"))
@@ -314,7 +327,8 @@ impl Effect {
 
     /// Apply to one DEM with this effect's random stream for the record.
     /// Draws a fixed number of values whatever the parameters: 100 normals
-    /// (noise), 100 uniforms (dropout, edge-holes, rim-holes, pit-fill), 20 uniforms
+    /// (noise), 100 uniforms (dropout, edge-holes, rim-holes, pit-fill,
+    /// hole-growth), 20 uniforms
     /// (row-dropout), 2 (startup), 3 per slot (patch-dropout), 19 + 95
     /// (mixed-cells: a step position per row boundary, a reach per cell pair).
     pub fn apply(&self, d: &mut Dem, rng: &mut ChaCha8Rng) {
@@ -432,6 +446,7 @@ impl Effect {
                 }
             }
             Effect::MixedCells { up, down } => mix_cells(d, rng, up, down),
+            Effect::HoleGrowth { p } => grow_holes(d, rng, p),
             Effect::EdgeHoles { g, p } => jump_holes(d, rng, g, p, 1.0),
             Effect::RimHoles { g, p } => jump_holes(d, rng, g, p, -1.0),
             Effect::PitFill { g, p } => {
@@ -523,15 +538,37 @@ fn jump_holes(d: &mut Dem, rng: &mut ChaCha8Rng, g: f64, p: f64, sign: f64) {
         for c in 0..COLS {
             let u: f64 = rng.gen();
             let Some(zc) = z[r][c] else { continue };
-            let jump = [(r.wrapping_sub(1), c), (r + 1, c), (r, c.wrapping_sub(1)), (r, c + 1)]
-                .into_iter()
-                .filter(|&(rr, cc)| rr < GRID_ROWS && cc < COLS)
-                .any(|(rr, cc)| z[rr][cc].is_some_and(|zn| sign * (zn - zc) > g));
+            let jump = neighbours4(r, c).any(|(rr, cc)| z[rr][cc].is_some_and(|zn| sign * (zn - zc) > g));
             if jump && u < p {
                 d.set_missing(r, c);
             }
         }
     }
+}
+
+/// `hole-growth`: missing neighbours are counted on the DEM as it comes in,
+/// so a hole grows by one ring of cells at most.
+fn grow_holes(d: &mut Dem, rng: &mut ChaCha8Rng, p: f64) {
+    let z = heights(d);
+    for r in 0..GRID_ROWS {
+        for c in 0..COLS {
+            let u: f64 = rng.gen();
+            if z[r][c].is_none() {
+                continue;
+            }
+            let k = neighbours4(r, c).filter(|&(rr, cc)| z[rr][cc].is_none()).count();
+            if k > 0 && u < 1.0 - (1.0 - p).powi(k as i32) {
+                d.set_missing(r, c);
+            }
+        }
+    }
+}
+
+/// The 4-neighbours of cell (r, c) inside the grid.
+fn neighbours4(r: usize, c: usize) -> impl Iterator<Item = (usize, usize)> {
+    [(r.wrapping_sub(1), c), (r + 1, c), (r, c.wrapping_sub(1)), (r, c + 1)]
+        .into_iter()
+        .filter(|&(rr, cc)| rr < GRID_ROWS && cc < COLS)
 }
 
 /// `mixed-cells` (formula in the module table). Each cell is two halves

@@ -41,6 +41,26 @@ pub struct Meta {
     /// Sensor model applied to the sims before training, if any (JSON).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sensor: Option<serde_json::Value>,
+    /// The files the run was started on (empty for checkpoints written
+    /// before they were recorded).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub data: Vec<DataFile>,
+}
+
+/// One input file of a run: what it was, where, how many records, and a
+/// hash of its bytes, so an exported model says what it was trained on.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct DataFile {
+    /// `sim`, `real`, `pairs` or `sensor`.
+    pub role: String,
+    /// The path given (`-` for stdin).
+    pub path: String,
+    /// Records (NPY) or rows (CSV), when counted.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub records: Option<usize>,
+    /// SHA-256 of the file's bytes, hex (none for stdin).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sha256: Option<String>,
 }
 
 /// Write `gan` and `meta` to `path` atomically.
@@ -107,5 +127,6 @@ pub fn meta(gan: &CycleGan, seed: u64, batch: usize, paired_fraction: f64, step:
         adam_steps: gan.opts.each_ref().map(|o| o.t),
         networks: NAMES.map(String::from),
         sensor: None,
+        data: Vec::new(),
     }
 }
