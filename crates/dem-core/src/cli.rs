@@ -82,12 +82,56 @@ pub fn usage(msg: impl Into<String>) -> anyhow::Error {
 /// Parse the command line; a usage error is one line naming the tool
 /// (`dem-pair: error: invalid value 'nan' for '--max-distance <M>': ...`),
 /// exit 2. `--help` and `--version` print as clap does, exit 0.
+///
+/// `TOOL --generate KIND` (as the first argument, as ripgrep has it) prints
+/// the tool's man page (`man`) or its completion script for a shell (`bash`,
+/// `zsh`, `fish`, `elvish`, `powershell`) on stdout and exits: both come
+/// from the same clap definition as `--help`, so they cannot drift from it.
 pub fn parse<A: clap::Parser>() -> A {
+    let args: Vec<String> = std::env::args().collect();
+    if args.get(1).map(String::as_str) == Some("--generate") {
+        let code = match generate(A::command(), args.get(2).map(String::as_str).unwrap_or("")) {
+            Ok(()) => 0,
+            Err(e) if e.kind() == io::ErrorKind::BrokenPipe => 0,
+            Err(e) => {
+                let _ = writeln!(io::stderr(), "{}: error: --generate: {e}", program());
+                2
+            }
+        };
+        std::process::exit(code);
+    }
     let parsed = negative_values(A::command()).try_get_matches().and_then(|m| A::from_arg_matches(&m));
     match parsed {
         Ok(a) => a,
         Err(e) => exit_on_clap_error(e),
     }
+}
+
+/// Kinds `--generate` knows.
+pub const GENERATE_KINDS: [&str; 6] = ["man", "bash", "zsh", "fish", "elvish", "powershell"];
+
+/// Write the man page or completion script `kind` of `cmd` to stdout.
+fn generate(cmd: clap::Command, kind: &str) -> io::Result<()> {
+    use clap_complete::Shell;
+    let mut out = io::stdout().lock();
+    let shell = match kind {
+        "man" => return clap_mangen::Man::new(cmd).render(&mut out).and_then(|()| out.flush()),
+        "bash" => Shell::Bash,
+        "zsh" => Shell::Zsh,
+        "fish" => Shell::Fish,
+        "elvish" => Shell::Elvish,
+        "powershell" => Shell::PowerShell,
+        _ => {
+            return Err(io::Error::new(
+                io::ErrorKind::InvalidInput,
+                format!("unknown kind '{kind}', expected one of {}", GENERATE_KINDS.join(", ")),
+            ))
+        }
+    };
+    let mut cmd = cmd;
+    let name = cmd.get_name().to_string();
+    clap_complete::generate(shell, &mut cmd, name, &mut out);
+    out.flush()
 }
 
 /// Let every option take a value that starts with `-` and a digit, so

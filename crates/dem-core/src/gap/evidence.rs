@@ -24,6 +24,21 @@ fn small_steps(s: &Stats) -> f64 {
     s.term("steps").map_or(0.0, |t| t.values.iter().take(3).sum())
 }
 
+/// Evidence from missing cells that come together (blobs, grown holes): the
+/// missing rate and the rate of across-robot neighbour pairs both missing;
+/// `more` when real has more such pairs than the model, else `not_more`.
+fn paired_misses(real: &Stats, before: &Stats, more: &str, not_more: &str) -> String {
+    let (r, b) = (real.mean_over("missing-pair", 0..20), before.mean_over("missing-pair", 0..20));
+    format!(
+        "missing cells real {} vs model {}; both cells of an across-robot neighbour pair missing (in rows not wholly missing): real {} vs model {}: {}",
+        pct(real.mean_over("missing", 0..20)),
+        pct(before.mean_over("missing", 0..20)),
+        pct(r),
+        pct(b),
+        if r > b { more } else { not_more }
+    )
+}
+
 /// One sentence of evidence for `effect`, from the statistics of the model
 /// before it was added, after, and of real.
 pub fn evidence(effect: &Effect, before: &Stats, after: &Stats, real: &Stats, gap_before: f64, gap_after: f64) -> String {
@@ -139,17 +154,11 @@ pub fn evidence(effect: &Effect, before: &Stats, after: &Stats, real: &Stats, ga
                 pct(back(before)),
             )
         }
-        Effect::PatchDropout { .. } => format!(
-            "missing cells real {} vs model {}; both cells of an across-robot neighbour pair missing (in rows not wholly missing): real {} vs model {}: {}",
-            pct(real.mean_over("missing", 0..20)),
-            pct(before.mean_over("missing", 0..20)),
-            pct(real.mean_over("missing-pair", 0..20)),
-            pct(before.mean_over("missing-pair", 0..20)),
-            if real.mean_over("missing-pair", 0..20) > before.mean_over("missing-pair", 0..20) {
-                "missing cells come in blobs"
-            } else {
-                "no more blobs in real than in the model: blobs are the closest effect, not a clear one"
-            },
+        Effect::PatchDropout { .. } => paired_misses(
+            real,
+            before,
+            "missing cells come in blobs",
+            "no more blobs in real than in the model: blobs are the closest effect, not a clear one",
         ),
         Effect::EdgeHoles { .. } => {
             let (r, b) = (real.mean_over("jump-missing", 0..20), before.mean_over("jump-missing", 0..20));
@@ -160,17 +169,12 @@ pub fn evidence(effect: &Effect, before: &Stats, after: &Stats, real: &Stats, ga
                 if r > b { "holes at height jumps" } else { "no more of them in real: the holes are the closest effect, not a clear one" }
             )
         }
-        Effect::HoleGrowth { .. } => {
-            let (r, b) = (real.mean_over("missing-pair", 0..20), before.mean_over("missing-pair", 0..20));
-            format!(
-                "missing cells real {} vs model {}; both cells of an across-robot neighbour pair missing (in rows not wholly missing): real {} vs model {}: {}",
-                pct(real.mean_over("missing", 0..20)),
-                pct(before.mean_over("missing", 0..20)),
-                pct(r),
-                pct(b),
-                if r > b { "holes are wider in real: cells at their edges are lost" } else { "no more paired misses in real: grown holes are the closest effect, not a clear one" }
-            )
-        }
+        Effect::HoleGrowth { .. } => paired_misses(
+            real,
+            before,
+            "holes are wider in real: cells at their edges are lost",
+            "no more paired misses in real: grown holes are the closest effect, not a clear one",
+        ),
         Effect::ViewTop { h, t } => {
             let far = |s: &Stats| s.mean_over("missing", 15..20);
             format!(
