@@ -220,10 +220,12 @@ impl GeneratorWeights {
             .collect();
         let dec = (0..3).map(|i| Conv2d::init(rng, dec_ch[i], dec_ch[i + 1], 3, 1)).collect();
         let dec_norm = (0..2).map(|i| InstanceNorm::init(dec_ch[i + 1])).collect();
-        let mut fc = Linear::init(rng, 210, 200);
+        let (grid, cells) = (crate::net::generator::GRID, dem_core::format::GRID_CELLS);
+        let mut fc = Linear::init(rng, dem_core::format::RECORD_LEN, grid);
         if arch == Arch::Residual {
-            fc.weight[..100 * 210].fill(0.0);
-            fc.bias[..100].fill(0.0);
+            // The height rows of the head start at zero: the correction starts at none.
+            fc.weight[..cells * dem_core::format::RECORD_LEN].fill(0.0);
+            fc.bias[..cells].fill(0.0);
         }
         GeneratorWeights { width: w, arch, enc, enc_norm, res, dec, dec_norm, fc }
     }

@@ -285,10 +285,10 @@ fn train(a: TrainArgs) -> anyhow::Result<()> {
                 decay_from: a.decay_from.unwrap_or(base.decay_from),
                 ..base
             };
-            let batch = a.batch.unwrap_or(64);
+            let batch = a.batch.unwrap_or(Sampler::DEFAULT_BATCH);
             let gan = CycleGan::new(config, seed);
             session::start(&opts, &data)?;
-            let pf = a.paired_fraction.unwrap_or(0.5);
+            let pf = a.paired_fraction.unwrap_or(Sampler::DEFAULT_PAIRED_FRACTION);
             let mut meta = checkpoint::meta(&gan, seed, batch, pf, 0, data.steps_per_epoch(batch));
             meta.sensor = sensor_json;
             meta.data = files;

@@ -43,8 +43,10 @@ pub const SHADOW_DROP: f64 = 0.08;
 pub const MIN_SUPPORT: usize = 30;
 /// x (m) that separates "toward the sensor" from "beyond" for shadows.
 const SHADOW_REF_X: f64 = 0.1;
-/// Height jump (m) around a missing cell that makes it a `jump-missing` cell.
-pub const JUMP: f64 = 0.05;
+/// Height jump (m) around a missing cell that makes it a `jump-missing`
+/// cell: the step `mixed-cells` acts on, so the statistic sees the effect's
+/// steps and no others.
+pub const JUMP: f64 = crate::sensor::effects::MIXED_JUMP;
 /// Share of the largest spread samples left out of `spread-sd`.
 pub const SD_TRIM: f64 = 0.005;
 /// The difference, in scales, a component counts for when one side has the

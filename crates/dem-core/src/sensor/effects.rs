@@ -50,8 +50,8 @@ pub const PATCH_SLOTS: usize = 8;
 /// Back edge of the grid (m): where a startup frame's blind edge ends.
 const X_BACK: f64 = -0.6;
 /// Height difference (m) between x-neighbours that `mixed-cells` treats as
-/// a step (the `jump-missing` statistic's threshold): below it the terrain
-/// is a slope, whose cell mean is the centre's height.
+/// a step (dem-gap's `jump-missing` statistic uses the same): below it the
+/// terrain is a slope, whose cell mean is the centre's height.
 pub const MIXED_JUMP: f64 = 0.05;
 
 /// One effect with its parameters. JSON: `{"effect": NAME, "params": {...}}`.

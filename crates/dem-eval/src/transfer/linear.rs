@@ -21,7 +21,7 @@
 use dem_core::Dem;
 
 /// Features per record before the bias.
-pub const FEATURES: usize = 200;
+pub const FEATURES: usize = dem_core::format::GRID_CELLS * dem_core::format::CHANNELS;
 
 /// The raw feature vector of a record: heights then validity, rows 0..19.
 pub fn features(d: &Dem) -> [f64; FEATURES] {

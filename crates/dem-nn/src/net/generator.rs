@@ -13,11 +13,12 @@ use crate::layers::dense;
 use crate::layers::norm::{self, Act, NormCache};
 use crate::weights::{Arch, GeneratorWeights, ResBlock, CORRECTION_SCALE, GATE_SHARPNESS};
 
-/// Grid values of one record (rows 0..19).
-pub const GRID: usize = 200;
+/// Grid values of one record (rows 0..19, both channels).
+pub const GRID: usize = dem_core::format::GRID_CELLS * dem_core::format::CHANNELS;
 /// Attitude values of one record (row 20).
-pub const ATT: usize = 10;
-const POS: usize = 100;
+pub const ATT: usize = dem_core::format::RECORD_LEN - GRID;
+/// Cells of the grid: heights come first in the head's output, masks after.
+const POS: usize = dem_core::format::GRID_CELLS;
 
 /// Layer layout of a generator of width w.
 #[derive(Clone, Debug)]

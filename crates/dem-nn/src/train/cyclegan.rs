@@ -30,6 +30,7 @@ use serde::{Deserialize, Serialize};
 
 use super::adam::{Adam, AdamConfig};
 use super::loss;
+use crate::net::generator::GRID;
 use crate::net::{DiscScratch, DiscTape, Discriminator, GenScratch, GenTape, Generator};
 use crate::weights::{Arch, DiscriminatorWeights, GeneratorWeights};
 
@@ -114,8 +115,8 @@ pub struct Batch<'a> {
 impl<'a> Batch<'a> {
     /// A batch from records; `pairs[i]` are the reals of sim row i.
     pub fn new(x: &[&Dem], y: &[&Dem], pairs: Vec<Vec<&'a [f32]>>) -> Self {
-        let grid = |v: &[&Dem]| v.iter().flat_map(|d| d[..200].iter().copied()).collect();
-        let att = |v: &[&Dem]| v.iter().flat_map(|d| d[200..].iter().copied()).collect();
+        let grid = |v: &[&Dem]| v.iter().flat_map(|d| d[..GRID].iter().copied()).collect();
+        let att = |v: &[&Dem]| v.iter().flat_map(|d| d[GRID..].iter().copied()).collect();
         Batch { x_grid: grid(x), x_att: att(x), y_grid: grid(y), y_att: att(y), pairs }
     }
 }

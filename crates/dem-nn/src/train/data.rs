@@ -16,6 +16,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use super::cyclegan::Batch;
+use crate::net::generator::GRID;
 
 /// Sim key with all its reals.
 pub type KeyReals = (usize, Vec<usize>);
@@ -92,6 +93,14 @@ pub struct Sampler {
     pub paired_fraction: f64,
 }
 
+impl Sampler {
+    /// Records per batch when a run does not say (the thesis's setting).
+    pub const DEFAULT_BATCH: usize = 64;
+    /// Share of each batch from train pairs when a run does not say: half,
+    /// so the unpaired Cycle GAN terms see as many records as the paired.
+    pub const DEFAULT_PAIRED_FRACTION: f64 = 0.5;
+}
+
 // Stream numbers: one per step for the step's draws, and a separate range
 // for the per-epoch permutations.
 const PERM_STREAM: u64 = 1 << 48;
@@ -130,7 +139,7 @@ impl Sampler {
                 let (key, reals) = &data.train[keys[(k * np + j) % keys.len()]];
                 x.push(&data.sim[*key]);
                 y.push(&data.real[reals[rng.gen_range(0..reals.len())]]);
-                pairs.push(reals.iter().map(|&r| &data.real[r][..200]).collect());
+                pairs.push(reals.iter().map(|&r| &data.real[r][..GRID]).collect());
             }
         }
         if nu > 0 {
