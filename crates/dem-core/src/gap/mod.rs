@@ -169,11 +169,15 @@ pub struct Sets {
     /// Time in its run of each sim-side record (labels; NaN where not
     /// given), when the sim labels carry times.
     pub sim_time: Option<Vec<f64>>,
+    /// Run (labels' `sequence`) of each real record, when every real label
+    /// has one (unpaired only: the sampling halves deal whole runs).
+    pub real_runs: Option<Vec<u64>>,
 }
 
-type Labelled = Option<(Vec<Terrain>, Option<Vec<f64>>)>;
+/// Terrains; times when any label has one; runs when every label has one.
+type Labelled = Option<(Vec<Terrain>, Option<Vec<f64>>, Option<Vec<u64>>)>;
 
-/// Terrains and, when any label has one, times of the labels at `path`.
+/// Terrains, times and runs of the labels at `path`.
 fn terrains(path: &Option<String>, n: usize) -> Result<Labelled> {
     let Some(p) = path else { return Ok(None) };
     let l = table::read_labels(p)?;
@@ -181,7 +185,8 @@ fn terrains(path: &Option<String>, n: usize) -> Result<Labelled> {
         return Err(DemError::input(p, format!("{} labels for {n} records", l.len())));
     }
     let times = l.iter().any(|l| l.time.is_some()).then(|| l.iter().map(|l| l.time.unwrap_or(f64::NAN)).collect());
-    Ok(Some((l.into_iter().map(|l| l.terrain).collect(), times)))
+    let runs = l.iter().map(|l| l.sequence).collect::<Option<Vec<u64>>>();
+    Ok(Some((l.into_iter().map(|l| l.terrain).collect(), times, runs)))
 }
 
 /// Read the inputs of `cfg` into the compared sets.
@@ -194,12 +199,15 @@ pub fn load(cfg: &GapConfig) -> Result<Sets> {
         }
     }
     let (ts, times) = match terrains(&cfg.labels_sim, sim.len())? {
-        Some((t, time)) => (Some(t), time),
+        Some((t, time, _)) => (Some(t), time),
         None => (None, None),
     };
-    let tr = terrains(&cfg.labels_real, real.len())?.map(|t| t.0);
+    let (tr, real_runs) = match terrains(&cfg.labels_real, real.len())? {
+        Some((t, _, runs)) => (Some(t), runs),
+        None => (None, None),
+    };
     let Some(pp) = &cfg.pairs else {
-        return Ok(Sets { sim, real, paired: false, sim_terrain: ts, real_terrain: tr, sim_time: times });
+        return Ok(Sets { sim, real, paired: false, sim_terrain: ts, real_terrain: tr, sim_time: times, real_runs });
     };
     let pairs = table::read_pairs(pp)?;
     if pairs.is_empty() {
@@ -231,7 +239,7 @@ pub fn load(cfg: &GapConfig) -> Result<Sets> {
     }
     // Paired: both sides share the pair's terrain; prefer the real label.
     let t = if tr.is_some() { Some(rt) } else if ts.is_some() { Some(st) } else { None };
-    Ok(Sets { sim: s, real: r, paired: true, sim_terrain: t.clone(), real_terrain: t, sim_time: times.map(|_| tt) })
+    Ok(Sets { sim: s, real: r, paired: true, sim_terrain: t.clone(), real_terrain: t, sim_time: times.map(|_| tt), real_runs: None })
 }
 
 fn pick<T: Copy>(v: &[T], idx: &[usize]) -> Vec<T> {
@@ -448,27 +456,61 @@ pub fn draw_floor(model: &SensorModel, sim: &[Dem], times: Option<&[f64]>, paire
 /// look alike, so they go to the same half.
 const HALF_BLOCK: usize = 50;
 
-/// Two halves of the real records, for the sampling checks: blocks of
-/// consecutive records alternate between them so that neighbouring frames
-/// of a run stay together. With terrain labels the blocks are dealt per
-/// terrain, each to the half with fewer records of that terrain so far, so
-/// both halves have the set's terrain mix: halves of 10 runs each differ
+/// Fewest real runs for halves of whole runs: with fewer, one run more or
+/// less in a half is most of its difference, and blocks are dealt instead.
+const MIN_RUNS_FOR_HALVES: usize = 8;
+
+/// Two halves of the real records, for the sampling checks. The units
+/// dealt are whole runs when the real labels give each record's run
+/// (`sequence`) and there are at least [`MIN_RUNS_FOR_HALVES`] runs, else
+/// blocks of consecutive records, so that neighbouring
+/// frames of a run stay together: a run's first frames (the startup rows)
+/// then go with the rest of it, not into one half. With terrain labels the
+/// units are dealt per terrain (a run by the terrain of most of its
+/// records), each to the half with fewer records of that terrain so far,
+/// so both halves have the set's terrain mix: halves of 10 runs each differ
 /// in stairs and pallets by chance, and an effect that only shows at steps
 /// then "gains on one half and loses on the other" for that reason alone.
 pub fn real_halves(sets: &Sets) -> [Vec<usize>; 2] {
     let n = sets.real.len();
-    let mut halves = [Vec::new(), Vec::new()];
-    let groups: Vec<Vec<usize>> = match &sets.real_terrain {
-        Some(t) => Terrain::ALL.iter().map(|&k| (0..n).filter(|&i| t[i] == k).collect()).collect(),
-        None => vec![(0..n).collect()],
-    };
-    for group in groups {
-        let mut count = [0usize; 2];
-        for block in group.chunks(HALF_BLOCK) {
-            let h = usize::from(count[1] < count[0]);
-            count[h] += block.len();
-            halves[h].extend_from_slice(block);
+    let runs = sets.real_runs.as_ref().filter(|r| {
+        let mut ids: Vec<u64> = r.to_vec();
+        ids.sort_unstable();
+        ids.dedup();
+        ids.len() >= MIN_RUNS_FOR_HALVES
+    });
+    let units: Vec<Vec<usize>> = match runs {
+        Some(runs) => {
+            let mut by_run: Vec<(u64, Vec<usize>)> = Vec::new();
+            for (i, &r) in runs.iter().enumerate() {
+                match by_run.iter_mut().find(|(k, _)| *k == r) {
+                    Some((_, v)) => v.push(i),
+                    None => by_run.push((r, vec![i])),
+                }
+            }
+            by_run.into_iter().map(|(_, v)| v).collect()
         }
+        // Blocks within each terrain's records, so a block has one terrain.
+        None => match &sets.real_terrain {
+            Some(t) => Terrain::ALL
+                .iter()
+                .flat_map(|&k| (0..n).filter(|&i| t[i] == k).collect::<Vec<_>>().chunks(HALF_BLOCK).map(<[usize]>::to_vec).collect::<Vec<_>>())
+                .collect(),
+            None => (0..n).collect::<Vec<_>>().chunks(HALF_BLOCK).map(<[usize]>::to_vec).collect(),
+        },
+    };
+    let terrain_of = |u: &[usize]| -> usize {
+        let Some(t) = &sets.real_terrain else { return 0 };
+        let count = |k: Terrain| u.iter().filter(|&&i| t[i] == k).count();
+        (0..Terrain::ALL.len()).max_by_key(|&j| (count(Terrain::ALL[j]), usize::MAX - j)).unwrap_or(0)
+    };
+    let mut halves = [Vec::new(), Vec::new()];
+    let mut count = vec![[0usize; 2]; Terrain::ALL.len()];
+    for u in units {
+        let c = &mut count[terrain_of(&u)];
+        let h = usize::from(c[1] < c[0]);
+        c[h] += u.len();
+        halves[h].extend(u);
     }
     halves.iter_mut().for_each(|h| h.sort_unstable());
     halves
