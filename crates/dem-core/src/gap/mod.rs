@@ -473,31 +473,23 @@ const MIN_RUNS_FOR_HALVES: usize = 8;
 /// then "gains on one half and loses on the other" for that reason alone.
 pub fn real_halves(sets: &Sets) -> [Vec<usize>; 2] {
     let n = sets.real.len();
-    let runs = sets.real_runs.as_ref().filter(|r| {
-        let mut ids: Vec<u64> = r.to_vec();
-        ids.sort_unstable();
-        ids.dedup();
-        ids.len() >= MIN_RUNS_FOR_HALVES
-    });
-    let units: Vec<Vec<usize>> = match runs {
-        Some(runs) => {
-            let mut by_run: Vec<(u64, Vec<usize>)> = Vec::new();
-            for (i, &r) in runs.iter().enumerate() {
-                match by_run.iter_mut().find(|(k, _)| *k == r) {
-                    Some((_, v)) => v.push(i),
-                    None => by_run.push((r, vec![i])),
-                }
-            }
-            by_run.into_iter().map(|(_, v)| v).collect()
+    let blocks = |idx: Vec<usize>| idx.chunks(HALF_BLOCK).map(<[usize]>::to_vec).collect::<Vec<_>>();
+    // Runs in order of first appearance.
+    let mut by_run: Vec<(u64, Vec<usize>)> = Vec::new();
+    for (i, &r) in sets.real_runs.iter().flatten().enumerate() {
+        match by_run.iter_mut().find(|(k, _)| *k == r) {
+            Some((_, v)) => v.push(i),
+            None => by_run.push((r, vec![i])),
         }
+    }
+    let units: Vec<Vec<usize>> = if by_run.len() >= MIN_RUNS_FOR_HALVES {
+        by_run.into_iter().map(|(_, v)| v).collect()
+    } else {
         // Blocks within each terrain's records, so a block has one terrain.
-        None => match &sets.real_terrain {
-            Some(t) => Terrain::ALL
-                .iter()
-                .flat_map(|&k| (0..n).filter(|&i| t[i] == k).collect::<Vec<_>>().chunks(HALF_BLOCK).map(<[usize]>::to_vec).collect::<Vec<_>>())
-                .collect(),
-            None => (0..n).collect::<Vec<_>>().chunks(HALF_BLOCK).map(<[usize]>::to_vec).collect(),
-        },
+        match &sets.real_terrain {
+            Some(t) => Terrain::ALL.iter().flat_map(|&k| blocks((0..n).filter(|&i| t[i] == k).collect())).collect(),
+            None => blocks((0..n).collect()),
+        }
     };
     let terrain_of = |u: &[usize]| -> usize {
         let Some(t) = &sets.real_terrain else { return 0 };
