@@ -43,6 +43,10 @@ heights relative to the robot centre; missing = mask -1, height 0):
   hole-growth  a valid cell with k missing 4-neighbours (inside the grid)
                is missing with probability 1 - (1 - p)^k, k counted before
                any cell is removed
+  drop-blend   at a drop along x (valid rows r and r + 1, row r + 1 lower by
+               more than 5 cm) each of the two cells, with probability p,
+               reads h + u a (h_other - h), u uniform; a cell between two
+               drops takes the larger (the one ahead on a tie)
   mixed-cells  a cell is the mean of its back and front halves (centres 2.5
                cm and 7.5 cm from each boundary); at a boundary between
                valid x-neighbours more than 5 cm apart the step lies at s,
@@ -214,6 +218,26 @@ def hole_growth(d, rng, p):
     set_missing(d, lose & (d[:20, :, 1] > 0))
 
 
+def drop_blend(d, rng, p, a):
+    z = d[:20, :, 0].astype(np.float64)
+    valid = d[:20, :, 1] > 0
+    step = np.zeros((20, 5))
+    for r in range(20):
+        for c in range(5):
+            if not valid[r, c]:
+                continue
+            cands = []
+            if r + 1 < 20 and valid[r + 1, c] and z[r, c] - z[r + 1, c] > 0.05:
+                cands.append(z[r + 1, c] - z[r, c])
+            if r > 0 and valid[r - 1, c] and z[r - 1, c] - z[r, c] > 0.05:
+                cands.append(z[r - 1, c] - z[r, c])
+            if cands:
+                step[r, c] = max(cands, key=abs)  # the first (ahead) on a tie
+    u, v = rng.random((20, 5)), rng.random((20, 5))
+    blend = (step != 0) & (u < p)
+    d[:20, :, 0] = np.where(blend, z + v * a * step, d[:20, :, 0])
+
+
 def view_top(d, rng, h, t):
     valid = d[:20, :, 1] > 0
     set_missing(d, valid & (d[:20, :, 0] > (h - t * X)[:, None]))
@@ -249,7 +273,7 @@ EFFECTS = {"noise": noise, "dropout": dropout, "row-dropout": row_dropout, "occl
            "fov": fov, "smoothing": smoothing, "bias": bias, "quantization": quantization,
            "startup": startup, "patch-dropout": patch_dropout, "edge-holes": edge_holes,
            "mixed-cells": mixed_cells, "rim-holes": rim_holes, "pit-fill": pit_fill, "view-top": view_top,
-           "hole-growth": hole_growth}
+           "hole-growth": hole_growth, "drop-blend": drop_blend}
 
 
 def main():

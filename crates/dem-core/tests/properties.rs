@@ -133,6 +133,7 @@ proptest! {
             "patch-dropout" => format!(r#"{{"n":{a},"r":{b}}}"#),
             "edge-holes" | "rim-holes" | "pit-fill" => format!(r#"{{"g":{a},"p":{c}}}"#),
             "mixed-cells" => format!(r#"{{"up":{a},"down":{b}}}"#),
+            "drop-blend" => format!(r#"{{"p":{c},"a":{}}}"#, b / 10.0),
             "view-top" => format!(r#"{{"h":{a},"t":{b}}}"#),
             other => unreachable!("{other}"),
         };

@@ -152,6 +152,13 @@ fn hidden_hole_growth() {
     }
 }
 
+#[test]
+fn hidden_drop_blend() {
+    // testdata's drops are stair edges and the far ends of pallets, 0.14-0.2
+    // m: about 4 % of the cells of the 302 records lie beside one.
+    single("drop-blend", "drop-blend:p=0.45,a=0.6", &[("p", 0.45, None), ("a", 0.6, None)]);
+}
+
 /// An effect at height jumps hidden with probability `p`: named first, p
 /// back, paired and unpaired; g only checked to be below `g_below`, the
 /// smallest jumps of the data (any g below them gives the same cells).

@@ -221,6 +221,23 @@ pub fn evidence(effect: &Effect, before: &Stats, after: &Stats, real: &Stats, ga
                 pct(mid(before)),
             )
         }
+        Effect::DropBlend { .. } => {
+            let mid = |s: &Stats| s.mean_over("edge-2cm", 0..19) - s.mean_over("edge-10cm", 0..19);
+            let (q, spread) = if real.paired { ("spread-q99", "99th percentile of the residual (real - sim)") } else { ("spread-q90", "90th percentile of the across-robot height difference") };
+            let tail = |s: &Stats| s.mean_over(q, 0..20);
+            let verdict = if mid(real) > mid(before) && tail(real) > tail(before) {
+                "cells beside drops read part of the way across in some records"
+            } else {
+                "no more part-way steps or wide tails in real: blended drops are the closest effect, not a clear one"
+            };
+            format!(
+                "steps between neighbouring rows of 0.02-0.1 m: real {} vs model {}; {spread}: real {} vs model {}: {verdict}",
+                pct(mid(real)),
+                pct(mid(before)),
+                mm(tail(real)),
+                mm(tail(before)),
+            )
+        }
         Effect::Smoothing { .. } => {
             let (r10, b10) = (real.mean_over("edge-10cm", 0..19), before.mean_over("edge-10cm", 0..19));
             let verdict = if r10 < b10 {

@@ -49,6 +49,7 @@ pub fn ranges(name: &str) -> Vec<Range> {
         "edge-holes" | "rim-holes" | "pit-fill" => vec![lin(0.02, 0.3), lin(0.0, 1.0)],
         // Reaches from none (the halves' mean alone) to a whole cell.
         "mixed-cells" => vec![lin(0.0, 0.15), lin(0.0, 0.15)],
+        "drop-blend" => vec![lin(0.0, 1.0), lin(0.0, 1.0)],
         _ => vec![],
     }
 }
@@ -76,6 +77,8 @@ pub fn limits(name: &str) -> Vec<(f64, f64, bool, bool)> {
         // Past 0.2 m the surface reaches past the far half of the lower
         // cell whatever the step's place: larger reaches change nothing.
         "mixed-cells" => vec![(0.0, 0.2, true, true), (0.0, 0.2, true, true)],
+        // Every cell beside a drop blended, or moved all the way: natural ends.
+        "drop-blend" => vec![(0.0, 1.0, true, true), (0.0, 1.0, true, true)],
         _ => vec![],
     }
 }

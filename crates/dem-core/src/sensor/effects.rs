@@ -23,6 +23,7 @@
 //! | `rim-holes` | a valid cell whose valid 4-neighbour is lower by more than g is missing with probability p (the rim of a height jump) |
 //! | `hole-growth` | a valid cell with k missing 4-neighbours (inside the grid) is missing with probability 1 - (1 - p)^k (the edge of a hole, where a 10 cm cell holds fewer seen map cells than the two of four the map needs) |
 //! | `pit-fill` | a valid cell lower by more than g than both valid neighbours of a line through it (rows r +- 1, or columns c +- 1) reads the lower of the two with probability p |
+//! | `drop-blend` | at a drop along x (valid cells of rows r and r + 1, row r + 1 lower by more than [`MIXED_JUMP`]), each of the two cells reads, with probability p, h + u a (h_n - h), u uniform, h_n the other cell (a cell between two drops takes the larger): the stereo window straddles the jump in range at a drop edge and its mean range puts the cell's points part of the way to the other surface |
 //! | `mixed-cells` | a cell is the mean of its two half cells along x; at a jump of more than [`MIXED_JUMP`] between valid x-neighbours the step lies at s, uniform over the 10 cm between their centres (one draw per row boundary), and the higher surface reaches e = u r past it into the lower cell (u uniform per cell; r = `up` when the higher cell lies ahead, `down` when it lies behind, i.e. beyond a drop): a half of the lower cell whose centre the higher surface reaches reads the higher height, a half of the higher cell the lower surface reaches (the step lies in it, deeper than e) reads the lower height |
 
 use rand::Rng;
@@ -164,6 +165,15 @@ pub enum Effect {
         /// Probability that a pit is filled.
         p: f64,
     },
+    /// Cells on both sides of a drop edge read part of the way to the other
+    /// side, in some records: the stereo matcher's window straddles the
+    /// jump in range there and averages across it.
+    DropBlend {
+        /// Probability that a cell beside a drop is blended.
+        p: f64,
+        /// Largest share of the drop it moves across.
+        a: f64,
+    },
     /// Cells that straddle a step read part of the way up or down: a DEM
     /// cell is the mean of finer map cells, and a map cell holding a step
     /// keeps the higher surface (lower points hide under tops; the ground
@@ -179,7 +189,7 @@ pub enum Effect {
 }
 
 /// Every effect name, in the vocabulary's order.
-pub const NAMES: [&str; 16] = [
+pub const NAMES: [&str; 17] = [
     "noise",
     "dropout",
     "row-dropout",
@@ -196,6 +206,7 @@ pub const NAMES: [&str; 16] = [
     "pit-fill",
     "view-top",
     "hole-growth",
+    "drop-blend",
 ];
 
 impl Effect {
@@ -218,6 +229,7 @@ impl Effect {
             Effect::PitFill { .. } => "pit-fill",
             Effect::ViewTop { .. } => "view-top",
             Effect::HoleGrowth { .. } => "hole-growth",
+            Effect::DropBlend { .. } => "drop-blend",
         }
     }
 
@@ -236,6 +248,7 @@ impl Effect {
             Effect::PatchDropout { n, r } => vec![("n", n), ("r", r)],
             Effect::EdgeHoles { g, p } | Effect::RimHoles { g, p } | Effect::PitFill { g, p } => vec![("g", g), ("p", p)],
             Effect::MixedCells { up, down } => vec![("up", up), ("down", down)],
+            Effect::DropBlend { p, a } => vec![("p", p), ("a", a)],
         }
     }
 
@@ -259,6 +272,7 @@ impl Effect {
             "pit-fill" => Effect::PitFill { g: g(0)?, p: g(1)? },
             "view-top" => Effect::ViewTop { h: g(0)?, t: g(1)? },
             "hole-growth" => Effect::HoleGrowth { p: g(0)? },
+            "drop-blend" => Effect::DropBlend { p: g(0)?, a: g(1)? },
             _ => return None,
         })
     }
@@ -276,14 +290,15 @@ impl Effect {
             Effect::EdgeHoles { .. } | Effect::RimHoles { .. } => 3,
             Effect::PitFill { .. } => 4,
             Effect::MixedCells { .. } => 5,
-            Effect::Smoothing { .. } => 6,
-            Effect::Bias { .. } => 7,
-            Effect::Noise { .. } => 8,
-            Effect::Quantization { .. } => 9,
-            Effect::Dropout { .. } => 10,
-            Effect::PatchDropout { .. } => 11,
-            Effect::HoleGrowth { .. } => 12,
-            Effect::RowDropout { .. } => 13,
+            Effect::DropBlend { .. } => 6,
+            Effect::Smoothing { .. } => 7,
+            Effect::Bias { .. } => 8,
+            Effect::Noise { .. } => 9,
+            Effect::Quantization { .. } => 10,
+            Effect::Dropout { .. } => 11,
+            Effect::PatchDropout { .. } => 12,
+            Effect::HoleGrowth { .. } => 13,
+            Effect::RowDropout { .. } => 14,
         }
     }
 
@@ -305,6 +320,7 @@ impl Effect {
             | Effect::RimHoles { p, .. }
             | Effect::PitFill { p, .. }
             | Effect::HoleGrowth { p }
+            | Effect::DropBlend { p, .. }
                 if !(0.0..=1.0).contains(&p) =>
             {
                 Err(format!("p = {p} is not a probability"))
@@ -316,6 +332,7 @@ impl Effect {
             Effect::EdgeHoles { g, .. } | Effect::RimHoles { g, .. } | Effect::PitFill { g, .. } if g <= 0.0 => {
                 Err(format!("g = {g} must be > 0"))
             }
+            Effect::DropBlend { a, .. } if !(0.0..=1.0).contains(&a) => Err(format!("a = {a} must be in [0, 1]")),
             Effect::MixedCells { up, down } if up < 0.0 || down < 0.0 => Err(format!("up = {up} and down = {down} must be >= 0")),
             Effect::Occlusion { h, .. } if h <= 0.0 => Err(format!("sensor height h = {h} must be > 0")),
             Effect::Fov { x_min, x_max } if x_min >= x_max => Err(format!("x_min = {x_min} must be < x_max = {x_max}")),
@@ -328,7 +345,7 @@ impl Effect {
     /// Apply to one DEM with this effect's random stream for the record.
     /// Draws a fixed number of values whatever the parameters: 100 normals
     /// (noise), 100 uniforms (dropout, edge-holes, rim-holes, pit-fill,
-    /// hole-growth), 20 uniforms
+    /// hole-growth), 200 uniforms (drop-blend), 20 uniforms
     /// (row-dropout), 2 (startup), 3 per slot (patch-dropout), 19 + 95
     /// (mixed-cells: a step position per row boundary, a reach per cell pair).
     pub fn apply(&self, d: &mut Dem, rng: &mut ChaCha8Rng) {
@@ -447,6 +464,7 @@ impl Effect {
             }
             Effect::MixedCells { up, down } => mix_cells(d, rng, up, down),
             Effect::HoleGrowth { p } => grow_holes(d, rng, p),
+            Effect::DropBlend { p, a } => blend_drops(d, rng, p, a),
             Effect::EdgeHoles { g, p } => jump_holes(d, rng, g, p, 1.0),
             Effect::RimHoles { g, p } => jump_holes(d, rng, g, p, -1.0),
             Effect::PitFill { g, p } => {
@@ -559,6 +577,33 @@ fn grow_holes(d: &mut Dem, rng: &mut ChaCha8Rng, p: f64) {
             let k = neighbours4(r, c).filter(|&(rr, cc)| z[rr][cc].is_none()).count();
             if k > 0 && u < 1.0 - (1.0 - p).powi(k as i32) {
                 d.set_missing(r, c);
+            }
+        }
+    }
+}
+
+/// `drop-blend`: heights are read on the DEM as it comes in, so a cell
+/// between two drops blends toward one of them only. Risers (the higher
+/// cell ahead) are left alone: the surface seen is continuous there (a
+/// corner, not a jump in range), and the emulator moves their cells by a
+/// fifth of the step at most.
+fn blend_drops(d: &mut Dem, rng: &mut ChaCha8Rng, p: f64, a: f64) {
+    let z = heights(d);
+    for r in 0..GRID_ROWS {
+        for c in 0..COLS {
+            let (u, v): (f64, f64) = (rng.gen(), rng.gen());
+            let Some(zc) = z[r][c] else { continue };
+            // The other cell across a drop: ahead and lower, or behind and higher.
+            let across = |rr: usize, ahead: bool| {
+                let zn = z.get(rr).and_then(|row| row[c])?;
+                ((if ahead { zc - zn } else { zn - zc }) > MIXED_JUMP).then_some(zn - zc)
+            };
+            let step = match (across(r + 1, true), across(r.wrapping_sub(1), false)) {
+                (Some(f), Some(b)) => Some(if b.abs() > f.abs() { b } else { f }),
+                (f, b) => f.or(b),
+            };
+            if let (Some(s), true) = (step, u < p) {
+                d.set_valid(r, c, (zc + v * a * s) as f32);
             }
         }
     }
@@ -703,6 +748,45 @@ mod tests {
         Effect::Smoothing { w: 0.5 }.apply(&mut d, &mut rng());
         assert!((d.height(10, 2) - (0.5 * 0.73 + 0.5 * -0.07)).abs() < 1e-6);
         assert!((d.height(9, 1) - (-0.07 + 0.8 / 16.0 / (0.5 + 0.5))).abs() < 1e-6);
+    }
+
+    /// drop-blend on a drop (rows 0..10 at 0.1 m, rows 10.. at -0.07 m) and
+    /// a riser (rows 15.. back up at 0.1 m): only the two cells beside the
+    /// drop move, each with probability p, toward the other by u a of the
+    /// drop, u uniform: mean moved share p a / 2.
+    #[test]
+    fn drop_blend_moves_cells_beside_drops_only() {
+        let (p, a) = (0.4, 0.6);
+        let mut r = rng();
+        let (mut moved, mut share, n) = ([0usize; 2], [0.0f64; 2], 4000);
+        for _ in 0..n {
+            let mut d = flat();
+            for row in (0..10).chain(15..GRID_ROWS) {
+                (0..COLS).for_each(|c| d.set_valid(row, c, 0.1));
+            }
+            let before = d;
+            Effect::DropBlend { p, a }.apply(&mut d, &mut r);
+            for row in 0..GRID_ROWS {
+                for c in 0..COLS {
+                    let (h0, h1) = (before.height(row, c) as f64, d.height(row, c) as f64);
+                    match row {
+                        9 | 10 => {
+                            let toward = if row == 9 { h0 - h1 } else { h1 - h0 };
+                            assert!((-1e-6..=a * 0.17 + 1e-6).contains(&toward), "row {row}: {h0} -> {h1}");
+                            let k = row - 9;
+                            moved[k] += usize::from(toward > 0.0);
+                            share[k] += toward / 0.17;
+                        }
+                        _ => assert_eq!(h0, h1, "row {row} is beside no drop (a riser at 14/15)"),
+                    }
+                }
+            }
+        }
+        for k in 0..2 {
+            let cells = (n * COLS) as f64;
+            assert!((moved[k] as f64 / cells - p).abs() < 0.02, "{moved:?}");
+            assert!((share[k] / cells - p * a / 2.0).abs() < 0.01, "{share:?}");
+        }
     }
 
     /// Without reach, mixed-cells is the mean of two half cells with the
