@@ -25,7 +25,7 @@ use dem_onnx::OnnxModel;
   dem-apply --model g_y.onnx --sample-masks --seed 1 sim.npy -o realistic.npy   # holes drawn at the model's rate
   dem-synth --out w --runs 20 --seed 3 && dem-apply --model g_y.onnx w/sim.npy | dem-render - -o fake.png
   dem-filter --labels l.csv --terrain pallet sim.npy | dem-apply --model g_y.onnx --threads 2 > pallets_real.npy
-  dem-render --compare sim.npy <(dem-apply --model g_y.onnx sim.npy) real.npy --row-labels sim,G(sim),real -o cmp.png")]
+  dem-render --compare sim.npy <(dem-apply --model g_y.onnx sim.npy) real.npy --row-labels 'sim,G(sim),real' -o cmp.png")]
 struct Args {
     /// Input NPY stream (`-` for stdin).
     #[arg(default_value = "-")]

@@ -35,8 +35,9 @@ use report::Format;
   dem-eval --sim sim.npy --real real.npy --pairs pairs.csv --split val --model g.onnx \\
       --labels-sim sim_labels.csv --by terrain --records per_record.csv --format md
   dem-apply --model g.onnx sim.npy -o gen.npy && dem-eval --sim sim.npy --real real.npy --pairs pairs.csv --pred gen.npy
-  dem-eval ... --identity --records r.csv --emit-input in.npy --emit-closest real.npy && \\
-      dem-render --compare in.npy real.npy --row-labels input,closest --error-rows 2,1 -o fig.png
+  dem-eval --sim sim.npy --real real.npy --pairs pairs.csv --identity --records r.csv \\
+      --emit-input in.npy --emit-closest closest.npy && \\
+      dem-render --compare in.npy closest.npy --row-labels input,closest --error-rows 2,1 -o fig.png
   cat identity.csv model.csv > table.csv      # CSV tables join with cat
   dem-eval compare testdata/eval_baseline.csv table.csv --tolerance 0.02 --height-tolerance 0.5 || echo regression")]
 struct Args {

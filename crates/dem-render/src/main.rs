@@ -21,7 +21,7 @@ use dem_core::cli::{self, value};
   dem-render run/real.npy --indices 130,140,150 --title 'measured, pallet' -o pallet.png
   dem-render run/sim.npy --index-csv keep.csv -o kept.png      # keep.csv: header `index`
   dem-render --compare run/sim.npy run/real.npy --error-rows 2,1 -o pairs.png
-  dem-render --compare in.npy real.npy gen.npy --row-labels input,real,generated -o fig.png
+  dem-render --compare in.npy closest.npy <(dem-apply --model g.onnx in.npy) --row-labels input,closest,generated -o fig.png
   dem-cat big.npy | dem-render - --start 100 --count 48 --columns 16 > page.png
 
 --compare needs files of equal length: with --runs equal to --real-runs (20 by

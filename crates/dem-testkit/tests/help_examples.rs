@@ -1,0 +1,204 @@
+//! Every example of every tool's `--help` runs, as a user would paste it
+//! into bash: in a scratch directory whose files carry the names the
+//! examples use (made by the tools themselves from a small world), with the
+//! built binaries first on PATH. Each tool's examples run in order in their
+//! own copy of that directory, so one tool's outputs (dem-import's example
+//! writes a `real.npy`) never become another's inputs.
+//!
+//! Small sizes, the only edits to the commands (and the reason the test is
+//! minutes, not an hour): `dem-synth` makes 6 runs (6 measured) where an
+//! example asks for 20 or 400 or leaves the default, and `dem-train` trains
+//! 1 epoch where an example says 20 (2 where it resumes to 40).
+//!
+//! An example is one line under `Examples:` (indented two spaces; a deeper
+//! indented line continues it, `# ...` lines are comments). The help is
+//! printed with `COLUMNS=1000` so clap does not wrap it.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use dem_testkit::{bin, python, tempdir, workspace_root};
+
+/// Every tool with examples.
+const TOOLS: [&str; 14] = [
+    "dem-apply",
+    "dem-cat",
+    "dem-clean-pallet",
+    "dem-eval",
+    "dem-fill-nans",
+    "dem-filter",
+    "dem-gap",
+    "dem-import",
+    "dem-pair",
+    "dem-render",
+    "dem-sensor",
+    "dem-split",
+    "dem-synth",
+    "dem-train",
+];
+
+/// Runs (and measured runs) of every world the examples make.
+const RUNS: &str = "6";
+
+/// The examples of `tool --help`.
+fn examples(tool: &str) -> Vec<String> {
+    let o = Command::new(bin(tool)).arg("--help").env("COLUMNS", "1000").env("LINES", "50").output().unwrap();
+    assert!(o.status.success(), "{tool} --help failed");
+    let help = String::from_utf8(o.stdout).unwrap();
+    let mut out: Vec<String> = Vec::new();
+    let mut inside = false;
+    for line in help.lines() {
+        if line.starts_with("Examples:") {
+            inside = true;
+            continue;
+        }
+        if !inside {
+            continue;
+        }
+        if !line.is_empty() && !line.starts_with(' ') {
+            break;
+        }
+        let text = line.trim();
+        if text.is_empty() || text.starts_with('#') {
+            continue;
+        }
+        if line.starts_with("   ") {
+            let last = out.last_mut().unwrap_or_else(|| panic!("{tool}: an example starts indented: {line}"));
+            last.push('\n');
+            last.push_str(text);
+        } else {
+            out.push(text.to_string());
+        }
+    }
+    assert!(!out.is_empty(), "{tool} --help shows no example");
+    out
+}
+
+/// The example with the sizes of the module comment.
+fn small(cmd: &str) -> String {
+    let mut c = cmd.replace("--runs 400", &format!("--runs {RUNS}")).replace("--runs 20", &format!("--runs {RUNS}"));
+    c = c.replace("--real-runs 20", &format!("--real-runs {RUNS}"));
+    c = c.replace("--epochs 20", "--epochs 1").replace("--epochs 40", "--epochs 2");
+    // Each dem-synth that does not say how many runs: the small world.
+    let mut out = String::new();
+    let mut rest = c.as_str();
+    while let Some(at) = rest.find("dem-synth ") {
+        let (head, tail) = rest.split_at(at + "dem-synth ".len());
+        out.push_str(head);
+        let end = tail.find(['&', '|', ';', '\n']).unwrap_or(tail.len());
+        for flag in ["--runs", "--real-runs"] {
+            if !tail[..end].contains(&format!("{flag} ")) {
+                out.push_str(&format!("{flag} {RUNS} "));
+            }
+        }
+        rest = tail;
+    }
+    out.push_str(rest);
+    out
+}
+
+/// Run `script` in `dir` with bash, the binaries and a `python` first on PATH.
+fn bash(dir: &Path, path: &str, script: &str) -> std::process::Output {
+    Command::new("bash")
+        .args(["-c", &format!("set -eo pipefail\n{script}")])
+        .current_dir(dir)
+        .env("PATH", path)
+        .env("ROOT", workspace_root())
+        .output()
+        .unwrap()
+}
+
+/// The files the examples read, made by the tools from a small world.
+const FIXTURES: &str = r#"
+dem-synth --out world --runs 6 --real-runs 6 --seed 1 2>/dev/null
+cp world/sim.npy world/real.npy world/sim_labels.csv world/real_labels.csv .
+cp sim_labels.csv l.csv
+dem-pair --by pose --sim-labels sim_labels.csv --real-labels real_labels.csv --val-fraction 0.5 --seed 1 -o pairs.csv 2>/dev/null
+mkdir testdata all
+cp sim.npy real.npy sim_labels.csv real_labels.csv pairs.csv testdata/
+cp "$ROOT/testdata/eval_baseline.csv" testdata/
+cp world/* all/
+dem-synth --out no_fov --runs 6 --real-runs 6 --seed 1 --no-fov 2>/dev/null
+for m in g_y gy g; do cp "$ROOT/testdata/torch_gen_w4.onnx" $m.onnx; done
+echo '{"effects": [{"effect": "noise", "params": {"sigma0": 0.002, "k": 0.01}}, {"effect": "startup", "params": {"x0": 0.45, "v": 0.2, "p": 0.25}}]}' > sensor.json
+cp sensor.json s.json
+cp sensor.json start.json
+dem-cat sim.npy -o part1.npy
+dem-cat real.npy -o part2.npy
+dem-cat sim.npy -o big.npy
+dem-eval --sim sim.npy --real real.npy --pairs pairs.csv --identity > identity.csv 2>/dev/null
+dem-eval --sim sim.npy --real real.npy --pairs pairs.csv --model g.onnx > model.csv 2>/dev/null
+dem-eval --sim sim.npy --real real.npy --pairs pairs.csv --identity --emit-input in.npy --emit-closest closest.npy > /dev/null 2>&1
+dem-filter --labels sim_labels.csv --drop-other --unique --emit-index keep.csv sim.npy -o kept.npy 2>/dev/null
+mkdir gap
+cp sensor.json gap/sensor.json
+dem-split --shards 2 --out part sim.npy > shards.csv 2>/dev/null
+for f in part-*.npy; do cp "$f" "$f.out"; done
+cat > make_dems.py <<'EOF'
+import sys
+import numpy as np
+a = np.load("sim.npy").astype(np.float64)
+a[..., 0][a[..., 1] < 0] = np.nan
+np.save(sys.stdout.buffer, a)
+EOF
+# Recordings: the emulator's maps as a ROS 1 bag and a ROS 2 MCAP file.
+dem-synth --out rec --runs 2 --real-runs 2 --seed 1 --terrains stairs-up --emit-maps 2>/dev/null
+mkdir field recordings
+python "$ROOT/scripts/maps_to_bag.py" rec --out field/run1.bag --format ros1
+cp field/run1.bag recordings/run1.bag
+python "$ROOT/scripts/maps_to_bag.py" rec --out rec_mcap --format mcap
+mv rec_mcap/*.mcap stairs_2024-05-01.mcap
+"#;
+
+#[test]
+fn every_help_example_runs() {
+    let dir = tempdir();
+    let work = dir.path();
+    // `python` as the examples call it: the test's interpreter.
+    let shims = work.join(".bin");
+    std::fs::create_dir(&shims).unwrap();
+    // A script, not a symlink: a venv's python finds its packages by the
+    // path it was started from.
+    let shim = shims.join("python");
+    std::fs::write(&shim, format!("#!/bin/sh\nexec '{}' \"$@\"\n", python().display())).unwrap();
+    std::fs::set_permissions(&shim, std::os::unix::fs::PermissionsExt::from_mode(0o755)).unwrap();
+    let bins: PathBuf = bin("dem-cat").parent().unwrap().to_path_buf();
+    let path = format!("{}:{}:{}", bins.display(), shims.display(), std::env::var("PATH").unwrap_or_default());
+    let base = work.join("fixtures");
+    std::fs::create_dir(&base).unwrap();
+    let o = bash(&base, &path, FIXTURES);
+    assert!(o.status.success(), "fixtures:\n{}", String::from_utf8_lossy(&o.stderr));
+    let has_parallel = bash(work, &path, "command -v parallel").status.success();
+    let mut ran = 0;
+    for tool in TOOLS {
+        let here = work.join(tool);
+        let o = Command::new("cp").arg("-a").arg(&base).arg(&here).output().unwrap();
+        assert!(o.status.success(), "cp -a: {}", String::from_utf8_lossy(&o.stderr));
+        for example in examples(tool) {
+            if example.starts_with("parallel ") && !has_parallel {
+                eprintln!("skipped (GNU parallel is not installed): {example}");
+                continue;
+            }
+            let cmd = small(&example);
+            let o = bash(&here, &path, &cmd);
+            assert!(
+                o.status.success(),
+                "{tool} --help example failed ({}):\n{cmd}\n--- stderr:\n{}",
+                o.status,
+                String::from_utf8_lossy(&o.stderr)
+            );
+            ran += 1;
+        }
+    }
+    assert!(ran >= 60, "only {ran} examples ran (66 when this test was written)");
+}
+
+#[test]
+fn small_sizes_only_shrink_worlds_and_epochs() {
+    assert_eq!(small("dem-synth --out run/ && dem-cat run/sim.npy | dem-render -o sim.png -"), "dem-synth --runs 6 --real-runs 6 --out run/ && dem-cat run/sim.npy | dem-render -o sim.png -");
+    assert_eq!(small("dem-synth --out run/ --runs 400 --real-runs 20 --seed 1"), "dem-synth --out run/ --runs 6 --real-runs 6 --seed 1");
+    assert_eq!(small("dem-synth --out maps/ --runs 4 --real-runs 2 --seed 1"), "dem-synth --out maps/ --runs 4 --real-runs 2 --seed 1");
+    assert_eq!(small("dem-synth --out w --runs 20 --seed 3 && dem-apply"), "dem-synth --real-runs 6 --out w --runs 6 --seed 3 && dem-apply");
+    assert_eq!(small("dem-train --sim s.npy --out run/ --epochs 40 --resume"), "dem-train --sim s.npy --out run/ --epochs 2 --resume");
+    assert_eq!(small("dem-render --compare a.npy b.npy -o x.png"), "dem-render --compare a.npy b.npy -o x.png");
+}
