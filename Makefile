@@ -9,7 +9,7 @@ BIN := target/release
 OUT := out
 comma := ,
 
-.PHONY: all build install venv venv-torch test demo bench clean testdata eval-ci eval-baseline thesis-table fuzz
+.PHONY: all build install venv venv-torch test readme-check demo bench clean testdata eval-ci eval-baseline thesis-table fuzz
 
 all: build
 
@@ -43,6 +43,12 @@ $(VENV)/.stamp: scripts/requirements.txt python/pyproject.toml python/demstream/
 
 test: venv
 	DEM_PYTHON=$(abspath $(PY)) $(CARGO) test --workspace
+
+# The README's pipeline and every tool's --help examples, run as written
+# with small worlds (part of `make test` too).
+readme-check: venv
+	$(CARGO) build --workspace --bins
+	DEM_PYTHON=$(abspath $(PY)) $(CARGO) test -p dem-testkit --test as_written
 
 # Longer runs of the readers' property tests, then the cargo-fuzz targets in
 # fuzz/ (nightly toolchain; cargo-fuzz is installed if missing).

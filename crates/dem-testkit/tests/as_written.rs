@@ -1,14 +1,15 @@
-//! Every example of every tool's `--help` runs, as a user would paste it
-//! into bash: in a scratch directory whose files carry the names the
+//! The README's pipeline and every example of every tool's `--help` run as
+//! written, as a user would paste them into bash: in a scratch directory whose files carry the names the
 //! examples use (made by the tools themselves from a small world), with the
 //! built binaries first on PATH. Each tool's examples run in order in their
 //! own copy of that directory, so one tool's outputs (dem-import's example
 //! writes a `real.npy`) never become another's inputs.
 //!
 //! Small sizes, the only edits to the commands (and the reason the test is
-//! minutes, not an hour): `dem-synth` makes 6 runs (6 measured) where an
-//! example asks for 20 or 400 or leaves the default, and `dem-train` trains
-//! 1 epoch where an example says 20 (2 where it resumes to 40).
+//! minutes, not an hour): `dem-synth` makes 6 runs (6 measured) where a
+//! command asks for 20 or 400 or leaves the default, and `dem-train` trains
+//! 1 epoch where a command says 20 or leaves the default (2 where it
+//! resumes to 40). The README gives each step's time at full size.
 //!
 //! An example is one line under `Examples:` (indented two spaces; a deeper
 //! indented line continues it, `# ...` lines are comments). The help is
@@ -74,26 +75,60 @@ fn examples(tool: &str) -> Vec<String> {
     out
 }
 
-/// The example with the sizes of the module comment.
+/// The command with the sizes of the module comment.
 fn small(cmd: &str) -> String {
-    let mut c = cmd.replace("--runs 400", &format!("--runs {RUNS}")).replace("--runs 20", &format!("--runs {RUNS}"));
-    c = c.replace("--real-runs 20", &format!("--real-runs {RUNS}"));
-    c = c.replace("--epochs 20", "--epochs 1").replace("--epochs 40", "--epochs 2");
-    // Each dem-synth that does not say how many runs: the small world.
+    let c = cmd
+        .replace("--runs 400", &format!("--runs {RUNS}"))
+        .replace("--runs 20", &format!("--runs {RUNS}"))
+        .replace("--real-runs 20", &format!("--real-runs {RUNS}"))
+        .replace("--epochs 20", "--epochs 1")
+        .replace("--epochs 40", "--epochs 2");
+    // Each dem-synth that does not say how many runs: the small world;
+    // each training that does not say how long: one epoch.
+    let c = with_default(&c, "dem-synth ", "", &[("--runs", RUNS), ("--real-runs", RUNS)]);
+    with_default(&c, "dem-train ", "--sim ", &[("--epochs", "1")])
+}
+
+/// After each `command` (up to the next `&`, `|`, `;` or line end) that
+/// contains `needs`, the flags it does not give, with their values.
+fn with_default(c: &str, command: &str, needs: &str, flags: &[(&str, &str)]) -> String {
     let mut out = String::new();
-    let mut rest = c.as_str();
-    while let Some(at) = rest.find("dem-synth ") {
-        let (head, tail) = rest.split_at(at + "dem-synth ".len());
+    let mut rest = c;
+    while let Some(at) = rest.find(command) {
+        let (head, tail) = rest.split_at(at + command.len());
         out.push_str(head);
         let end = tail.find(['&', '|', ';', '\n']).unwrap_or(tail.len());
-        for flag in ["--runs", "--real-runs"] {
+        for (flag, value) in flags.iter().filter(|_| tail[..end].contains(needs)) {
             if !tail[..end].contains(&format!("{flag} ")) {
-                out.push_str(&format!("{flag} {RUNS} "));
+                out.push_str(&format!("{flag} {value} "));
             }
         }
         rest = tail;
     }
     out.push_str(rest);
+    out
+}
+
+/// The shell block under `## A pipeline` in the README, continued lines
+/// joined, comments dropped.
+fn readme_pipeline() -> String {
+    let readme = std::fs::read_to_string(workspace_root().join("README.md")).unwrap();
+    let section = readme.split("## A pipeline").nth(1).expect("README has no `## A pipeline`");
+    let block = section.split("```sh\n").nth(1).and_then(|b| b.split("```").next()).expect("no sh block");
+    let mut out = String::new();
+    for line in block.lines() {
+        let text = line.trim();
+        if text.starts_with('#') || text.is_empty() {
+            continue;
+        }
+        match text.strip_suffix('\\') {
+            Some(cont) => out.push_str(cont),
+            None => {
+                out.push_str(text);
+                out.push('\n');
+            }
+        }
+    }
     out
 }
 
@@ -148,12 +183,24 @@ python "$ROOT/scripts/maps_to_bag.py" rec --out field/run1.bag --format ros1
 cp field/run1.bag recordings/run1.bag
 python "$ROOT/scripts/maps_to_bag.py" rec --out rec_mcap --format mcap
 mv rec_mcap/*.mcap stairs_2024-05-01.mcap
+# The README's: what `make demo` writes to out/import/recordings/.
+mkdir -p out/import/recordings
+cp field/run1.bag out/import/recordings/stairs_down.bag
+python "$ROOT/scripts/maps_to_bag.py" rec --out out/import/recordings/pallet --format mcap
 "#;
 
-#[test]
-fn every_help_example_runs() {
-    let dir = tempdir();
-    let work = dir.path();
+/// The scratch directory with the fixtures made, and the PATH to run with.
+struct Scratch {
+    _dir: tempfile::TempDir,
+    work: PathBuf,
+    base: PathBuf,
+    path: String,
+}
+
+impl Scratch {
+    fn new() -> Scratch {
+        let dir = tempdir();
+        let work = dir.path().to_path_buf();
     // `python` as the examples call it: the test's interpreter.
     let shims = work.join(".bin");
     std::fs::create_dir(&shims).unwrap();
@@ -164,23 +211,50 @@ fn every_help_example_runs() {
     std::fs::set_permissions(&shim, std::os::unix::fs::PermissionsExt::from_mode(0o755)).unwrap();
     let bins: PathBuf = bin("dem-cat").parent().unwrap().to_path_buf();
     let path = format!("{}:{}:{}", bins.display(), shims.display(), std::env::var("PATH").unwrap_or_default());
-    let base = work.join("fixtures");
-    std::fs::create_dir(&base).unwrap();
-    let o = bash(&base, &path, FIXTURES);
-    assert!(o.status.success(), "fixtures:\n{}", String::from_utf8_lossy(&o.stderr));
+        let base = work.join("fixtures");
+        std::fs::create_dir(&base).unwrap();
+        let o = bash(&base, &path, FIXTURES);
+        assert!(o.status.success(), "fixtures:\n{}", String::from_utf8_lossy(&o.stderr));
+        Scratch { _dir: dir, work, base, path }
+    }
+
+    /// A fresh copy of the fixtures, named `name`.
+    fn copy(&self, name: &str) -> PathBuf {
+        let here = self.work.join(name);
+        let o = Command::new("cp").arg("-a").arg(&self.base).arg(&here).output().unwrap();
+        assert!(o.status.success(), "cp -a: {}", String::from_utf8_lossy(&o.stderr));
+        here
+    }
+}
+
+#[test]
+fn the_readme_pipeline_runs() {
+    let s = Scratch::new();
+    let here = s.copy("readme");
+    let script = small(&readme_pipeline());
+    assert!(script.lines().count() >= 15, "{script}");
+    let o = bash(&here, &s.path, &format!("set -x\n{script}"));
+    assert!(o.status.success(), "the README's pipeline failed ({}):\n{}", o.status, String::from_utf8_lossy(&o.stderr));
+    for f in ["pairs.png", "keys.png", "seen.png", "gy.onnx", "curves.png", "realistic.npy", "modelled.png", "virtual.npy"] {
+        assert!(here.join(f).exists(), "the README's pipeline wrote no {f}");
+    }
+}
+
+#[test]
+fn every_help_example_runs() {
+    let s = Scratch::new();
+    let (work, path) = (&s.work, &s.path);
     let has_parallel = bash(work, &path, "command -v parallel").status.success();
     let mut ran = 0;
     for tool in TOOLS {
-        let here = work.join(tool);
-        let o = Command::new("cp").arg("-a").arg(&base).arg(&here).output().unwrap();
-        assert!(o.status.success(), "cp -a: {}", String::from_utf8_lossy(&o.stderr));
+        let here = s.copy(tool);
         for example in examples(tool) {
             if example.starts_with("parallel ") && !has_parallel {
                 eprintln!("skipped (GNU parallel is not installed): {example}");
                 continue;
             }
             let cmd = small(&example);
-            let o = bash(&here, &path, &cmd);
+            let o = bash(&here, path, &cmd);
             assert!(
                 o.status.success(),
                 "{tool} --help example failed ({}):\n{cmd}\n--- stderr:\n{}",
@@ -200,5 +274,6 @@ fn small_sizes_only_shrink_worlds_and_epochs() {
     assert_eq!(small("dem-synth --out maps/ --runs 4 --real-runs 2 --seed 1"), "dem-synth --out maps/ --runs 4 --real-runs 2 --seed 1");
     assert_eq!(small("dem-synth --out w --runs 20 --seed 3 && dem-apply"), "dem-synth --real-runs 6 --out w --runs 6 --seed 3 && dem-apply");
     assert_eq!(small("dem-train --sim s.npy --out run/ --epochs 40 --resume"), "dem-train --sim s.npy --out run/ --epochs 2 --resume");
+    assert_eq!(small("dem-train --sim k.npy --out t/ --seed 1\ndem-train export t/"), "dem-train --epochs 1 --sim k.npy --out t/ --seed 1\ndem-train export t/");
     assert_eq!(small("dem-render --compare a.npy b.npy -o x.png"), "dem-render --compare a.npy b.npy -o x.png");
 }
