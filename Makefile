@@ -125,7 +125,7 @@ demo: build venv
 	    --emit-index $(OUT)/prep/sim_index.csv --emit-labels $(OUT)/prep/sim_labels.csv
 	$(BIN)/dem-filter --labels $(TD)/real_labels.csv --drop-other $(TD)/real.npy -o $(OUT)/prep/real.npy \
 	    --emit-labels $(OUT)/prep/real_labels.csv
-	$(BIN)/dem-pair --by content --sim $(OUT)/prep/sim.npy --real $(OUT)/prep/real.npy \
+	$(BIN)/dem-pair --match content --sim $(OUT)/prep/sim.npy --real $(OUT)/prep/real.npy \
 	    --sim-labels $(OUT)/prep/sim_labels.csv --k 3 --val-fraction 0.5 --seed 1 -o $(OUT)/prep/pairs.csv
 	$(BIN)/dem-clean-pallet --labels $(OUT)/prep/sim_labels.csv $(OUT)/prep/sim.npy -o $(OUT)/prep/sim_clean.npy
 	$(BIN)/dem-fill-nans --min-missing 0.3 --keep-fraction 0.2 --seed 1 $(OUT)/prep/real.npy -o $(OUT)/prep/real_filled.npy

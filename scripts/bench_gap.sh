@@ -14,8 +14,8 @@ data="$OUT/gap-data"
 sim=$(($(wc -l < "$data/sim_labels.csv") - 1))
 real=$(($(wc -l < "$data/real_labels.csv") - 1))
 start=$(date +%s.%N)
-"$BIN/dem-gap" --sim "$data/sim.npy" --real "$data/real.npy" --labels-sim "$data/sim_labels.csv" \
-    --labels-real "$data/real_labels.csv" --out "$OUT/gap-run" --seed 1 2> "$OUT/gap-run.log"
+"$BIN/dem-gap" --sim "$data/sim.npy" --real "$data/real.npy" --sim-labels "$data/sim_labels.csv" \
+    --real-labels "$data/real_labels.csv" --out "$OUT/gap-run" --seed 1 2> "$OUT/gap-run.log"
 end=$(date +%s.%N)
 secs=$(echo "$end - $start" | bc)
 {
@@ -29,7 +29,7 @@ names = ", ".join(s.get("effect", "?") for s in r["steps"])
 a, b = r["gap_initial"], r["gap_final"]
 print(f"gap {a:.3f} -> {b:.3f} ({1 - b / a:.1%} removed) with {names}")
 ' "$OUT/gap-run/report.json")"
-  printf '    command: dem-gap --sim %s/sim.npy --real %s/real.npy --labels-sim ... --labels-real ... --out %s/gap-run --seed 1\n' \
+  printf '    command: dem-gap --sim %s/sim.npy --real %s/real.npy --sim-labels ... --real-labels ... --out %s/gap-run --seed 1\n' \
       "$data" "$data" "$OUT"
 } | tee "$report"
 echo "written to $report"

@@ -43,7 +43,7 @@ eval_prepare() {
         --emit-index "$DATA/sim_index.csv" --emit-labels "$DATA/sim_labels.csv"
     "$BIN/dem-filter" --labels "$TD/real_labels.csv" --drop-other "$TD/real.npy" -o "$DATA/real.npy" \
         --emit-labels "$DATA/real_labels.csv"
-    "$BIN/dem-pair" --by content --sim "$DATA/sim.npy" --real "$DATA/real.npy" --sim-labels "$DATA/sim_labels.csv" \
+    "$BIN/dem-pair" --match content --sim "$DATA/sim.npy" --real "$DATA/real.npy" --sim-labels "$DATA/sim_labels.csv" \
         --k 3 --val-fraction 0.5 --seed 1 -o "$DATA/pairs.csv"
 }
 
@@ -56,7 +56,7 @@ eval_row() {
     local name=$1 sim=$2
     shift 2
     "$BIN/dem-eval" --sim "$sim" --real "$DATA/real.npy" --pairs "$DATA/pairs.csv" --split val \
-        --labels-sim "$DATA/sim_labels.csv" --name "$name" --format csv -o "$ROWS/$name.csv" \
+        --sim-labels "$DATA/sim_labels.csv" --name "$name" --format csv -o "$ROWS/$name.csv" \
         --records "$ROWS/$name.records.csv" --emit-input "$ROWS/$name.input.npy" \
         --emit-pred "$ROWS/$name.pred.npy" --emit-closest "$ROWS/$name.closest.npy" ${EVAL_BY:+--by "$EVAL_BY"} "$@"
 }

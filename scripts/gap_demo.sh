@@ -30,7 +30,7 @@ synth() { # out-dir runs [flags]
 run_gap() { # case sim real pairs labels-sim labels-real
   local name=$1 sim=$2 real=$3 pairs=$4 ls=$5 lr=$6
   # shellcheck disable=SC2086
-  "$BIN/dem-gap" --sim "$sim" --real "$real" ${pairs:+--pairs "$pairs"} --labels-sim "$ls" --labels-real "$lr" \
+  "$BIN/dem-gap" --sim "$sim" --real "$real" ${pairs:+--pairs "$pairs"} --sim-labels "$ls" --real-labels "$lr" \
       --out "$dir/$name" --seed "$SEED" $GAP_ARGS 2> "$dir/$name.log"
   echo "  $name: $(tail -1 "$dir/$name.log" | sed 's/^dem-gap: //')"
 }

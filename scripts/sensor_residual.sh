@@ -23,7 +23,7 @@ echo "== dem-gap: a sensor model of named effects, fitted on testdata" >&2
 tail -1 "$OUT/gap.log" >&2
 sensor=$OUT/gap/sensor.json
 # The same draw dem-train --sensor --seed 1 makes (per record, from seed and index).
-"$BIN/dem-sensor" apply --model "$sensor" --seed 1 "$DATA/sim.npy" -o "$DATA/sim_sensor.npy"
+"$BIN/dem-sensor" apply --sensor "$sensor" --seed 1 "$DATA/sim.npy" -o "$DATA/sim_sensor.npy"
 eval_row identity "$DATA/sim.npy" --identity
 eval_row sensor-only "$DATA/sim_sensor.npy" --identity
 model=${PAIRED_MODEL:-}

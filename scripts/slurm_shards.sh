@@ -13,6 +13,6 @@ row=${SLURM_ARRAY_TASK_ID:?run as a Slurm array task (sbatch --array=1-N)}
 line=$(sed -n "$((row + 1))p" "$manifest")
 [ -n "$line" ] || { echo "slurm_shards.sh: $manifest has no row $row" >&2; exit 2; }
 IFS=, read -r shard first _records labels <<< "$line"
-args=(apply --model "$model" --seed "$seed" --first-index "$first")
+args=(apply --sensor "$model" --seed "$seed" --first-index "$first")
 [ -n "${labels:-}" ] && args+=(--labels "$labels")
 dem-sensor "${args[@]}" "$shard" -o "$shard.measured"

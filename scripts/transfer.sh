@@ -57,7 +57,7 @@ if [[ -z "$model" ]]; then
     "$BIN/dem-filter" --labels "$OUT/sim_labels.csv" --drop-other --unique "$OUT/sim.npy" -o "$OUT/prep/sim.npy" \
         --emit-labels "$OUT/prep/sim_labels.csv"
     "$BIN/dem-filter" --labels "$OUT/real_labels.csv" --drop-other "$OUT/real.npy" -o "$OUT/prep/real.npy"
-    "$BIN/dem-pair" --by content --sim "$OUT/prep/sim.npy" --real "$OUT/prep/real.npy" \
+    "$BIN/dem-pair" --match content --sim "$OUT/prep/sim.npy" --real "$OUT/prep/real.npy" \
         --sim-labels "$OUT/prep/sim_labels.csv" --k 3 --val-fraction 0.2 --seed "$SEED" -o "$OUT/prep/pairs.csv"
     rm -rf "$OUT/train"
     # shellcheck disable=SC2086  # TRAIN_ARGS is a list of options
@@ -78,17 +78,17 @@ fi
 # its model applied to SIM.
 fit_and_apply() {
     rm -rf "${OUT:?}/$2"
-    "$BIN/dem-gap" --sim "$1" --real "$OUT/real.npy" --labels-sim "$OUT/sim_labels.csv" \
-        --labels-real "$OUT/real_labels.csv" --out "$OUT/$2" --seed "$SEED" 2> "$OUT/$2.log" \
+    "$BIN/dem-gap" --sim "$1" --real "$OUT/real.npy" --sim-labels "$OUT/sim_labels.csv" \
+        --real-labels "$OUT/real_labels.csv" --out "$OUT/$2" --seed "$SEED" 2> "$OUT/$2.log" \
         || { cat "$OUT/$2.log" >&2; exit 1; }
-    "$BIN/dem-sensor" apply --model "$OUT/$2/sensor.json" --labels "$OUT/sim_labels.csv" --seed "$SEED" \
+    "$BIN/dem-sensor" apply --sensor "$OUT/$2/sensor.json" --labels "$OUT/sim_labels.csv" --seed "$SEED" \
         "$1" -o "$3"
 }
 fit_and_apply "$OUT/sim.npy" gap "$OUT/sensor_sim.npy"
 # The virtual sensor: G_Y (terrain-made effects), then the one effect a sim
 # DEM cannot carry, the startup rows of a run's first frames, by time.
 for v in gy gy_sampled; do
-    "$BIN/dem-sensor" apply --model "$OUT/gap/sensor.json" --only startup --labels "$OUT/sim_labels.csv" \
+    "$BIN/dem-sensor" apply --sensor "$OUT/gap/sensor.json" --only startup --labels "$OUT/sim_labels.csv" \
         --seed "$SEED" "$OUT/${v}_sim.npy" -o "$OUT/${v}_startup_sim.npy"
 done
 # G_Y, then what is left: dem-gap fitted between G_Y(sim) and the measured

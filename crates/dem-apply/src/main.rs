@@ -31,7 +31,7 @@ struct Args {
     #[arg(default_value = "-")]
     input: String,
     /// Output NPY stream (`-` for stdout).
-    #[arg(short, long, default_value = "-")]
+    #[arg(short, long = "out", alias = "output", default_value = "-")]
     output: String,
     /// The ONNX model: float32 (N, 21, 5, 2) in and out.
     #[arg(short, long)]

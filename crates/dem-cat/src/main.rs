@@ -21,7 +21,7 @@ struct Args {
     /// Input NPY streams; `-` is stdin. None means stdin.
     inputs: Vec<String>,
     /// Output file; `-` is stdout.
-    #[arg(short, long, default_value = "-")]
+    #[arg(short, long = "out", alias = "output", default_value = "-")]
     output: String,
 }
 

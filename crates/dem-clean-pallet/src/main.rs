@@ -26,7 +26,7 @@ struct Args {
     #[arg(default_value = "-")]
     input: String,
     /// Output NPY stream (`-` for stdout).
-    #[arg(short, long, default_value = "-")]
+    #[arg(short, long = "out", alias = "output", default_value = "-")]
     output: String,
     /// Labels CSV of the input: clean the records labelled `pallet`.
     #[arg(long)]

@@ -80,7 +80,7 @@ pub fn usage(msg: impl Into<String>) -> anyhow::Error {
 }
 
 /// Parse the command line; a usage error is one line naming the tool
-/// (`dem-pair: error: invalid value 'nan' for '--max-distance <M>': ...`),
+/// (`dem-pair: error: invalid value 'nan' for '--max-error <M>': ...`),
 /// exit 2. `--help` and `--version` print as clap does, exit 0.
 ///
 /// `TOOL --generate KIND` (as the first argument, as ripgrep has it) prints

@@ -32,13 +32,13 @@ pub struct EvalArgs {
     #[arg(long, group = "method")]
     pred: Option<String>,
     /// ONNX generator (one float32 input and output, (N, 21, 5, 2)) run on the selected sim records.
-    #[arg(long, group = "method")]
+    #[arg(short, long, group = "method")]
     model: Option<String>,
     /// Name of the table row [default: identity, or the --pred / --model file stem].
     #[arg(long)]
     name: Option<String>,
     /// Labels CSV of the sim file: terrain of each record (--records, --by terrain).
-    #[arg(long)]
+    #[arg(long = "sim-labels", alias = "labels-sim", value_name = "CSV")]
     labels_sim: Option<String>,
     #[command(flatten)]
     table: TableOut,
@@ -73,14 +73,14 @@ pub struct EvalArgs {
 #[derive(ClapArgs)]
 pub(crate) struct TableOut {
     /// Split the table: one row over all records, then one per terrain
-    /// (the terrain comes from --labels-sim).
+    /// (the terrain comes from --sim-labels).
     #[arg(long, value_enum)]
     pub(crate) by: Option<By>,
     /// Table format; csv or json is what `compare` reads.
     #[arg(long, value_enum, default_value = "text")]
     pub(crate) format: Format,
     /// Table output (`-` for stdout).
-    #[arg(short, long, default_value = "-")]
+    #[arg(short, long = "out", alias = "output", default_value = "-")]
     pub(crate) output: String,
 }
 
@@ -125,7 +125,7 @@ pub fn run(a: EvalArgs) -> anyhow::Result<()> {
     };
     let need = |v: Option<String>, flag: &str| v.ok_or_else(|| cli::usage(format!("{flag} is required")));
     if a.table.by.is_some() && a.labels_sim.is_none() {
-        return Err(cli::usage("--by terrain needs --labels-sim"));
+        return Err(cli::usage("--by terrain needs --sim-labels"));
     }
     let to_stdout = [Some(&a.table.output), a.records.as_ref(), a.emit_input.as_ref(), a.emit_pred.as_ref(), a.emit_closest.as_ref()];
     if to_stdout.iter().filter(|p| p.is_some_and(|p| p == "-")).count() > 1 {

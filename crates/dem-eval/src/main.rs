@@ -33,7 +33,7 @@ use report::Format;
 #[command(version, args_conflicts_with_subcommands = true, after_long_help = "Examples:
   dem-eval --sim sim.npy --real real.npy --pairs pairs.csv --split val --identity
   dem-eval --sim sim.npy --real real.npy --pairs pairs.csv --split val --model g.onnx \\
-      --labels-sim sim_labels.csv --by terrain --records per_record.csv --format md
+      --sim-labels sim_labels.csv --by terrain --records per_record.csv --format md
   dem-apply --model g.onnx sim.npy -o gen.npy && dem-eval --sim sim.npy --real real.npy --pairs pairs.csv --pred gen.npy
   dem-eval --sim sim.npy --real real.npy --pairs pairs.csv --identity --records r.csv \\
       --emit-input in.npy --emit-closest closest.npy && \\
@@ -68,7 +68,7 @@ enum Cmd {
     /// the whole, bit for bit.
     #[command(after_long_help = "Examples:
   dem-split --shards 4 --labels sim_labels.csv --out part sim.npy > shards.csv
-  parallel --will-cite --colsep , --header : dem-eval --sim {shard} --labels-sim {labels} \\
+  parallel --will-cite --colsep , --header : dem-eval --sim {shard} --sim-labels {labels} \\
       --first-index {first_index} --real real.npy --pairs pairs.csv --split val --model gy.onnx \\
       --records {shard}.rec.csv --emit-pred {shard}.pred.npy -o /dev/null :::: shards.csv
   dem-cat part-*.npy.pred.npy | dem-eval merge part-*.npy.rec.csv --name gy --by terrain \\

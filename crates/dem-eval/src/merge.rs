@@ -142,7 +142,7 @@ pub fn run(a: MergeArgs) -> anyhow::Result<()> {
     if a.table.by.is_some() {
         if let Some(r) = recs.iter().find(|r| r.terrain.as_deref().and_then(|t| t.parse::<Terrain>().ok()).is_none()) {
             return Err(cli::usage(format!(
-                "--by terrain: sim record {} has no terrain in its records file (run the shards with --labels-sim)",
+                "--by terrain: sim record {} has no terrain in its records file (run the shards with --sim-labels)",
                 r.sim_index
             )));
         }

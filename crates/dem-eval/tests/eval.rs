@@ -527,7 +527,7 @@ fn bad_inputs_exit_2_with_one_clear_line() {
         ([base(&arg(d, "past_real.csv")), vec!["--identity".into()]].concat(), "line 3: real_index 966 is past the end"),
         ([base(&td("pairs.csv")), vec!["--pred".into(), arg(d, "short.npy")]].concat(), "has 100 records but"),
         (base(&td("pairs.csv")), "choose what to evaluate"),
-        ([base(&td("pairs.csv")), vec!["--identity".into(), "--by".into(), "terrain".into()]].concat(), "--by terrain needs --labels-sim"),
+        ([base(&td("pairs.csv")), vec!["--identity".into(), "--by".into(), "terrain".into()]].concat(), "--by terrain needs --sim-labels"),
         ([base(&td("pairs.csv")), vec!["--identity".into(), "--split".into(), "val".into()]].concat(), "no split column"),
         ([base(&td("pairs.csv")), vec!["--identity".into(), "--labels-sim".into(), td("real_labels.csv")]].concat(), "has 966 rows but"),
         (vec!["--real".into(), td("real.npy"), "--pairs".into(), td("pairs.csv"), "--identity".into()], "--sim is required"),

@@ -28,7 +28,7 @@ struct Args {
     #[arg(default_value = "-")]
     input: String,
     /// Output NPY stream (`-` for stdout).
-    #[arg(short, long, default_value = "-")]
+    #[arg(short, long = "out", alias = "output", default_value = "-")]
     output: String,
     /// Labels CSV of the input (index,terrain,...), for the terrain rules.
     #[arg(long)]

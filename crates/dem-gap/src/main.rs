@@ -24,11 +24,11 @@ use dem_core::{output, DemError};
 #[command(version, after_long_help = "Examples:
   dem-gap --sim testdata/sim.npy --real testdata/real.npy --out gap/
   dem-gap --sim testdata/sim.npy --real testdata/real.npy --pairs testdata/pairs.csv \\
-      --labels-sim testdata/sim_labels.csv --labels-real testdata/real_labels.csv --out gap/ --seed 1
-  dem-gap --sim sim.npy --real real.npy --model start.json --max-steps 2 --out gap2/
-  dem-gap --sim no_fov/real.npy --real all/real.npy --labels-sim no_fov/real_labels.csv \
-      --labels-real all/real_labels.csv --out gap3/     # labels' time lets `startup` fit its speed
-  dem-sensor apply --model gap/sensor.json sim.npy -o sim_as_measured.npy   # use the result")]
+      --sim-labels testdata/sim_labels.csv --real-labels testdata/real_labels.csv --out gap/ --seed 1
+  dem-gap --sim sim.npy --real real.npy --sensor start.json --max-steps 2 --out gap2/
+  dem-gap --sim no_fov/real.npy --real all/real.npy --sim-labels no_fov/real_labels.csv \
+      --real-labels all/real_labels.csv --out gap3/     # labels' time lets `startup` fit its speed
+  dem-sensor apply --sensor gap/sensor.json sim.npy -o sim_as_measured.npy   # use the result")]
 struct Args {
     /// Sim NPY file.
     #[arg(long)]
@@ -40,16 +40,16 @@ struct Args {
     #[arg(long)]
     pairs: Option<String>,
     /// Labels CSV of the sim file (per-terrain tables).
-    #[arg(long)]
+    #[arg(long = "sim-labels", alias = "labels-sim", value_name = "CSV")]
     labels_sim: Option<String>,
     /// Labels CSV of the real file.
-    #[arg(long)]
+    #[arg(long = "real-labels", alias = "labels-real", value_name = "CSV")]
     labels_real: Option<String>,
     /// Sensor model to start from (JSON); default: no effects.
-    #[arg(long)]
+    #[arg(long = "sensor", alias = "model", value_name = "JSON")]
     model: Option<String>,
     /// Output folder.
-    #[arg(long)]
+    #[arg(short, long)]
     out: String,
     /// Most effects to add.
     #[arg(long, default_value_t = 8, value_parser = value::at_least_one::<usize>)]

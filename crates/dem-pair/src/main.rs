@@ -25,12 +25,12 @@ enum Method {
 /// terrain, with labels) go to stderr.
 #[derive(Parser)]
 #[command(version, after_long_help = "Examples:
-  dem-pair --by pose --sim-labels sim_labels.csv --real-labels real_labels.csv --same-sequence -o pairs.csv
-  dem-pair --by content --sim sim.npy --real real.npy --k 3 --val-fraction 0.5 --seed 1 -o pairs.csv
-  dem-filter --labels l.csv --drop-other sim.npy -o s.npy && dem-pair --by content --sim s.npy --real real.npy")]
+  dem-pair --match pose --sim-labels sim_labels.csv --real-labels real_labels.csv --same-sequence -o pairs.csv
+  dem-pair --match content --sim sim.npy --real real.npy --k 3 --val-fraction 0.5 --seed 1 -o pairs.csv
+  dem-filter --labels l.csv --drop-other sim.npy -o s.npy && dem-pair --match content --sim s.npy --real real.npy")]
 struct Args {
     /// How to pair.
-    #[arg(long, value_enum)]
+    #[arg(long = "match", alias = "by", value_name = "METHOD", value_enum)]
     by: Method,
     /// Sim NPY (needed by content; used to deduplicate keys by pose too).
     #[arg(long)]
@@ -45,7 +45,7 @@ struct Args {
     #[arg(long)]
     real_labels: Option<String>,
     /// Pose: largest position distance (m).
-    #[arg(long, default_value_t = 0.05, value_parser = value::non_negative::<f64>)]
+    #[arg(long = "max-offset", alias = "max-dist", value_name = "METRES", default_value_t = 0.05, value_parser = value::non_negative::<f64>)]
     max_dist: f64,
     /// Pose: largest heading difference (rad).
     #[arg(long, default_value_t = 0.1, value_parser = value::non_negative::<f64>)]
@@ -57,7 +57,7 @@ struct Args {
     #[arg(long, default_value_t = 1, value_parser = value::at_least_one::<usize>)]
     k: usize,
     /// Content: largest distance (equation 7.1 height part; default: no limit).
-    #[arg(long, value_parser = value::non_negative::<f64>)]
+    #[arg(long = "max-error", alias = "max-distance", value_name = "ERROR", value_parser = value::non_negative::<f64>)]
     max_distance: Option<f64>,
     /// Fraction of sim keys in the val split.
     #[arg(long, default_value_t = 0.5, value_parser = value::fraction::<f64>)]
@@ -66,12 +66,12 @@ struct Args {
     #[arg(long, default_value_t = 0)]
     seed: u64,
     /// Output pairs CSV (`-` for stdout).
-    #[arg(short, long, default_value = "-")]
+    #[arg(short, long = "out", alias = "output", default_value = "-")]
     output: String,
 }
 
 fn need<'a>(v: &'a Option<String>, flag: &str, by: &str) -> anyhow::Result<&'a str> {
-    v.as_deref().ok_or_else(|| cli::usage(format!("--by {by} needs {flag}")))
+    v.as_deref().ok_or_else(|| cli::usage(format!("--match {by} needs {flag}")))
 }
 
 fn main() -> ExitCode {
@@ -98,12 +98,12 @@ fn main() -> ExitCode {
                 by_pose(sl, rl, rule).map_err(|e| DemError::input(format!("{s}, {r}"), e))?
             }
             Method::Content => {
-                let (sim, keys) = (sim.as_deref().ok_or_else(|| cli::usage("--by content needs --sim"))?, keys.as_deref().unwrap_or_default());
+                let (sim, keys) = (sim.as_deref().ok_or_else(|| cli::usage("--match content needs --sim"))?, keys.as_deref().unwrap_or_default());
                 let real_path = need(&a.real, "--real", "content")?;
                 let real = npy::read_all(real_path)?;
                 for (path, n) in [(need(&a.sim, "--sim", "content")?, sim.len()), (real_path, real.len())] {
                     if n == 0 {
-                        return Err(DemError::input(path, "holds no records: --by content needs records to pair").into());
+                        return Err(DemError::input(path, "holds no records: --match content needs records to pair").into());
                     }
                 }
                 let unique: Vec<u64> = keys.iter().enumerate().filter(|&(i, &k)| i as u64 == k).map(|(_, &k)| k).collect();

@@ -30,7 +30,7 @@ struct Args {
     /// NPY file(s); `-` is stdin (the default). Several need --compare.
     inputs: Vec<String>,
     /// Output PNG; `-` is stdout (refused when it is a terminal).
-    #[arg(short, long, default_value = "-")]
+    #[arg(short, long = "out", alias = "output", default_value = "-")]
     output: String,
     /// Stack the input files as rows, one per file, same records in each.
     #[arg(long)]

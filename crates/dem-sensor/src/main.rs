@@ -11,16 +11,16 @@ use dem_core::sensor::{apply_shard, SensorModel};
 /// edge-holes, rim-holes, pit-fill, mixed-cells, hole-growth, drop-blend) as JSON, applied to NPY streams.
 #[derive(Parser)]
 #[command(version, after_long_help = "Examples:
-  dem-sensor apply --model sensor.json --seed 1 < sim.npy > model_sim.npy
-  dem-gap --sim sim.npy --real real.npy --out gap/ && dem-sensor apply --model gap/sensor.json sim.npy -o sim_as_measured.npy
-  dem-sensor apply --model gap/sensor.json sim.npy | dem-render - --count 12 -o measured_look.png
-  dem-sensor apply --model gap/sensor.json --labels sim_labels.csv sim.npy -o out.npy  # startup by time
+  dem-sensor apply --sensor sensor.json --seed 1 < sim.npy > model_sim.npy
+  dem-gap --sim sim.npy --real real.npy --out gap/ && dem-sensor apply --sensor gap/sensor.json sim.npy -o sim_as_measured.npy
+  dem-sensor apply --sensor gap/sensor.json sim.npy | dem-render - --count 12 -o measured_look.png
+  dem-sensor apply --sensor gap/sensor.json --labels sim_labels.csv sim.npy -o out.npy  # startup by time
   # the virtual sensor: G_Y, then the startup rows a sim DEM cannot carry (by the labels' time)
-  dem-apply --model gy.onnx sim.npy | dem-sensor apply --model gap/sensor.json --only startup \
+  dem-apply --model gy.onnx sim.npy | dem-sensor apply --sensor gap/sensor.json --only startup \
       --labels sim_labels.csv -o realistic.npy
-  dem-sensor show --model sensor.json        # the effects, one a line
+  dem-sensor show --sensor sensor.json        # the effects, one a line
   dem-split --shards 4 --out part sim.npy | tail -n +2 | while IFS=, read shard first n; do
-      dem-sensor apply --model sensor.json --seed 1 --first-index $first $shard -o $shard.out; done
+      dem-sensor apply --sensor sensor.json --seed 1 --first-index $first $shard -o $shard.out; done
 
 A model file:
   {\"effects\": [{\"effect\": \"occlusion\", \"params\": {\"h\": 0.45, \"x0\": 0.15}},
@@ -39,13 +39,13 @@ enum Command {
     /// or chunking gives the same bytes.
     Apply {
         /// The sensor model (JSON).
-        #[arg(long)]
+        #[arg(long = "sensor", alias = "model", value_name = "JSON")]
         model: String,
         /// Input NPY stream (`-` for stdin).
         #[arg(default_value = "-")]
         input: String,
         /// Output NPY stream (`-` for stdout).
-        #[arg(short, long, default_value = "-")]
+        #[arg(short, long = "out", alias = "output", default_value = "-")]
         output: String,
         /// Seed of the random effects.
         #[arg(long, default_value_t = 0)]
@@ -68,7 +68,7 @@ enum Command {
     /// Check a model and print its effects, one a line.
     Show {
         /// The sensor model (JSON).
-        #[arg(long)]
+        #[arg(long = "sensor", alias = "model", value_name = "JSON")]
         model: String,
     },
 }

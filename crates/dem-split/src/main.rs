@@ -19,7 +19,7 @@ use dem_split::{split, Cut, SplitConfig};
   dem-split --shards 4 --out part sim.npy > shards.csv
   dem-split --records 100000 --labels sim_labels.csv --out part - < sim.npy
   # in parallel (GNU parallel reads the manifest's columns by name), then join:
-  parallel --colsep , --header : dem-sensor apply --model s.json --seed 1 \\
+  parallel --colsep , --header : dem-sensor apply --sensor s.json --seed 1 \\
       --first-index {first_index} {shard} -o {shard}.out :::: shards.csv
   dem-cat part-*.npy.out -o sim_measured.npy
   # the same with xargs:
@@ -38,7 +38,7 @@ struct Args {
     #[arg(long)]
     labels: Option<String>,
     /// Prefix of the shard files (PREFIX-00000.npy, ...).
-    #[arg(long)]
+    #[arg(short, long)]
     out: String,
 }
 

@@ -27,7 +27,7 @@ use dem_core::Terrain;
       --row-labels sim,measured --start 40 --count 12 -o pairs.png")]
 struct Args {
     /// Output directory (created if missing).
-    #[arg(long)]
+    #[arg(short, long)]
     out: std::path::PathBuf,
     /// Runs in all; each gives sim DEMs.
     #[arg(long, default_value_t = 400, value_parser = value::at_least_one::<u64>)]

@@ -25,7 +25,7 @@ use dem_nn::weights::Arch;
 /// exactly where its last checkpoint left it.
 #[derive(Parser)]
 #[command(version, args_conflicts_with_subcommands = true, after_long_help = "Examples:
-  dem-pair --by pose --sim-labels sim_labels.csv --real-labels real_labels.csv --val-fraction 0.5 -o pairs.csv
+  dem-pair --match pose --sim-labels sim_labels.csv --real-labels real_labels.csv --val-fraction 0.5 -o pairs.csv
   dem-train --sim sim.npy --real real.npy --pairs pairs.csv --out run/ --epochs 20
   dem-train --sim sim.npy --real real.npy --pairs pairs.csv --out run/ --epochs 40 --resume   # go on to 40
   dem-train export run/ -o gy.onnx
@@ -48,7 +48,7 @@ enum Command {
         /// Run directory made by dem-train.
         run: String,
         /// Output PNG.
-        #[arg(short, long)]
+        #[arg(short, long = "out", alias = "output")]
         output: String,
     },
 }
@@ -69,7 +69,7 @@ struct TrainArgs {
     #[arg(long)]
     sensor: Option<String>,
     /// Run directory.
-    #[arg(long)]
+    #[arg(short, long)]
     out: Option<String>,
     /// Epochs in all (one epoch = ceil(sims / batch) steps).
     #[arg(long, default_value_t = 30, value_parser = value::at_least_one::<u64>)]
@@ -148,7 +148,7 @@ struct ExportArgs {
     /// Run directory made by dem-train.
     run: String,
     /// Output ONNX file.
-    #[arg(short, long)]
+    #[arg(short, long = "out", alias = "output")]
     output: String,
     /// Which generator: y (sim -> real) or x (real -> sim).
     #[arg(long, default_value = "y", value_parser = ["y", "x"])]
