@@ -8,8 +8,6 @@
 //! - [`metric`]: the thesis's equation 7.1 error and the pair error.
 //! - [`eval`]: validation tables of the pair error (count, lowest, highest,
 //!   mean, median; by terrain) and their comparison against a baseline.
-//! - [`synth`]: the world we test on: terrains, trajectories, exact sim DEMs
-//!   and a physical depth-sensor + elevation-mapping emulator.
 //! - [`prep`]: data preparation (filter, pair, clean pallets, fill holes).
 //! - [`sensor`]: sensor models of named measurement effects (JSON, apply).
 //! - [`gap`]: measure, name and close the sim-to-real gap with a sensor model.
@@ -30,7 +28,6 @@ pub mod prep;
 pub mod sensor;
 pub mod gap;
 pub mod render;
-pub mod synth;
 pub mod table;
 
 pub use error::{DemError, Result};

@@ -3,7 +3,7 @@
 use std::process::ExitCode;
 
 use clap::Parser;
-use dem_core::synth::{self, CameraConfig, DatasetConfig, MapConfig, RunConfig, Stages};
+use dem_synth::{self as synth, CameraConfig, DatasetConfig, MapConfig, RunConfig, Stages};
 use dem_core::cli::{self, value};
 use dem_core::Terrain;
 

@@ -196,7 +196,7 @@ fn field(row: &[(String, String)], name: &str) -> f64 {
 /// minus z. It must equal real.npy: same validity, heights within 1e-5 m.
 fn rebuild_dems_from_maps(out: &str) -> usize {
     use dem_core::format::{col_center_y, row_center_x};
-    use dem_core::synth::pose::Pose;
+    use dem_synth::pose::Pose;
     let real = npy::read_all(&format!("{out}/real.npy")).unwrap();
     let labels = table::read_labels(&format!("{out}/real_labels.csv")).unwrap();
     let (m, n, maps) = read_maps(&format!("{out}/maps.npy"));

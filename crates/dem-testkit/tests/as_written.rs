@@ -244,7 +244,7 @@ fn the_readme_pipeline_runs() {
 fn every_help_example_runs() {
     let s = Scratch::new();
     let (work, path) = (&s.work, &s.path);
-    let has_parallel = bash(work, &path, "command -v parallel").status.success();
+    let has_parallel = bash(work, path, "command -v parallel").status.success();
     let mut ran = 0;
     for tool in TOOLS {
         let here = s.copy(tool);

@@ -15,11 +15,11 @@ use rayon::prelude::*;
 use super::elevation_map::MapWindow;
 use super::pose::Pose;
 use super::run::{simulate, RunConfig};
-use crate::error::{DemError, Result};
-use crate::format::Terrain;
-use crate::npy::{self, F32ArrayWriter};
-use crate::output::AtomicOutput;
-use crate::table::{Label, Pair};
+use dem_core::error::{DemError, Result};
+use dem_core::format::Terrain;
+use dem_core::npy::{self, F32ArrayWriter};
+use dem_core::output::AtomicOutput;
+use dem_core::table::{Label, Pair};
 
 /// What to generate.
 #[derive(Debug, Clone)]

@@ -2,10 +2,10 @@
 //! effects the thesis saw in real DEMs must come out of the physics.
 
 use dem_core::format::{row_center_x, Dem, DemCells, Terrain, COLS, GRID_ROWS};
-use dem_core::synth::camera::{observe, CameraConfig, Stages};
-use dem_core::synth::pose::Pose;
-use dem_core::synth::run::{sim_dem, RunConfig, Sensor};
-use dem_core::synth::terrain::{Shape, World, PALLET_GAP_HEIGHT, PALLET_HEIGHT};
+use dem_synth::camera::{observe, CameraConfig, Stages};
+use dem_synth::pose::Pose;
+use dem_synth::run::{sim_dem, RunConfig, Sensor};
+use dem_synth::terrain::{Shape, World, PALLET_GAP_HEIGHT, PALLET_HEIGHT};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 

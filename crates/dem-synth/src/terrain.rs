@@ -8,7 +8,7 @@
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
-use crate::format::Terrain;
+use dem_core::format::Terrain;
 
 /// Height of a top deck board of a pallet (a EUR pallet is 0.144 m tall).
 pub const PALLET_HEIGHT: f64 = 0.144;

@@ -1,4 +1,4 @@
-//! The synthetic world the toolkit tests on, since the thesis's recordings
+//! dem-synth's library: the synthetic world the toolkit tests on, since the thesis's recordings
 //! are not public: terrains, robot runs across them, the exact DEMs a
 //! simulator gives (sim) and the DEMs a depth camera plus elevation mapping
 //! give (measured), from a physical emulator whose stages can be switched off

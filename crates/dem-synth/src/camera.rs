@@ -30,7 +30,7 @@ use rand_distr::{Distribution, StandardNormal};
 
 use super::pose::Pose;
 use super::terrain::World;
-use crate::format::{col_center_y, row_center_x, COLS, GRID_ROWS};
+use dem_core::format::{col_center_y, row_center_x, COLS, GRID_ROWS};
 
 /// Camera mounting, optics and noise model.
 #[derive(Debug, Clone, PartialEq)]
@@ -376,7 +376,7 @@ fn push_hit(
 mod tests {
     use super::super::terrain::Shape;
     use super::*;
-    use crate::format::Terrain;
+    use dem_core::format::Terrain;
 
     fn world(shape: Shape) -> World {
         World { terrain: Terrain::Other, shape, dark_patches: vec![] }

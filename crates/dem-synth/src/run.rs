@@ -8,7 +8,7 @@ use super::camera::{observe_with, CameraConfig, Stages};
 use super::elevation_map::{ElevationMap, MapConfig, MapWindow};
 use super::pose::Pose;
 use super::terrain::World;
-use crate::format::{col_center_y, empty_dem, row_center_x, Dem, DemCells, Terrain, COLS, GRID_ROWS};
+use dem_core::format::{col_center_y, empty_dem, row_center_x, Dem, DemCells, Terrain, COLS, GRID_ROWS};
 
 /// Everything a run needs besides its index.
 #[derive(Debug, Clone)]

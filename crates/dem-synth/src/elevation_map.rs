@@ -18,7 +18,7 @@
 
 use super::camera::Hit;
 use super::pose::Pose;
-use crate::format::{col_center_y, empty_dem, row_center_x, Dem, DemCells, COLS, GRID_ROWS};
+use dem_core::format::{col_center_y, empty_dem, row_center_x, Dem, DemCells, COLS, GRID_ROWS};
 
 /// Map parameters.
 #[derive(Debug, Clone, PartialEq)]
@@ -229,7 +229,7 @@ impl ElevationMap {
     /// map cell of any variance is enough (a map that never leaves holes).
     pub fn dem(&self, pose: &Pose, holes: bool) -> Dem {
         let mut dem = empty_dem();
-        let q = 0.25 * crate::format::CELL;
+        let q = 0.25 * dem_core::format::CELL;
         for r in 0..GRID_ROWS {
             for c in 0..COLS {
                 let (mut sum, mut n) = (0.0, 0);

@@ -105,7 +105,7 @@ fn upper_hull(points: &[(f64, f64)]) -> Vec<(f64, f64)> {
 mod tests {
     use super::super::terrain::{Shape, World};
     use super::*;
-    use crate::format::Terrain;
+    use dem_core::format::Terrain;
 
     fn stairs(rise: f64) -> World {
         World {
