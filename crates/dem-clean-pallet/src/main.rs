@@ -3,8 +3,8 @@
 use std::process::ExitCode;
 
 use clap::Parser;
-use dem_core::prep::pallet::{fill_gaps, gap_cells, looks_like_pallet, StripeRule};
-use dem_core::prep::stream::transform_checked;
+use dem_clean_pallet::{fill_gaps, gap_cells, looks_like_pallet, StripeRule};
+use dem_core::npy::transform_checked;
 use dem_core::cli::{self, value};
 use dem_core::{output, table, DemError, Terrain};
 

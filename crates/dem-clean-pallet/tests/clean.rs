@@ -1,6 +1,6 @@
 //! dem-clean-pallet on the bundled sim data: only pallets change, no stripe is left.
 
-use dem_core::prep::pallet::{gap_cells, looks_like_pallet, StripeRule};
+use dem_clean_pallet::{gap_cells, looks_like_pallet, StripeRule};
 use dem_core::{npy, table, Terrain};
 use dem_testkit::{arg, ok, run, stderr, tempdir, testdata};
 

@@ -8,7 +8,7 @@
 //! - [`metric`]: the thesis's equation 7.1 error and the pair error.
 //! - [`eval`]: validation tables of the pair error (count, lowest, highest,
 //!   mean, median; by terrain) and their comparison against a baseline.
-//! - [`prep`]: data preparation (filter, pair, clean pallets, fill holes).
+//! - [`seeded`]: random streams fixed by (seed, record index).
 //! - [`sensor`]: sensor models of named measurement effects (JSON, apply).
 //! - [`gap`]: measure, name and close the sim-to-real gap with a sensor model.
 //! - [`render`]: PNG pictures of DEMs (jet, colour bar, grids, comparisons).
@@ -24,7 +24,7 @@ pub mod format;
 pub mod metric;
 pub mod npy;
 pub mod output;
-pub mod prep;
+pub mod seeded;
 pub mod sensor;
 pub mod gap;
 pub mod render;

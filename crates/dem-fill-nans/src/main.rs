@@ -4,8 +4,8 @@ use std::collections::HashSet;
 use std::process::ExitCode;
 
 use clap::Parser;
-use dem_core::prep::fill::{fill_from_own_heights, missing_fraction, record_uniform};
-use dem_core::prep::stream::transform;
+use dem_fill_nans::{fill_from_own_heights, missing_fraction, record_uniform};
+use dem_core::npy::transform;
 use dem_core::cli::{self, value};
 use dem_core::{npy, output};
 

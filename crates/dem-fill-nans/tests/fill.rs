@@ -2,7 +2,7 @@
 
 use dem_core::format::{DemCells, COLS, GRID_ROWS};
 use dem_core::npy;
-use dem_core::prep::fill::missing_fraction;
+use dem_fill_nans::missing_fraction;
 use dem_testkit::{arg, ok, run, stderr, tempdir, testdata};
 
 fn td(name: &str) -> String {

@@ -4,8 +4,8 @@ use std::process::ExitCode;
 
 use clap::Parser;
 
-use dem_core::prep::filter::{Filter, FilterRules, RowRule};
-use dem_core::prep::stream::transform_checked;
+use dem_filter::{Filter, FilterRules, RowRule};
+use dem_core::npy::transform_checked;
 use dem_core::table::{self, IndexRow, Label};
 use dem_core::cli::{self, value};
 use dem_core::{output, Terrain};

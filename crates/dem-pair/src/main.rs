@@ -4,7 +4,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::process::ExitCode;
 
 use clap::{Parser, ValueEnum};
-use dem_core::prep::pair::{by_content, by_pose, first_occurrence, split_of, PoseRule};
+use dem_pair::{by_content, by_pose, first_occurrence, split_of, PoseRule};
 use dem_core::table::{self, Pair, Split};
 use dem_core::cli::{self, value};
 use dem_core::{npy, output, DemError};

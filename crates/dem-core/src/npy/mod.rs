@@ -7,11 +7,13 @@ pub mod array;
 pub mod header;
 pub mod index;
 pub mod reader;
+pub mod transform;
 pub mod writer;
 
 pub use array::F32ArrayWriter;
 pub use index::RecordIndex;
 pub use reader::{open, read_all, ArrayExtent, NpyReader, CHUNK_RECORDS};
+pub use transform::{transform, transform_checked};
 pub use writer::{create, write_all, NpyWriter};
 
 /// Pipe capacity asked for on a stdin or stdout that is a pipe: 1 MiB, the

@@ -22,7 +22,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{DemError, Result};
 use crate::format::Dem;
-use crate::prep::stream::transform;
+use crate::npy::transform;
 
 pub use effects::Effect;
 

@@ -7,10 +7,10 @@
 //! Each record draws from its own random stream (seed, record index), so the
 //! result does not depend on chunking or threads.
 
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand::Rng;
 
-use crate::format::{Dem, DemCells, COLS, GRID_CELLS, GRID_ROWS};
+use dem_core::format::{Dem, DemCells, COLS, GRID_CELLS, GRID_ROWS};
+pub use dem_core::seeded::{record_rng, record_uniform};
 
 /// Fraction of the 100 grid cells that are missing.
 pub fn missing_fraction(d: &Dem) -> f64 {
@@ -39,24 +39,10 @@ pub fn fill_from_own_heights(d: &mut Dem, seed: u64, index: u64) -> bool {
     true
 }
 
-/// The random stream of record `index` under `seed`.
-pub fn record_rng(seed: u64, index: u64) -> ChaCha8Rng {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    rng.set_stream(index);
-    rng
-}
-
-/// A uniform number in [0, 1) fixed by (seed, index): for keep/drop choices.
-pub fn record_uniform(seed: u64, index: u64) -> f64 {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5eed_f111);
-    rng.set_stream(index);
-    rng.gen()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::format::empty_dem;
+    use dem_core::format::empty_dem;
 
     #[test]
     fn filled_cells_take_only_heights_the_record_had() {

@@ -5,9 +5,9 @@ use std::collections::HashSet;
 use std::hash::{Hash, Hasher};
 use std::ops::Range;
 
-use crate::error::{DemError, Result};
-use crate::format::{Dem, DemCells, Terrain, COLS, GRID_CELLS};
-use crate::table::Label;
+use dem_core::error::{DemError, Result};
+use dem_core::format::{Dem, DemCells, Terrain, COLS, GRID_CELLS};
+use dem_core::table::Label;
 
 /// Rows that must be valid: keep a record when at least `min_rows` rows of
 /// `rows` have every cell valid.

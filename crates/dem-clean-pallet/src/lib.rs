@@ -8,7 +8,7 @@
 //! higher than it by `min_depth` to `max_depth`: a board, a gap, a board.
 //! It is filled with the mean of the two boards.
 
-use crate::format::{Dem, DemCells, COLS, GRID_ROWS};
+use dem_core::format::{Dem, DemCells, COLS, GRID_ROWS};
 
 /// Thresholds of the stripe detector (metres).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -69,7 +69,7 @@ pub fn fill_gaps(d: &mut Dem, gaps: &[(usize, usize)]) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::format::empty_dem;
+    use dem_core::format::empty_dem;
 
     fn striped() -> Dem {
         let mut d = empty_dem();

@@ -16,9 +16,9 @@ use std::collections::HashMap;
 
 use rayon::prelude::*;
 
-use super::fill::record_uniform;
-use crate::format::{Dem, GRID_CELLS};
-use crate::table::{Label, Split};
+use dem_core::seeded::record_uniform;
+use dem_core::format::{Dem, GRID_CELLS};
+use dem_core::table::{Label, Split};
 
 /// Index of the first record identical (bit for bit) to each record: the
 /// sim keys, so duplicates pair as one key.
@@ -167,8 +167,8 @@ pub fn split_of(seed: u64, sim_key: u64, val_fraction: f64) -> Split {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::format::{empty_dem, DemCells, Terrain};
-    use crate::metric::dem_error;
+    use dem_core::format::{empty_dem, DemCells, Terrain};
+    use dem_core::metric::dem_error;
 
     fn dem(h: f32) -> Dem {
         let mut d = empty_dem();
