@@ -3,6 +3,7 @@
 
 mod curves;
 mod provenance;
+mod session;
 
 use std::process::ExitCode;
 
@@ -11,7 +12,7 @@ use dem_core::sensor::SensorModel;
 use dem_core::cli::{self, value};
 use dem_core::{npy, output, table};
 use dem_nn::train::checkpoint::{self, Meta};
-use dem_nn::train::session::{self, RunOptions};
+use session::RunOptions;
 use dem_nn::train::{AdamConfig, CycleGan, GanConfig, Sampler, TrainData};
 use dem_nn::weights::Arch;
 

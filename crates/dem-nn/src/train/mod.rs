@@ -1,12 +1,11 @@
-//! Training: losses, Adam, the Cycle GAN step, batches, checkpoints and the
-//! run loop.
+//! Training: losses, Adam, the Cycle GAN step, batches and checkpoints.
+//! The run loop (a run directory, progress, losses.csv) is dem-train's.
 
 pub mod adam;
 pub mod checkpoint;
 pub mod cyclegan;
 pub mod data;
 pub mod loss;
-pub mod session;
 
 pub use adam::{Adam, AdamConfig};
 pub use cyclegan::{Batch, CycleGan, GanConfig, Losses};

@@ -17,9 +17,9 @@ use anyhow::{Context, Result};
 use dem_core::eval::Stats;
 use dem_core::{cli, metric, npy, Dem, DemError};
 
-use super::checkpoint::{self, Meta};
-use super::cyclegan::{CycleGan, Losses};
-use super::data::{Sampler, TrainData};
+use dem_nn::train::checkpoint::{self, Meta};
+use dem_nn::train::cyclegan::{CycleGan, Losses};
+use dem_nn::train::data::{Sampler, TrainData};
 
 /// Every file a run writes into its folder.
 pub const FILES: [&str; 5] = ["checkpoint.bin", "losses.csv", "val.csv", "check_sim.npy", "check_real.npy"];
