@@ -4,10 +4,10 @@ use std::collections::HashSet;
 use std::process::ExitCode;
 
 use clap::Parser;
-use dem_fill_nans::{fill_from_own_heights, missing_fraction, record_uniform};
+use dem_fill_nans::{fill_from_own_heights, is_large, keep_exactly, record_uniform};
 use dem_core::npy::transform;
 use dem_core::cli::{self, value};
-use dem_core::{npy, output};
+use dem_core::output;
 
 /// Fill the missing cells of records with a large missing area (the thesis's
 /// section 6.4): such records (a run's first frames, before the map has seen
@@ -55,31 +55,13 @@ fn main() -> ExitCode {
     cli::run(|| {
         let a: Args = cli::parse();
         output::check_outputs(&[&a.input], &[&a.output])?;
-        let large = |d: &dem_core::Dem| missing_fraction(d) >= a.min_missing - 1e-9;
-        // --keep N: rank the large-missing records by their random key and keep the N lowest.
+        let large = |d: &dem_core::Dem| is_large(d, a.min_missing);
         let kept_set: Option<HashSet<u64>> = match a.keep {
             None => None,
-            Some(n) => {
-                if a.input == "-" {
-                    return Err(cli::usage("--keep N reads the input twice: give a file, or use --keep-fraction"));
-                }
-                let mut keys = Vec::new();
-                let mut rdr = npy::open(&a.input)?;
-                let mut chunk = Vec::new();
-                loop {
-                    chunk.clear();
-                    let first = rdr.records_read();
-                    if rdr.read_chunk(&mut chunk, npy::CHUNK_RECORDS)? == 0 {
-                        break;
-                    }
-                    for (k, _) in chunk.iter().enumerate().filter(|(_, d)| large(d)) {
-                        let i = first + k as u64;
-                        keys.push((record_uniform(a.seed, i), i));
-                    }
-                }
-                keys.sort_by(|x, y| x.0.total_cmp(&y.0));
-                Some(keys.into_iter().take(n as usize).map(|(_, i)| i).collect())
+            Some(_) if a.input == "-" => {
+                return Err(cli::usage("--keep N reads the input twice: give a file, or use --keep-fraction"));
             }
+            Some(n) => Some(keep_exactly(&a.input, n, a.seed, a.min_missing)?),
         };
         let (mut found, mut kept, mut filled, mut cells, mut empty) = (0u64, 0u64, 0u64, 0u64, 0u64);
         let (read, _) = transform(&a.input, &a.output, |first, chunk| {
