@@ -12,13 +12,13 @@
 //! (the mask term is the same for every all-valid sim candidate, so it
 //! cannot rank them).
 
-use std::collections::HashMap;
+use std::collections::{BTreeMap, BTreeSet, HashMap};
 
 use rayon::prelude::*;
 
 use dem_core::seeded::record_uniform;
 use dem_core::format::{Dem, GRID_CELLS};
-use dem_core::table::{Label, Split};
+use dem_core::table::{Label, Pair, Split};
 
 /// Index of the first record identical (bit for bit) to each record: the
 /// sim keys, so duplicates pair as one key.
@@ -164,10 +164,57 @@ pub fn split_of(seed: u64, sim_key: u64, val_fraction: f64) -> Split {
     }
 }
 
+/// The pairs CSV's rows from what a method found: every sim index mapped to
+/// its key (`keys[i]`, the first identical record; none: itself), repeated
+/// (key, real) pairs kept once with their smallest distance, each key's
+/// split drawn by [`split_of`]; sorted by (key, real).
+pub fn pair_rows(found: Vec<Found>, keys: Option<&[u64]>, seed: u64, val_fraction: f64) -> Vec<Pair> {
+    let mut pairs: BTreeMap<(u64, u64), f64> = BTreeMap::new();
+    for (s, r, d) in found {
+        let key = keys.and_then(|k| k.get(s as usize).copied()).unwrap_or(s);
+        pairs.entry((key, r)).and_modify(|e| *e = e.min(d)).or_insert(d);
+    }
+    pairs
+        .into_iter()
+        .map(|((s, r), d)| Pair { sim_index: s, real_index: r, split: Some(split_of(seed, s, val_fraction)), distance: Some(d) })
+        .collect()
+}
+
+/// Sim keys and pairs per (terrain, split) for the report: terrain from the
+/// sim labels (`all` without them), split `train` or `val`.
+pub fn counts(rows: &[Pair], labels: Option<&[Label]>) -> BTreeMap<(String, &'static str), (usize, u64)> {
+    let mut per: BTreeMap<(String, &'static str), (BTreeSet<u64>, u64)> = BTreeMap::new();
+    for p in rows {
+        let terrain = labels.and_then(|l| l.get(p.sim_index as usize)).map_or("all".into(), |l| l.terrain.to_string());
+        let split = if p.split == Some(Split::Val) { "val" } else { "train" };
+        let e = per.entry((terrain, split)).or_default();
+        e.0.insert(p.sim_index);
+        e.1 += 1;
+    }
+    per.into_iter().map(|(k, (keys, n))| (k, (keys.len(), n))).collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use dem_core::format::{empty_dem, DemCells, Terrain};
+
+    #[test]
+    fn pair_rows_map_to_keys_keep_the_closest_and_split_by_key() {
+        // Sim 3 is a copy of sim 1 (key 1); real 7 found from both.
+        let keys = [0, 1, 2, 1];
+        let found = vec![(3, 7, 0.2), (1, 7, 0.5), (0, 5, 0.1), (2, 5, 0.3)];
+        let rows = pair_rows(found, Some(&keys), 4, 0.5);
+        let got: Vec<(u64, u64, f64)> = rows.iter().map(|p| (p.sim_index, p.real_index, p.distance.unwrap())).collect();
+        assert_eq!(got, [(0, 5, 0.1), (1, 7, 0.2), (2, 5, 0.3)]);
+        for p in &rows {
+            assert_eq!(p.split, Some(split_of(4, p.sim_index, 0.5)));
+        }
+        let c = counts(&rows, None);
+        let total: u64 = c.values().map(|v| v.1).sum();
+        assert_eq!(total, 3);
+        assert!(c.keys().all(|(t, _)| t == "all"));
+    }
     use dem_core::metric::dem_error;
 
     fn dem(h: f32) -> Dem {

@@ -1,11 +1,11 @@
 //! dem-pair: pair sim keys with real records, by pose or by content.
 
-use std::collections::{BTreeMap, BTreeSet};
+use std::collections::BTreeSet;
 use std::process::ExitCode;
 
 use clap::{Parser, ValueEnum};
-use dem_pair::{by_content, by_pose, first_occurrence, split_of, PoseRule};
-use dem_core::table::{self, Pair, Split};
+use dem_pair::{by_content, by_pose, counts, first_occurrence, pair_rows, PoseRule};
+use dem_core::table::{self, Pair};
 use dem_core::cli::{self, value};
 use dem_core::{npy, output, DemError};
 
@@ -110,16 +110,7 @@ fn main() -> ExitCode {
                 by_content(sim, &unique, &real, a.k, a.max_distance.unwrap_or(f64::INFINITY))
             }
         };
-        // Map every sim index to its key and drop repeated (key, real) pairs.
-        let mut pairs: BTreeMap<(u64, u64), f64> = BTreeMap::new();
-        for (s, r, d) in found {
-            let key = keys.as_ref().and_then(|k| k.get(s as usize).copied()).unwrap_or(s);
-            pairs.entry((key, r)).and_modify(|e| *e = e.min(d)).or_insert(d);
-        }
-        let rows: Vec<Pair> = pairs
-            .iter()
-            .map(|(&(s, r), &d)| Pair { sim_index: s, real_index: r, split: Some(split_of(a.seed, s, a.val_fraction)), distance: Some(d) })
-            .collect();
+        let rows = pair_rows(found, keys.as_deref(), a.seed, a.val_fraction);
         table::write_rows(&a.output, &rows)?;
         report(&rows, sim_labels.as_deref());
         Ok(())
@@ -127,16 +118,8 @@ fn main() -> ExitCode {
 }
 
 fn report(rows: &[Pair], labels: Option<&[table::Label]>) {
-    let mut per: BTreeMap<(String, &str), (BTreeSet<u64>, u64)> = BTreeMap::new();
-    for p in rows {
-        let terrain = labels.and_then(|l| l.get(p.sim_index as usize)).map_or("all".into(), |l| l.terrain.to_string());
-        let split = if p.split == Some(Split::Val) { "val" } else { "train" };
-        let e = per.entry((terrain, split)).or_default();
-        e.0.insert(p.sim_index);
-        e.1 += 1;
-    }
-    for ((terrain, split), (keys, n)) in &per {
-        cli::log(format_args!("{terrain:>11} {split:>5}: {} sim keys, {n} pairs", keys.len()));
+    for ((terrain, split), (keys, n)) in counts(rows, labels) {
+        cli::log(format_args!("{terrain:>11} {split:>5}: {keys} sim keys, {n} pairs"));
     }
     let reals: BTreeSet<u64> = rows.iter().map(|p| p.real_index).collect();
     cli::log(format_args!("{} pairs of {} real records", rows.len(), reals.len()));
