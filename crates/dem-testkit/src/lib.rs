@@ -27,6 +27,15 @@ pub fn bin(name: &str) -> PathBuf {
     path
 }
 
+/// The long help of `tool` (`["dem-eval", "merge"]` for a subcommand),
+/// unwrapped (`COLUMNS=1000`, as clap reads it), so each example and each
+/// option stays on its line; asserts that `--help` succeeds.
+pub fn help(tool: &[&str]) -> String {
+    let o = Command::new(bin(tool[0])).args(&tool[1..]).arg("--help").env("COLUMNS", "1000").env("LINES", "50").output().expect("spawn");
+    assert!(o.status.success(), "{tool:?} --help failed");
+    String::from_utf8(o.stdout).expect("help is UTF-8")
+}
+
 /// Run binary `name` with `args`, feeding `stdin` from a thread (so large
 /// inputs cannot deadlock against a full stdout pipe).
 pub fn run(name: &str, args: &[&str], stdin: Option<Vec<u8>>) -> Output {

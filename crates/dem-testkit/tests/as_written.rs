@@ -49,9 +49,7 @@ const RUNS: &str = "6";
 
 /// The examples of `tool [subcommand] --help`.
 fn examples(tool: &[&str]) -> Vec<String> {
-    let o = Command::new(bin(tool[0])).args(&tool[1..]).arg("--help").env("COLUMNS", "1000").env("LINES", "50").output().unwrap();
-    assert!(o.status.success(), "{tool:?} --help failed");
-    let help = String::from_utf8(o.stdout).unwrap();
+    let help = dem_testkit::help(tool);
     let mut out: Vec<String> = Vec::new();
     let mut inside = false;
     for line in help.lines() {

@@ -2,15 +2,7 @@
 //! every tool's help shows, and the old spellings, still accepted for a
 //! release as hidden aliases, giving the same bytes as the new ones.
 
-use std::process::Command;
-
-use dem_testkit::{arg, bin, ok, run, tempdir, testdata};
-
-fn help(tool: &[&str]) -> String {
-    let o = Command::new(bin(tool[0])).args(&tool[1..]).arg("--help").env("COLUMNS", "1000").output().unwrap();
-    assert!(o.status.success(), "{tool:?} --help");
-    String::from_utf8(o.stdout).unwrap()
-}
+use dem_testkit::{arg, help, ok, run, tempdir, testdata};
 
 /// The options part of a help text (the examples may show anything).
 fn options(tool: &[&str]) -> String {
