@@ -19,6 +19,11 @@ fn total(s: &Stats, name: &str) -> f64 {
     s.term(name).map_or(0.0, |t| t.values.iter().zip(&t.support).map(|(v, n)| v * *n as f64).sum())
 }
 
+/// Share of steps between neighbouring rows of 0.02-0.1 m: part-way steps.
+fn mid(s: &Stats) -> f64 {
+    s.mean_over("edge-2cm", 0..19) - s.mean_over("edge-10cm", 0..19)
+}
+
 /// Share of neighbour pairs that differ by 0.1 to 10 mm.
 fn small_steps(s: &Stats) -> f64 {
     s.term("steps").map_or(0.0, |t| t.values.iter().take(3).sum())
@@ -207,7 +212,6 @@ pub fn evidence(effect: &Effect, before: &Stats, after: &Stats, real: &Stats, ga
         }
         Effect::MixedCells { .. } => {
             let (r10, b10) = (real.mean_over("edge-10cm", 0..19), before.mean_over("edge-10cm", 0..19));
-            let mid = |s: &Stats| s.mean_over("edge-2cm", 0..19) - s.mean_over("edge-10cm", 0..19);
             let verdict = if r10 < b10 && mid(real) > mid(before) {
                 "a cell beside a step reads part of the way up: jumps split into two smaller ones"
             } else {
@@ -222,7 +226,6 @@ pub fn evidence(effect: &Effect, before: &Stats, after: &Stats, real: &Stats, ga
             )
         }
         Effect::DropBlend { .. } => {
-            let mid = |s: &Stats| s.mean_over("edge-2cm", 0..19) - s.mean_over("edge-10cm", 0..19);
             let (q, spread) = if real.paired { ("spread-q99", "99th percentile of the residual (real - sim)") } else { ("spread-q90", "90th percentile of the across-robot height difference") };
             let tail = |s: &Stats| s.mean_over(q, 0..20);
             let verdict = if mid(real) > mid(before) && tail(real) > tail(before) {
