@@ -54,7 +54,7 @@ readme-check: venv
 FUZZ_SECONDS ?= 60
 FUZZ_TARGETS := npy_reader csv_tables sensor_json
 fuzz:
-	PROPTEST_CASES=20000 $(CARGO) test --release -p dem-core --test properties
+	PROPTEST_CASES=20000 $(CARGO) test --release -p dem-core -p dem-sensor --test properties
 	command -v cargo-fuzz >/dev/null || $(CARGO) install cargo-fuzz --locked
 	for t in $(FUZZ_TARGETS); do $(CARGO) +nightly fuzz run $$t -- -max_total_time=$(FUZZ_SECONDS) || exit 1; done
 

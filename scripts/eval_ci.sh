@@ -51,12 +51,14 @@ eval_prepare() {
 # $ROWS/NAME.csv, its per-record results into $ROWS/NAME.records.csv and the
 # records behind them into $ROWS/NAME.{input,pred,closest}.npy (for pictures).
 # SIM is the generator's input; METHOD is --identity, --pred FILE or --model FILE.
-# With EVAL_BY=terrain the row is split by terrain too.
+# With EVAL_BY=terrain the row is split by terrain too. The row's method is
+# `row_label NAME` (NAME unless a script that sources this one redefines it).
+row_label() { echo "$1"; }
 eval_row() {
     local name=$1 sim=$2
     shift 2
     "$BIN/dem-eval" --sim "$sim" --real "$DATA/real.npy" --pairs "$DATA/pairs.csv" --split val \
-        --sim-labels "$DATA/sim_labels.csv" --name "$name" --format csv -o "$ROWS/$name.csv" \
+        --sim-labels "$DATA/sim_labels.csv" --name "$(row_label "$name")" --format csv -o "$ROWS/$name.csv" \
         --records "$ROWS/$name.records.csv" --emit-input "$ROWS/$name.input.npy" \
         --emit-pred "$ROWS/$name.pred.npy" --emit-closest "$ROWS/$name.closest.npy" ${EVAL_BY:+--by "$EVAL_BY"} "$@"
 }
@@ -80,7 +82,7 @@ train_model() {
 join_rows() {
     local files=()
     for n in "$@"; do files+=("$ROWS/$n.csv"); done
-    awk 'NR == 1 || FNR > 1' "${files[@]}"
+    "$BIN/dem-eval" join "${files[@]}"
 }
 
 eval_ci_main() {

@@ -39,9 +39,7 @@ rm -rf "$run"
 "$BIN/dem-train" export "$run" -o "$run/model.onnx" >&2
 eval_row sensor+paired "$DATA/sim_sensor.npy" --model "$run/model.onnx"
 join_rows identity sensor-only paired-data sensor+paired > "$OUT/table.csv"
-"$BIN/dem-eval" compare "$OUT/table.csv" "$OUT/table.csv" > /dev/null  # well formed
-awk -F, 'NR == 1 { print "| method | count | lowest | highest | mean | median |"; print "|---|---|---|---|---|---|"; next }
-         { printf "| %s | %d | %.3f | %.3f | %.3f | %.3f |\n", $1, $3, $4, $5, $6, $7 }' "$OUT/table.csv" | tee "$OUT/table.md"
+"$BIN/dem-eval" join "$OUT/table.csv" --format md | tee "$OUT/table.md"
 "$BIN/dem-render" --compare "$ROWS/sensor+paired.input.npy" "$ROWS/sensor+paired.closest.npy" "$ROWS/sensor+paired.pred.npy" \
     --row-labels "sensor(sim),closest-real,generated" --error-rows 2,1 --start 0 --count 12 \
     --title "dem-train --sensor: sensor model applied, closest real, generated" -o "$OUT/fig-sensor-paired.png"

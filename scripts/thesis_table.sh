@@ -49,6 +49,7 @@ declare -A LABEL=(
     [fixing-pallet]="Fixing pallet"
     [removing-nans]="Removing NaNs"
 )
+row_label() { echo "${LABEL[$1]}"; }  # the table's methods are the labels
 rows=()
 
 echo "== prepare: filter, pair (val split), clean pallets, fill startup frames" >&2
@@ -108,25 +109,9 @@ model_row removing-nans NANS_MODEL "$DATA/sim_clean.npy" "$DATA/sim_clean.npy" "
 
 echo "== tables" >&2
 join_rows "${rows[@]}" > "$OUT/table.csv"
-{
-    echo "| method | count | lowest | highest | mean | median | height error (cm) | roughness across / along (cm) | real's (cm) | gap |"
-    echo "|---|---|---|---|---|---|---|---|---|---|"
-    for r in "${rows[@]}"; do
-        awk -F, -v label="${LABEL[$r]}" 'NR > 1 && $2 == "all" {
-            printf "| %s | %d | %.3f | %.3f | %.3f | %.3f | %.2f | %.2f / %.2f | %.2f / %.2f | %.1f |\n",
-                label, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13 }' "$ROWS/$r.csv"
-    done
-} > "$OUT/table.md"
-# The same rows split by terrain (mean / median (count) per terrain).
-{
-    echo "| method | flat | stairs-up | stairs-down | pallet |"
-    echo "|---|---|---|---|---|"
-    for r in "${rows[@]}"; do
-        awk -F, -v label="${LABEL[$r]}" 'NR > 1 && $2 != "all" { m[$2] = sprintf("%.3f / %.3f (%d)", $6, $7, $3) }
-            END { printf "| %s | %s | %s | %s | %s |\n", label, m["flat"], m["stairs-up"], m["stairs-down"], m["pallet"] }' \
-            "$ROWS/$r.csv"
-    done
-} > "$OUT/table_by_terrain.md"
+"$BIN/dem-eval" join "$OUT/table.csv" --terrain all --format md -o "$OUT/table.md"
+# The same rows split by terrain: count, mean and median per terrain.
+"$BIN/dem-eval" join "$OUT/table.csv" --pivot mean,median --format md -o "$OUT/table_by_terrain.md"
 cat "$OUT/table.md"
 
 echo "== pictures" >&2

@@ -80,7 +80,7 @@ fn main() -> ExitCode {
         let pool = pool.build()?;
         let model = OnnxModel::load(&a.model)?;
         let start = Instant::now();
-        let bar = cli::progress(estimate_records(&a.input), "records");
+        let bar = cli::progress(dem_core::npy::estimate_records(&a.input), "records");
         let stats = pool.install(|| {
             let sample = a.sample_masks.then_some(MaskSampling { seed: a.seed, first_index: a.first_index });
             apply(&model, &a.input, &a.output, a.batch as usize, a.strict, sample, |done| {
@@ -109,41 +109,12 @@ fn main() -> ExitCode {
     })
 }
 
-/// Records in a named input file, from its size (one `.npy` header, then
-/// the records as f32); 0 when unknown (stdin). For the progress bar only.
-fn estimate_records(input: &str) -> u64 {
-    if input == "-" {
-        return 0;
-    }
-    let (header, record) = (dem_core::npy::header::HEADER_LEN as u64, (dem_core::format::RECORD_LEN * 4) as u64);
-    std::fs::metadata(input).map_or(0, |m| m.len().saturating_sub(header) / record)
-}
-
-/// `--info`: one `key: value` line each; a multi-line value (the validation
-/// table) follows its key, indented.
+/// `--info`: what the model says about itself, on stdout.
 fn print_info(path: &str) -> anyhow::Result<()> {
     let info = dem_onnx::read_info(path)?;
     let engine = OnnxModel::load(path)?.engine_name();
-    let mut lines = vec![
-        format!("model: {path}"),
-        format!("producer: {}", info.producer),
-        format!("opset: {}", info.opset.map_or("none".into(), |o| o.to_string())),
-        format!("description: {}", info.description),
-        format!("engine: {engine}"),
-    ];
-    if info.metadata.is_empty() {
-        lines.push("metadata: none (not exported by dem-train, or by a version before models carried it)".into());
-    }
-    for (k, v) in &info.metadata {
-        if v.contains('\n') {
-            lines.push(format!("{k}:"));
-            lines.extend(v.lines().map(|l| format!("  {l}")));
-        } else {
-            lines.push(format!("{k}: {v}"));
-        }
-    }
     let mut out = std::io::stdout().lock();
-    for l in lines {
+    for l in info.lines(path, &engine) {
         writeln!(out, "{l}")?;
     }
     out.flush()?;

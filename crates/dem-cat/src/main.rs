@@ -31,18 +31,10 @@ fn main() -> ExitCode {
         let inputs = if args.inputs.is_empty() { vec!["-".to_string()] } else { args.inputs };
         output::check_outputs(&inputs.iter().map(String::as_str).collect::<Vec<_>>(), &[&args.output])?;
         let mut out = npy::create(&args.output)?;
-        let mut chunk = Vec::with_capacity(npy::CHUNK_RECORDS);
         let (mut total, mut nans) = (0, 0);
         for path in &inputs {
             let mut rdr = npy::open(path)?;
-            loop {
-                chunk.clear();
-                if rdr.read_chunk(&mut chunk, npy::CHUNK_RECORDS)? == 0 {
-                    break;
-                }
-                out.write(&chunk)?;
-            }
-            total += rdr.records_read();
+            total += rdr.for_each_chunk(npy::CHUNK_RECORDS, |_, chunk| out.write(chunk))?;
             nans += rdr.nan_records();
         }
         out.finish()?;

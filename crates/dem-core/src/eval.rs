@@ -27,7 +27,7 @@
 //!   |h(r,c) - h(r,c+1)| (across the robot) and |h(r,c) - h(r+1,c)| (along
 //!   it) over neighbour pairs of rows 0..19 both valid; `real_rough_*_cm`
 //!   the same of the closest real records;
-//! - `gap`: [`crate::gap::stats::gap`] of the row's predictions against its
+//! - `gap`: [`crate::distribution::gap`] of the row's predictions against its
 //!   real set (the unique real records paired with the row's sim records),
 //!   unpaired; computed by the caller, which holds the records ([`table_with`]).
 //!
@@ -46,6 +46,10 @@
 //! tables join with `cat`. [`compare`] matches two tables by (method,
 //! terrain) and marks a row worse when its mean or median grew by more than
 //! an absolute tolerance, or one of the height measures did ([`Tolerances`]).
+//! [`forms`] writes a table or a comparison as text, CSV, JSON or Markdown
+//! and reads a table back from CSV or JSON.
+
+pub mod forms;
 
 use std::collections::{BTreeMap, HashMap};
 
@@ -402,11 +406,7 @@ pub const OLD_TABLE_HEADER: [&str; 7] = ["method", "terrain", "count", "lowest",
 /// later in the file are skipped and switch the columns, so `cat a.csv
 /// b.csv` is a table, old and new alike; a (method, terrain) key may appear once.
 pub fn read_table_csv(path: &str) -> Result<Vec<TableRow>> {
-    let src: Box<dyn std::io::Read> = if path == "-" {
-        Box::new(std::io::stdin().lock())
-    } else {
-        Box::new(std::fs::File::open(path).map_err(|source| DemError::Open { path: path.into(), source })?)
-    };
+    let src = crate::table::open_input(path)?;
     let bad = |line: u64, reason: String| DemError::Table { path: path.into(), line, reason };
     let mut rdr = csv::ReaderBuilder::new().has_headers(false).flexible(true).trim(csv::Trim::All).from_reader(src);
     let (new, old) = (csv::StringRecord::from(TABLE_HEADER.to_vec()), csv::StringRecord::from(OLD_TABLE_HEADER.to_vec()));

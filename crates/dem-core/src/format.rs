@@ -18,6 +18,9 @@ pub const CHANNELS: usize = 2;
 pub const RECORD_LEN: usize = ROWS * COLS * CHANNELS;
 /// Cells in the grid (rows 0..20 by 5 columns).
 pub const GRID_CELLS: usize = GRID_ROWS * COLS;
+/// Values of the grid (rows 0..19, both channels): a record without its
+/// attitude row, what a generator predicts.
+pub const GRID_LEN: usize = GRID_CELLS * CHANNELS;
 /// Edge of a grid cell in metres.
 pub const CELL: f64 = 0.1;
 /// Index of the attitude row.

@@ -9,15 +9,15 @@
 //! - [`eval`]: validation tables of the pair error (count, lowest, highest,
 //!   mean, median; by terrain) and their comparison against a baseline.
 //! - [`seeded`]: random streams fixed by (seed, record index).
-//! - [`sensor`]: sensor models of named measurement effects (JSON, apply).
-//! - [`gap`]: measure, name and close the sim-to-real gap with a sensor model.
-//! - [`render`]: PNG pictures of DEMs (jet, colour bar, grids, comparisons).
+//! - [`distribution`]: the distribution gap between two sets of DEMs (what
+//!   dem-gap fits and dem-eval's `gap` column reports).
 //! - [`output`]: atomic output files.
 //! - [`cli`]: exit codes, error printing, logs and progress for the binaries.
 //! - [`error`]: the typed errors everything returns.
 #![deny(missing_docs)]
 
 pub mod cli;
+pub mod distribution;
 pub mod error;
 pub mod eval;
 pub mod format;
@@ -25,9 +25,6 @@ pub mod metric;
 pub mod npy;
 pub mod output;
 pub mod seeded;
-pub mod sensor;
-pub mod gap;
-pub mod render;
 pub mod table;
 
 pub use error::{DemError, Result};

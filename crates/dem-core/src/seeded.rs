@@ -17,3 +17,11 @@ pub fn record_uniform(seed: u64, index: u64) -> f64 {
     rng.set_stream(index);
     rng.gen()
 }
+
+/// splitmix64: a well-mixed 64-bit hash of `x`.
+pub fn mix(mut x: u64) -> u64 {
+    x = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    x = (x ^ (x >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    x = (x ^ (x >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    x ^ (x >> 31)
+}

@@ -84,14 +84,20 @@ mod terrain_serde {
     }
 }
 
+/// Open a table for reading: the file at `path`, or stdin for `-`. The one
+/// place a CSV input is opened, so every tool reads `-` the same way.
+pub fn open_input(path: &str) -> Result<Box<dyn std::io::Read>> {
+    if path == "-" {
+        return Ok(Box::new(std::io::stdin().lock()));
+    }
+    let file = std::fs::File::open(path).map_err(|source| DemError::Open { path: path.into(), source })?;
+    Ok(Box::new(std::io::BufReader::new(file)))
+}
+
 /// Read every row of a CSV at `path` (`-` for stdin), checking that the
 /// header starts with `required` columns.
 pub fn read_rows<T: DeserializeOwned>(path: &str, required: &[&str]) -> Result<Vec<T>> {
-    let src: Box<dyn std::io::Read> = if path == "-" {
-        Box::new(std::io::stdin().lock())
-    } else {
-        Box::new(std::fs::File::open(path).map_err(|source| DemError::Open { path: path.into(), source })?)
-    };
+    let src = open_input(path)?;
     let mut rdr = csv::ReaderBuilder::new().trim(csv::Trim::All).from_reader(src);
     let bad = |line: u64, reason: String| DemError::Table { path: path.into(), line, reason };
     let headers = rdr.headers().map_err(|e| bad(1, e.to_string()))?.clone();

@@ -1,24 +1,8 @@
 //! `dem-eval compare`: two tables side by side, exit 1 when a row got worse.
 
+use dem_core::cli;
+use dem_core::eval::forms::{self as report, read_table, Format};
 use dem_core::eval::{self, Compared, Status, Tolerances};
-use dem_core::{cli, DemError};
-
-use crate::report::{self, Format};
-
-/// Read a table written by dem-eval: JSON (one or more arrays back to back,
-/// as `cat a.json b.json` makes them) when it starts with `[`, else CSV.
-fn read_table(path: &str) -> anyhow::Result<Vec<eval::TableRow>> {
-    let text = if path == "-" { None } else { std::fs::read(path).ok() };
-    if text.as_deref().is_some_and(|t| t.trim_ascii_start().starts_with(b"[")) {
-        let text = text.unwrap_or_default();
-        let mut rows = Vec::new();
-        for v in serde_json::Deserializer::from_slice(&text).into_iter::<Vec<eval::TableRow>>() {
-            rows.extend(v.map_err(|e| DemError::Table { path: path.into(), line: e.line() as u64, reason: e.to_string() })?);
-        }
-        return Ok(eval::check_table(path, rows)?);
-    }
-    Ok(eval::read_table_csv(path)?)
-}
 
 /// Compare `current` against `baseline`, print the comparison, fail when a row
 /// is worse or missing; the message names the measures that failed.

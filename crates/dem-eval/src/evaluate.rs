@@ -8,7 +8,7 @@ use dem_core::table::Split;
 use dem_core::cli;
 
 use crate::inputs::{self, Method, Request};
-use crate::report::{self, Format};
+use dem_core::eval::forms::{self as report, Format};
 
 /// The arguments of an evaluation (dem-eval without a subcommand).
 #[derive(ClapArgs)]
@@ -87,7 +87,7 @@ pub(crate) struct TableOut {
 impl TableOut {
     /// Write `ev`'s table of `method`.
     pub(crate) fn write(&self, ev: &crate::inputs::Evaluation, method: &str) -> anyhow::Result<()> {
-        report::write_table(&self.output, &ev.table(method, self.by.is_some()), self.format)
+        Ok(report::write_table(&self.output, &ev.table(method, self.by.is_some()), self.format)?)
     }
 }
 

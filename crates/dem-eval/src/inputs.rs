@@ -11,7 +11,7 @@
 use std::collections::{BTreeSet, HashMap};
 
 use dem_core::eval::{self, RowAcc, Selection, TableRow};
-use dem_core::gap::stats;
+use dem_core::distribution;
 use dem_core::npy::{self, RecordIndex, CHUNK_RECORDS};
 use dem_core::table::{self, Split};
 use dem_core::{cli, Dem, DemError, Terrain};
@@ -156,7 +156,7 @@ impl Pairs {
 /// splitmix64 of an index: the gap sample keeps index i when this falls
 /// below its rate.
 fn sample_hash(i: u64) -> u64 {
-    dem_core::sensor::mix(i ^ 0x6761_705f_7361_6d70)
+    dem_core::seeded::mix(i ^ 0x6761_705f_7361_6d70)
 }
 
 /// Keeps index i of a set of `n` with probability GAP_SAMPLE / n, by hash.
@@ -174,7 +174,7 @@ pub(crate) enum Reals {
 impl Reals {
     pub(crate) fn open(path: &str, needed: &BTreeSet<u64>) -> anyhow::Result<(Reals, u64)> {
         if path == "-" {
-            let (n, held) = read_selected(path, needed)?;
+            let (n, held) = npy::read_selected(path, |i| needed.contains(&i))?;
             return Ok((Reals::Held(held), n));
         }
         let idx = RecordIndex::build(path)?;
@@ -187,24 +187,6 @@ impl Reals {
             Reals::Indexed(idx) => Ok(wanted.iter().map(|&j| idx.get(j).map(|d| (j, d))).collect::<Result<_, _>>()?),
             Reals::Held(m) => Ok(wanted.iter().map(|j| (*j, m[j])).collect()),
         }
-    }
-}
-
-/// Read the records of `path` whose indices are in `wanted`; returns the
-/// number of records in the file and the kept ones.
-fn read_selected(path: &str, wanted: &BTreeSet<u64>) -> anyhow::Result<(u64, HashMap<u64, Dem>)> {
-    let mut r = npy::open(path)?;
-    let (mut chunk, mut kept, mut first) = (Vec::new(), HashMap::new(), 0u64);
-    loop {
-        chunk.clear();
-        let n = r.read_chunk(&mut chunk, CHUNK_RECORDS)? as u64;
-        if n == 0 {
-            return Ok((first, kept));
-        }
-        for &i in wanted.range(first..first + n) {
-            kept.insert(i, chunk[(i - first) as usize]);
-        }
-        first += n;
     }
 }
 
@@ -278,7 +260,7 @@ pub(crate) fn row_gaps(
             let m = reals.fetch(&wanted)?;
             wanted.iter().map(|j| m[j]).collect()
         };
-        gaps.insert(key, stats::gap(&stats::stats(&sample.preds, None), &stats::stats(&real_records, None)));
+        gaps.insert(key, distribution::gap(&distribution::stats(&sample.preds, None), &distribution::stats(&real_records, None)));
     }
     Ok(gaps)
 }

@@ -1,20 +1,13 @@
 //! dem-eval: the validation table of a generator (pair error, equation 7.1)
 //! and `dem-eval compare`, the regression check of such tables.
 
-mod compare;
-mod evaluate;
-mod inputs;
-mod merge;
-mod model;
-mod records;
-mod report;
-mod transfer;
 
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 use dem_core::{cli, eval};
-use report::Format;
+use dem_core::eval::forms::Format;
+use dem_eval::{compare, evaluate, join, merge, transfer};
 
 /// Score predictions of real DEMs for the sim records of a pairs CSV: each
 /// sim record's pair error is the smallest equation 7.1 error of its
@@ -38,7 +31,7 @@ use report::Format;
   dem-eval --sim sim.npy --real real.npy --pairs pairs.csv --identity --records r.csv \\
       --emit-input in.npy --emit-closest closest.npy && \\
       dem-render --compare in.npy closest.npy --row-labels input,closest --error-rows 2,1 -o fig.png
-  cat identity.csv model.csv > table.csv      # CSV tables join with cat
+  dem-eval join identity.csv model.csv -o table.csv    # one table, one header
   dem-eval compare testdata/eval_baseline.csv table.csv --tolerance 0.02 --height-tolerance 0.5 || echo regression")]
 struct Args {
     #[command(subcommand)]
@@ -74,6 +67,16 @@ enum Cmd {
   dem-cat part-*.npy.pred.npy | dem-eval merge part-*.npy.rec.csv --name gy --by terrain \\
       --emitted-pred - --real real.npy --pairs pairs.csv --split val --format csv")]
     Merge(merge::MergeArgs),
+    /// Join tables (CSV or JSON written by dem-eval) into one: the rows in
+    /// order under one header, in any --format. A (method, terrain) row may
+    /// appear once.
+    #[command(after_long_help = "Examples:
+  dem-eval join identity.csv model.csv -o table.csv
+  dem-eval join table.csv --format md > table.md
+  dem-eval join a.json b.csv --format json
+  dem-eval join table.csv --terrain all --format md                 # the rows over all records
+  dem-eval join table.csv --pivot mean,median --format md           # methods by terrain")]
+    Join(join::JoinArgs),
     /// Compare a table against a baseline; exit 1 when a row got worse.
     ///
     /// Rows match by (method, terrain). A row is worse when CURRENT's mean or
@@ -128,6 +131,7 @@ fn main() -> ExitCode {
             }
             Some(Cmd::Transfer(t)) => transfer::run(t),
             Some(Cmd::Merge(m)) => merge::run(m),
+            Some(Cmd::Join(j)) => join::run(j),
             None => evaluate::run(a.eval),
         }
     })

@@ -100,28 +100,23 @@ fn gaps(a: &MergeArgs, recs: &[RecordResult], sizes: &HashMap<Option<Terrain>, u
     let (mut reals, n_real) = Reals::open(real, &needed)?;
     real_max.check(pairs_path, n_real, real, "real_index")?;
     let mut samples: HashMap<Option<Terrain>, GapSample> = HashMap::new();
-    let mut rdr = npy::open(pred_path)?;
-    let mut chunk = Vec::with_capacity(CHUNK_RECORDS);
     let mut rows = recs.iter();
-    loop {
-        chunk.clear();
-        if rdr.read_chunk(&mut chunk, CHUNK_RECORDS)? == 0 {
-            break;
-        }
-        for pred in &chunk {
+    let n_pred = npy::open(pred_path)?.for_each_chunk(CHUNK_RECORDS, |_, chunk| {
+        for pred in chunk.iter() {
             let Some(r) = rows.next() else {
-                return Err(DemError::input(pred_path.as_str(), format!("has more records than the {} rows of the records files", recs.len())).into());
+                return Err(DemError::input(pred_path.as_str(), format!("has more records than the {} rows of the records files", recs.len())));
             };
             for key in keys(r, a.table.by.is_some()) {
                 let partners = pairs.within(r.sim_index..r.sim_index + 1).iter().map(|p| p.1);
                 samples.entry(key).or_default().add(r.sim_index, pred, partners, sizes.get(&key).copied().unwrap_or(0));
             }
         }
-    }
+        Ok(())
+    })?;
     if rows.next().is_some() {
         return Err(DemError::input(
             pred_path.as_str(),
-            format!("has {} records but the records files {} rows: join every shard's --emit-pred, in order", rdr.records_read(), recs.len()),
+            format!("has {n_pred} records but the records files {} rows: join every shard's --emit-pred, in order", recs.len()),
         )
         .into());
     }

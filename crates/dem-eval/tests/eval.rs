@@ -1,10 +1,11 @@
 //! dem-eval against a numpy implementation of the spec's pair error and of
 //! the height measures (height error, roughness), on the bundled data and on
-//! hand-made edge cases; the gap against dem-core's; `compare` exit codes.
+//! hand-made edge cases; the gap against dem-core's; `compare` exit codes;
+//! `join`'s forms and pivot.
 
 use std::path::Path;
 
-use dem_core::gap::stats;
+use dem_core::distribution;
 use dem_core::metric::dem_error;
 use dem_core::{npy, table};
 use dem_testkit::{arg, ok, py, run, stderr, tempdir, testdata};
@@ -311,7 +312,7 @@ print(json.dumps(evaluate(sim, real, pairs, None, terrain)[1]))
         let reals: std::collections::BTreeSet<u64> = pairs.iter().filter(|p| in_row(p.sim_index)).map(|p| p.real_index).collect();
         let pred: Vec<_> = sims.iter().map(|&s| sim[s as usize]).collect();
         let real: Vec<_> = reals.iter().map(|&r| real[r as usize]).collect();
-        let g = stats::gap(&stats::stats(&pred, None), &stats::stats(&real, None));
+        let g = distribution::gap(&distribution::stats(&pred, None), &distribution::stats(&real, None));
         let got = row["gap"].as_f64().unwrap();
         assert!(close(got, g), "{t}: dem-eval gap {got}, dem-gap {g}");
     }
@@ -510,6 +511,53 @@ fn compare_reads_json_and_joined_csv_tables_and_refuses_bad_ones() {
     }
     let o = run("dem-eval", &["compare", &csv, &arg(d, "nope.csv")], None);
     assert_eq!(o.status.code(), Some(2));
+}
+
+#[test]
+fn join_writes_one_table_in_every_form_and_pivots_by_terrain() {
+    let dir = tempdir();
+    let d = dir.path();
+    let a = table_csv(d, "a.csv", &[("identity", "all", 0.548, 0.130), ("identity", "pallet", 0.25, 0.06)]);
+    let b = table_csv(d, "b.csv", &[("paired", "all", 0.334, 0.258), ("paired", "stairs-up", 0.17, 0.05)]);
+    let join = |extra: &[&str]| run("dem-eval", &[&["join", &a, &b][..], extra].concat(), None);
+
+    // CSV: one header, the rows in order, every digit; it reads back as a table.
+    let csv = String::from_utf8_lossy(ok(&join(&[]))).into_owned();
+    let lines: Vec<&str> = csv.lines().collect();
+    assert_eq!(lines.len(), 5, "{csv}");
+    assert!(lines[0].starts_with("method,terrain,count") && lines[1..].iter().all(|l| !l.starts_with("method")), "{csv}");
+    assert!(lines[1].starts_with("identity,all,56,0.005,2.6,0.548,0.13,"), "{csv}");
+    assert!(lines[4].starts_with("paired,stairs-up,"), "{csv}");
+    let joined = arg(d, "joined.csv");
+    ok(&join(&["-o", &joined]));
+    ok(&run("dem-eval", &["compare", &joined, &joined], None));
+
+    // JSON round trip, Markdown, one terrain.
+    let json: Value = serde_json::from_slice(ok(&join(&["--format", "json"]))).unwrap();
+    assert_eq!(json.as_array().unwrap().len(), 4);
+    assert_eq!((json[2]["method"].as_str(), json[2]["mean"].as_f64()), (Some("paired"), Some(0.334)));
+    let md = String::from_utf8_lossy(ok(&join(&["--format", "md", "--terrain", "all"]))).into_owned();
+    assert_eq!(md.lines().count(), 4, "{md}");
+    assert!(md.contains("| identity | all | 56 | 0.0050 | 2.6000 | 0.5480 | 0.1300 |"), "{md}");
+
+    // A pivot: methods by terrain, a missing row shown as `-` (empty in CSV).
+    let md = String::from_utf8_lossy(ok(&join(&["--pivot", "mean,median", "--format", "md"]))).into_owned();
+    let rows: Vec<&str> = md.lines().collect();
+    assert_eq!(rows[0], "| method | all count | all mean | all median | pallet count | pallet mean | pallet median | stairs-up count | stairs-up mean | stairs-up median |");
+    assert_eq!(rows[2], "| identity | 56 | 0.5480 | 0.1300 | 56 | 0.2500 | 0.0600 | - | - | - |");
+    assert_eq!(rows[3], "| paired | 56 | 0.3340 | 0.2580 | - | - | - | 56 | 0.1700 | 0.0500 |");
+    let csv = String::from_utf8_lossy(ok(&join(&["--pivot", "mean"]))).into_owned();
+    assert_eq!(csv.lines().nth(2), Some("paired,56,0.334,,,56,0.17"), "{csv}");
+
+    // A row twice, an unknown measure or terrain: exit 2, one line.
+    let o = run("dem-eval", &["join", &a, &a], None);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("identity/all appears twice") && stderr(&o).lines().count() == 1, "{}", stderr(&o));
+    for (flag, value, says) in [("--pivot", "speed", "no measure \"speed\""), ("--terrain", "moon", "no row of that terrain")] {
+        let o = join(&[flag, value]);
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        assert!(stderr(&o).contains(says) && stderr(&o).lines().count() == 1, "{}", stderr(&o));
+    }
 }
 
 #[test]

@@ -54,19 +54,13 @@ pub fn is_large(d: &Dem, min_missing: f64) -> bool {
 /// (the caller reads it again to fill), so it needs a file, not a pipe.
 pub fn keep_exactly(path: &str, n: u64, seed: u64, min_missing: f64) -> dem_core::Result<HashSet<u64>> {
     let mut keys = Vec::new();
-    let mut rdr = npy::open(path)?;
-    let mut chunk = Vec::new();
-    loop {
-        chunk.clear();
-        let first = rdr.records_read();
-        if rdr.read_chunk(&mut chunk, npy::CHUNK_RECORDS)? == 0 {
-            break;
-        }
+    npy::open(path)?.for_each_chunk(npy::CHUNK_RECORDS, |first, chunk| {
         for (k, _) in chunk.iter().enumerate().filter(|(_, d)| is_large(d, min_missing)) {
             let i = first + k as u64;
             keys.push((record_uniform(seed, i), i));
         }
-    }
+        Ok::<_, dem_core::DemError>(())
+    })?;
     keys.sort_by(|x, y| x.0.total_cmp(&y.0));
     Ok(keys.into_iter().take(n as usize).map(|(_, i)| i).collect())
 }

@@ -76,7 +76,7 @@ fn main() -> ExitCode {
                     kept += 1;
                     continue;
                 }
-                let missing = 100 - dem_core::DemCells::valid_cells(d) as u64;
+                let missing = dem_core::format::GRID_CELLS as u64 - dem_core::DemCells::valid_cells(d) as u64;
                 if fill_from_own_heights(d, a.seed, i) {
                     filled += 1;
                     cells += missing;

@@ -4,8 +4,8 @@
 use std::process::ExitCode;
 
 use clap::Parser;
-use dem_core::gap::{self, report, GapConfig};
-use dem_core::sensor::SensorModel;
+use dem_gap::{self as gap, report, GapConfig};
+use dem_sensor::SensorModel;
 use dem_core::cli::{self, value};
 use dem_core::{output, DemError};
 
@@ -115,7 +115,7 @@ fn main() -> ExitCode {
         let t = std::time::Instant::now();
         let sets = gap::load(&cfg)?;
         // Candidates fitted: the whole vocabulary at the first step, one fewer at each next.
-        let n = dem_core::sensor::effects::NAMES.len();
+        let n = dem_sensor::effects::NAMES.len();
         let fits = (0..cfg.max_steps.min(n)).map(|k| (n - k) as u64).sum();
         let bar = cli::progress(fits, "fits");
         let outcome = gap::run(&cfg, &sets, &|line| bar.suspend(|| cli::log(line)), &|| bar.inc(1));

@@ -45,32 +45,27 @@ pub fn apply(
     let mut reader = npy::open(input)?;
     let mut writer = npy::create(output)?;
     let group = batch * rayon::current_num_threads().max(1) * GROUP_BATCHES;
-    let mut chunk: Vec<Dem> = Vec::with_capacity(group);
-    loop {
-        chunk.clear();
-        let first = reader.records_read();
-        if reader.read_up_to(&mut chunk, group)? == 0 {
-            break;
-        }
+    reader.for_each_chunk(group, |first, chunk| {
         let mut outs: Vec<Vec<Dem>> = chunk.par_chunks(batch).map(|c| model.run(c)).collect::<Result<_, _>>()?;
         for (k, (inp, out)) in chunk.chunks(batch).zip(outs.iter_mut()).enumerate() {
             let at = first + (k * batch) as u64;
             check_outputs(inp, out, at, input, model.name(), strict, &mut attitude)?;
             if let Some(s) = sample {
                 for (i, (x, y)) in inp.iter().zip(out.iter_mut()).enumerate() {
-                    dem_core::sensor::sample_masks(x, y, s.seed, s.first_index + at + i as u64);
+                    crate::masks::sample_masks(x, y, s.seed, s.first_index + at + i as u64);
                 }
             }
             writer.write(out)?;
         }
-        progress(reader.records_read());
-    }
+        progress(first + chunk.len() as u64);
+        Ok::<_, DemError>(())
+    })?;
     let records = writer.records_written();
     writer.finish()?;
     Ok(ApplyStats { records, attitude })
 }
 
-/// Draw the holes from the model's raw masks ([`dem_core::sensor::sample_masks`]):
+/// Draw the holes from the model's raw masks ([`crate::masks::sample_masks`]):
 /// the seed, and the index of the input's first record in the whole data set.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct MaskSampling {

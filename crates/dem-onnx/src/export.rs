@@ -340,6 +340,33 @@ pub struct ModelInfo {
     pub metadata: Vec<(String, String)>,
 }
 
+impl ModelInfo {
+    /// `dem-apply --info`'s lines for the model at `path` run by `engine`:
+    /// one `key: value` each; a multi-line value (the validation table)
+    /// follows its key, indented.
+    pub fn lines(&self, path: &str, engine: &str) -> Vec<String> {
+        let mut lines = vec![
+            format!("model: {path}"),
+            format!("producer: {}", self.producer),
+            format!("opset: {}", self.opset.map_or("none".into(), |o| o.to_string())),
+            format!("description: {}", self.description),
+            format!("engine: {engine}"),
+        ];
+        if self.metadata.is_empty() {
+            lines.push("metadata: none (not exported by dem-train, or by a version before models carried it)".into());
+        }
+        for (k, v) in &self.metadata {
+            if v.contains('\n') {
+                lines.push(format!("{k}:"));
+                lines.extend(v.lines().map(|l| format!("  {l}")));
+            } else {
+                lines.push(format!("{k}: {v}"));
+            }
+        }
+        lines
+    }
+}
+
 /// Read [`ModelInfo`] from the ONNX file at `path` (the graph is not built).
 pub fn read_info(path: &str) -> Result<ModelInfo, DemError> {
     let bytes = std::fs::read(path).map_err(|e| DemError::input(path, format!("cannot read: {e}")))?;

@@ -20,6 +20,7 @@
 
 pub mod apply;
 pub mod export;
+pub mod masks;
 pub mod native;
 pub mod run;
 

@@ -4,7 +4,7 @@ use std::io::IsTerminal;
 use std::process::ExitCode;
 
 use clap::Parser;
-use dem_core::render::{self, Captions, Pick, RenderConfig, Selection, TileStyle};
+use dem_render::{self as render, Captions, Pick, RenderConfig, Selection, TileStyle};
 use dem_core::cli::{self, value};
 
 /// Draw DEMs as a PNG: jet over heights with a colour bar in metres, missing

@@ -4,7 +4,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 use dem_core::cli;
-use dem_core::sensor::{apply_shard, SensorModel};
+use dem_sensor::{apply_shard, SensorModel};
 
 /// Sensor models of named effects (noise, dropout, row-dropout, occlusion,
 /// fov, view-top, smoothing, bias, quantization, startup, patch-dropout,

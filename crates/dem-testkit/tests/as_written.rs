@@ -200,6 +200,9 @@ cp identity.csv current.csv
 cut -d, -f1-7 identity.csv > old_7_column_table.csv
 dem-eval --sim sim.npy --real real.npy --pairs pairs.csv --identity --format json -o base.json 2>/dev/null
 cp base.json current.json
+cp base.json a.json
+cp model.csv b.csv
+cp identity.csv table.csv
 cp real.npy real_test.npy
 cp real_labels.csv real_test_labels.csv
 cp real.npy real_train.npy

@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use dem_core::render::plot::{line_plot, stack, Series, PALETTE};
+use dem_render::plot::{line_plot, stack, Series, PALETTE};
 use dem_core::{output, table, DemError};
 use serde::Deserialize;
 

@@ -58,6 +58,29 @@ pub fn read_all(path: &str) -> Result<Vec<Dem>> {
     open(path)?.read_to_end()
 }
 
+/// Records in the NPY file at `path`, estimated from its size as one
+/// array of f32 records (0 for stdin or a file that cannot be read): for a
+/// progress bar's length, never for a decision.
+pub fn estimate_records(path: &str) -> u64 {
+    if path == "-" {
+        return 0;
+    }
+    let (header, record) = (super::header::HEADER_LEN as u64, (RECORD_LEN * 4) as u64);
+    std::fs::metadata(path).map_or(0, |m| m.len().saturating_sub(header) / record)
+}
+
+/// The records of the stream at `path` whose index `keep` accepts, by
+/// index, and the number of records in the stream; memory is one chunk plus
+/// the kept records.
+pub fn read_selected(path: &str, keep: impl Fn(u64) -> bool) -> Result<(u64, std::collections::HashMap<u64, Dem>)> {
+    let mut kept = std::collections::HashMap::new();
+    let total = open(path)?.for_each_chunk(CHUNK_RECORDS, |first, chunk| {
+        kept.extend(chunk.iter().enumerate().map(|(k, d)| (first + k as u64, *d)).filter(|(i, _)| keep(*i)));
+        Ok::<_, DemError>(())
+    })?;
+    Ok((total, kept))
+}
+
 /// Bytes left in stdin when it is a regular file (`< file`), else None.
 fn regular_file_len(stdin: &io::Stdin) -> Option<u64> {
     use std::io::Seek;
@@ -164,6 +187,32 @@ impl<R: Read> NpyReader<R> {
             got += k;
         }
         Ok(got)
+    }
+
+    /// Visit the rest of the stream up to `size` records at a time: `visit`
+    /// gets the index of the chunk's first record in the stream and the
+    /// chunk, one buffer reused for every chunk, so memory stays one chunk
+    /// whatever the stream's length; it may change or drop records in it.
+    /// Returns the number of records read. The chunk loop of every
+    /// streaming tool.
+    ///
+    /// A chunk never spans two arrays ([`NpyReader::read_chunk`]): in a live
+    /// pipeline whose producer writes small arrays, each array flows on as
+    /// it arrives instead of waiting for a full chunk.
+    pub fn for_each_chunk<E: From<DemError>>(
+        &mut self,
+        size: usize,
+        mut visit: impl FnMut(u64, &mut Vec<Dem>) -> std::result::Result<(), E>,
+    ) -> std::result::Result<u64, E> {
+        let mut chunk = Vec::with_capacity(size);
+        loop {
+            chunk.clear();
+            let first = self.records;
+            if self.read_chunk(&mut chunk, size)? == 0 {
+                return Ok(self.records);
+            }
+            visit(first, &mut chunk)?;
+        }
     }
 
     /// Read the rest of the stream into memory.

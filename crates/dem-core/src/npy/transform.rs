@@ -28,18 +28,12 @@ pub fn transform_checked(
 ) -> Result<(u64, u64)> {
     let mut reader = npy::open(input)?;
     let mut writer = npy::create(output)?;
-    let mut chunk = Vec::with_capacity(npy::CHUNK_RECORDS);
-    loop {
-        chunk.clear();
-        let first = reader.records_read();
-        if reader.read_chunk(&mut chunk, npy::CHUNK_RECORDS)? == 0 {
-            break;
-        }
-        work(first, &mut chunk)?;
-        writer.write(&chunk)?;
-    }
-    at_end(reader.records_read())?;
+    let read = reader.for_each_chunk(npy::CHUNK_RECORDS, |first, chunk| {
+        work(first, chunk)?;
+        writer.write(chunk)
+    })?;
+    at_end(read)?;
     let written = writer.records_written();
     writer.finish()?;
-    Ok((reader.records_read(), written))
+    Ok((read, written))
 }

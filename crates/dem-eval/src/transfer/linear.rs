@@ -26,10 +26,11 @@ pub const FEATURES: usize = dem_core::format::GRID_CELLS * dem_core::format::CHA
 /// The raw feature vector of a record: heights then validity, rows 0..19.
 pub fn features(d: &Dem) -> [f64; FEATURES] {
     let mut x = [0.0; FEATURES];
-    for k in 0..100 {
+    const CELLS: usize = dem_core::format::GRID_CELLS;
+    for k in 0..CELLS {
         let valid = d[2 * k + 1] > 0.0;
         x[k] = if valid { d[2 * k] as f64 } else { 0.0 };
-        x[100 + k] = valid as u8 as f64;
+        x[CELLS + k] = valid as u8 as f64;
     }
     x
 }

@@ -32,7 +32,7 @@ use dem_core::{cli, npy, Dem, DemError, Terrain};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::report::{self, Format, Grid};
+use dem_core::eval::forms::{self as report, Format, Grid};
 use linear::{features, Linear, FEATURES};
 
 /// The arguments of `dem-eval transfer`.
@@ -236,7 +236,7 @@ fn write(path: &str, rows: &[Row], f: Format) -> anyhow::Result<()> {
             })
             .collect();
         let text = serde_json::to_string_pretty(&js)?;
-        return report::emit(path, |w| writeln!(w, "{text}"));
+        return Ok(report::emit(path, |w| writeln!(w, "{text}"))?);
     }
     let cols = vec![
         ("", "train"),
@@ -267,7 +267,7 @@ fn write(path: &str, rows: &[Row], f: Format) -> anyhow::Result<()> {
             ]
         })
         .collect();
-    report::emit(path, |w| Grid { cols, rows: grid_rows }.write(w, f))
+    Ok(report::emit(path, |w| Grid { cols, rows: grid_rows }.write(w, f))?)
 }
 
 #[cfg(test)]

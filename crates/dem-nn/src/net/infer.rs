@@ -25,7 +25,7 @@
 //! same shape whatever the caller's batch, and a record's output does not
 //! depend on the batch it came in nor on its place in it (tested).
 
-use dem_core::format::RECORD_LEN;
+use dem_core::format::{GRID_CELLS, RECORD_LEN};
 use dem_core::Dem;
 
 use super::generator::{ATT, GRID};
@@ -37,7 +37,7 @@ use crate::layers::winograd_rect::{RectConv, RectScratch};
 use crate::weights::{Arch, Conv2d, GeneratorWeights, InstanceNorm, CORRECTION_SCALE, GATE_SHARPNESS};
 
 /// Positions of the 20x5 grid.
-const POS: usize = 100;
+const POS: usize = GRID_CELLS;
 /// Records per block when none is given: 16 records are 160 Winograd tiles
 /// (rows of each of the 30 matrix products), enough to amortise packing the
 /// 2w x 2w weights, few enough that a block's transformed activations

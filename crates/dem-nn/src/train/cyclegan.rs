@@ -22,6 +22,7 @@
 //! so it is the same forward pass. The generators' backward through D asks
 //! for input gradients only.
 
+use dem_core::format::GRID_LEN;
 use dem_core::Dem;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -182,7 +183,7 @@ impl Chunk {
     fn generators(&mut self, s: &Shared, r: std::ops::Range<usize>) {
         let (gen, disc, cfg, n) = (s.gen, s.disc, s.cfg, s.n);
         let [pgx, pgy, pdx, pdy] = s.params;
-        let g = r.start * 200..r.end * 200;
+        let g = r.start * GRID_LEN..r.end * GRID_LEN;
         let a = r.start * 10..r.end * 10;
         let (xg, xa, yg, ya) = (&s.b.x_grid[g.clone()], &s.b.x_att[a.clone()], &s.b.y_grid[g.clone()], &s.b.y_att[a]);
         let [ta, tb, tc, td] = &mut self.gen;
@@ -220,7 +221,7 @@ impl Chunk {
         let np = s.b.pairs.len();
         for i in r.start..r.end.min(np) {
             let weight = cfg.lambda_pair / np as f32;
-            let k = (i - r.start) * 200..(i - r.start + 1) * 200;
+            let k = (i - r.start) * GRID_LEN..(i - r.start + 1) * GRID_LEN;
             let (e, best) = loss::paired_min(&s.b.pairs[i], &ta.out[k.clone()], weight, &mut dfy[k.clone()]);
             l.pair_y += e;
             if cfg.lambda_height > 0.0 {
@@ -239,7 +240,7 @@ impl Chunk {
     fn discriminators(&mut self, s: &Shared, r: std::ops::Range<usize>) {
         let (disc, n) = (s.disc, s.n);
         let [_, _, pdx, pdy] = s.params;
-        let g = r.start * 200..r.end * 200;
+        let g = r.start * GRID_LEN..r.end * GRID_LEN;
         let a = r.start * 10..r.end * 10;
         let [te, tf, tg, th] = &mut self.disc;
         disc.forward(pdy, &s.b.y_grid[g.clone()], &s.b.y_att[a.clone()], tg);
@@ -328,12 +329,12 @@ impl CycleGan {
         let mut tape = GenTape::default();
         let mut out = Vec::with_capacity(records.len());
         for chunk in records.chunks(256) {
-            let grid: Vec<f32> = chunk.iter().flat_map(|d| d[..200].iter().copied()).collect();
-            let att: Vec<f32> = chunk.iter().flat_map(|d| d[200..].iter().copied()).collect();
+            let grid: Vec<f32> = chunk.iter().flat_map(|d| d[..GRID_LEN].iter().copied()).collect();
+            let att: Vec<f32> = chunk.iter().flat_map(|d| d[GRID_LEN..].iter().copied()).collect();
             self.gen.forward(p, &grid, &att, &mut tape);
-            for (d, o) in chunk.iter().zip(tape.out.chunks_exact(200)) {
+            for (d, o) in chunk.iter().zip(tape.out.chunks_exact(GRID_LEN)) {
                 let mut r = *d;
-                r[..200].copy_from_slice(o);
+                r[..GRID_LEN].copy_from_slice(o);
                 out.push(r);
             }
         }
@@ -347,9 +348,9 @@ impl CycleGan {
 
     /// One generators' update and one discriminators' update.
     pub fn step(&mut self, b: &Batch) -> Losses {
-        let n = b.x_grid.len() / 200;
+        let n = b.x_grid.len() / GRID_LEN;
         assert!(n > 0, "empty batch");
-        assert_eq!(b.y_grid.len(), n * 200, "batch sizes");
+        assert_eq!(b.y_grid.len(), n * GRID_LEN, "batch sizes");
         let chunks = n.div_ceil(MICRO);
         let rows = |c: usize| c * MICRO..((c + 1) * MICRO).min(n);
         self.chunks.resize_with(chunks, Chunk::default);

@@ -157,9 +157,10 @@ impl Sampler {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use dem_core::format::{GRID_LEN, RECORD_LEN};
 
     fn rec(v: f32) -> Dem {
-        let mut d = [0.0; 210];
+        let mut d = [0.0; RECORD_LEN];
         d[0] = v;
         d
     }
@@ -191,7 +192,7 @@ mod tests {
         assert_eq!(a.pairs.len(), 2);
         for i in 0..2 {
             // Paired rows: sim key k (value k) with real k (value 100 + k), train keys only.
-            let (xv, yv) = (a.x_grid[i * 200], a.y_grid[i * 200]);
+            let (xv, yv) = (a.x_grid[i * GRID_LEN], a.y_grid[i * GRID_LEN]);
             assert_eq!(yv, 100.0 + xv);
             assert!(xv < 4.0);
         }

@@ -6,10 +6,10 @@
 
 use rayon::prelude::*;
 
-use crate::format::{row_center_x, Dem, GRID_ROWS};
-use crate::sensor::{Effect, SensorModel};
+use dem_core::format::{row_center_x, Dem, GRID_ROWS};
+use dem_sensor::{Effect, SensorModel};
 
-use super::stats::{gap, hides_too_much, stats, Stats};
+use dem_core::distribution::{gap, hides_too_much, stats, Stats};
 
 /// One parameter's search range; `log` searches log(value).
 #[derive(Debug, Clone, Copy)]

@@ -20,9 +20,10 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::error::{DemError, Result};
-use crate::format::Dem;
-use crate::npy::transform;
+use dem_core::error::{DemError, Result};
+use dem_core::format::Dem;
+use dem_core::npy::transform;
+use dem_core::seeded::mix;
 
 pub use effects::Effect;
 
@@ -32,14 +33,6 @@ pub use effects::Effect;
 pub struct SensorModel {
     /// The effects, in the order they act on a DEM.
     pub effects: Vec<Effect>,
-}
-
-/// splitmix64: a well-mixed 64-bit hash of `x`.
-pub fn mix(mut x: u64) -> u64 {
-    x = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    x = (x ^ (x >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    x = (x ^ (x >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    x ^ (x >> 31)
 }
 
 /// The random stream of one effect on one record: keyed by the seed, the
@@ -78,7 +71,7 @@ impl SensorModel {
     /// Write the model as JSON, atomically.
     pub fn write(&self, path: &str) -> Result<()> {
         let text = self.to_json();
-        crate::output::write_atomic(path, |w| {
+        dem_core::output::write_atomic(path, |w| {
             use std::io::Write;
             writeln!(w, "{text}")
         })
@@ -199,45 +192,13 @@ pub fn apply_shard(
     Ok(written)
 }
 
-/// Turn a generator's raw masks into holes drawn at random: cell (r, c) of
-/// `out` (the model's output for `input`, record `index` of the whole data
-/// set) is valid with probability (m + 1) / 2, m its raw mask in [-1, 1]
-/// (clamped). A valid cell keeps the model's height where the model called
-/// it valid (m > 0), else takes the input's height (a gated head writes
-/// about 0 there); a missing cell is height 0, mask -1. Masks come out as
-/// +-1, as a sensor's do.
-///
-/// Why: a deterministic generator trained on paired data writes the
-/// expected mask, e.g. 0.6 where a cell is missing 20 % of the time;
-/// thresholding at 0 then never drops it, and the holes a downstream model
-/// must learn to cope with disappear. Drawing keeps their rate. Draws: 100
-/// uniforms per record from (seed, index), so shards equal the whole.
-pub fn sample_masks(input: &Dem, out: &mut Dem, seed: u64, index: u64) {
-    use crate::format::{DemCells, COLS, GRID_ROWS};
-    use rand::Rng;
-    let mut rng = ChaCha8Rng::seed_from_u64(mix(seed ^ 0x6d61_736b_5f73_616d));
-    rng.set_stream(index);
-    for r in 0..GRID_ROWS {
-        for c in 0..COLS {
-            let u: f64 = rng.gen();
-            let m = f64::from(out.mask(r, c)).clamp(-1.0, 1.0);
-            if u < (m + 1.0) / 2.0 {
-                let h = if m > 0.0 || !input.is_valid(r, c) { out.height(r, c) } else { input.height(r, c) };
-                out.set_valid(r, c, h);
-            } else {
-                out.set_missing(r, c);
-            }
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
 
     #[test]
     fn only_keeps_the_named_effects_and_their_draws() {
-        use crate::format::{empty_dem, DemCells};
+        use dem_core::format::{empty_dem, DemCells};
         let m = SensorModel::from_json(
             r#"{"effects": [{"effect": "startup", "params": {"x0": 0.4, "v": 0.2, "p": 0.25}},
                             {"effect": "dropout", "params": {"p": 0.3}}, {"effect": "noise", "params": {"sigma0": 0.01, "k": 0.0}}]}"#,
@@ -256,32 +217,6 @@ mod tests {
         }
         let e = m.only(&["occlusion".to_string()]).unwrap_err();
         assert!(e.contains("no occlusion effect") && e.contains("startup, dropout, noise"), "{e}");
-    }
-
-    #[test]
-    fn sampled_masks_keep_the_rate_and_are_plus_minus_one() {
-        use crate::format::{empty_dem, DemCells};
-        let mut input = empty_dem();
-        (0..100).for_each(|i| input.set_valid(i / 5, i % 5, -0.07));
-        let mut valid = 0;
-        for index in 0..200 {
-            let mut out = input;
-            (0..100).for_each(|i| out[2 * i + 1] = 0.6); // p(valid) = 0.8
-            out[1] = -1.0; // never valid
-            out[3] = 1.0; // always valid
-            sample_masks(&input, &mut out, 7, index);
-            assert!((0..20).all(|r| (0..5).all(|c| out.mask(r, c).abs() == 1.0)));
-            assert!(!out.is_valid(0, 0) && out.is_valid(0, 1));
-            valid += (0..100).filter(|&i| out.is_valid(i / 5, i % 5)).count();
-            let mut again = input;
-            (0..100).for_each(|i| again[2 * i + 1] = 0.6);
-            again[1] = -1.0;
-            again[3] = 1.0;
-            sample_masks(&input, &mut again, 7, index);
-            assert_eq!(again, out, "the same seed and index draw the same holes");
-        }
-        let rate = valid as f64 / 20_000.0;
-        assert!((rate - (0.01 + 0.98 * 0.8)).abs() < 0.01, "{rate}");
     }
 
     #[test]
@@ -312,10 +247,10 @@ mod tests {
     #[test]
     fn output_does_not_depend_on_chunking() {
         let flat = {
-            let mut d = crate::format::empty_dem();
+            let mut d = dem_core::format::empty_dem();
             for r in 0..20 {
                 for c in 0..5 {
-                    crate::format::DemCells::set_valid(&mut d, r, c, -0.07 + 0.01 * r as f32);
+                    dem_core::format::DemCells::set_valid(&mut d, r, c, -0.07 + 0.01 * r as f32);
                 }
             }
             d

@@ -14,7 +14,7 @@
 use super::canvas::{Canvas, BLACK, GRID, TEXT, WHITE};
 use super::colormap::HeightRange;
 use super::font;
-use crate::format::{Dem, DemCells, COLS, GRID_ROWS};
+use dem_core::format::{Dem, DemCells, COLS, GRID_ROWS};
 
 /// Grid rows behind C: C is the top edge of this row.
 pub const ROWS_BEHIND_C: u32 = 6;
@@ -150,8 +150,8 @@ pub fn draw_colorbar(canvas: &mut Canvas, x0: i64, y0: i64, h: u32, range: &Heig
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::format::empty_dem;
-    use crate::render::colormap::jet_rgb;
+    use dem_core::format::empty_dem;
+    use crate::colormap::jet_rgb;
 
     #[test]
     fn cells_map_row_0_to_the_top_and_column_0_to_the_left() {
@@ -168,7 +168,7 @@ mod tests {
         dem.set_valid(0, 0, 1.0);
         dem.set_valid(19, 4, 0.0);
         dem.set_valid(10, 2, 0.5);
-        dem[crate::format::at(10, 2, 1)] = 0.0; // mask 0 is missing, whatever the height
+        dem[dem_core::format::at(10, 2, 1)] = 0.0; // mask 0 is missing, whatever the height
         let mut c = Canvas::new(200, 400, WHITE);
         draw_dem(&mut c, 40, 20, &dem, &range, &style);
         let centre = |row: usize, col: usize| {

@@ -8,9 +8,9 @@
 
 use std::collections::HashMap;
 
-use crate::error::{DemError, Result};
-use crate::format::Dem;
-use crate::npy;
+use dem_core::error::{DemError, Result};
+use dem_core::format::Dem;
+use dem_core::npy;
 
 /// Most records one picture may show; more makes an unreadable picture
 /// (and a huge PNG). Split larger sets with `--start`.
@@ -63,26 +63,13 @@ pub struct Picked {
 /// Read `path` (`-` is stdin) to its end and keep the selected records.
 /// Errors name the file: missing, malformed, empty, or an index past its end.
 pub fn read_selected(path: &str, selection: &Selection) -> Result<Picked> {
-    let mut rdr = npy::open(path)?;
-    let (lo, hi) = match selection {
-        Selection::Range { start, count } => (*start, start.saturating_add(*count)),
-        Selection::Indices(v) => (*v.iter().min().unwrap_or(&0), v.iter().max().map_or(0, |m| m + 1)),
+    let (total, kept) = match selection {
+        Selection::Range { start, count } => npy::read_selected(path, |i| i >= *start && i - start < *count)?,
+        Selection::Indices(v) => {
+            let wanted: std::collections::HashSet<u64> = v.iter().copied().collect();
+            npy::read_selected(path, |i| wanted.contains(&i))?
+        }
     };
-    let mut kept: HashMap<u64, Dem> = HashMap::new();
-    let mut chunk = Vec::with_capacity(npy::CHUNK_RECORDS);
-    let mut first = 0u64;
-    loop {
-        chunk.clear();
-        let n = rdr.read_chunk(&mut chunk, npy::CHUNK_RECORDS)? as u64;
-        if n == 0 {
-            break;
-        }
-        for i in first.max(lo)..(first + n).min(hi) {
-            kept.insert(i, chunk[(i - first) as usize]);
-        }
-        first += n;
-    }
-    let total = first;
     if total == 0 {
         return Err(DemError::input(path, "holds no records; nothing to draw"));
     }
@@ -118,11 +105,7 @@ pub fn read_selected(path: &str, selection: &Selection) -> Result<Picked> {
 /// are shown with 3 decimals (integers as they are), text as it is.
 /// Returns the column's name and the captions.
 pub fn read_captions(path: &str, column: Option<&str>, indices: &[u64]) -> Result<(String, Vec<String>)> {
-    let src: Box<dyn std::io::Read> = if path == "-" {
-        Box::new(std::io::stdin().lock())
-    } else {
-        Box::new(std::fs::File::open(path).map_err(|source| DemError::Open { path: path.into(), source })?)
-    };
+    let src = dem_core::table::open_input(path)?;
     let mut rdr = csv::ReaderBuilder::new().trim(csv::Trim::All).from_reader(src);
     let bad = |line: u64, reason: String| DemError::Table { path: path.into(), line, reason };
     let headers = rdr.headers().map_err(|e| bad(1, e.to_string()))?.clone();
@@ -184,7 +167,7 @@ pub fn format_caption(value: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::format::{empty_dem, DemCells};
+    use dem_core::format::{empty_dem, DemCells};
 
     fn file(dir: &tempfile::TempDir, n: usize) -> String {
         let p = dir.path().join("d.npy").to_string_lossy().into_owned();

@@ -71,7 +71,7 @@ impl HeightRange {
             .into_iter()
             .filter(|h| h.is_finite())
             .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), h| (lo.min(h), hi.max(h)));
-        let (lo, hi) = if lo > hi { (crate::format::FLAT_GROUND, crate::format::FLAT_GROUND) } else { (lo, hi) };
+        let (lo, hi) = if lo > hi { (dem_core::format::FLAT_GROUND, dem_core::format::FLAT_GROUND) } else { (lo, hi) };
         let (lo, hi) = if lo == hi { (lo - FLAT_HALF_WIDTH, hi + FLAT_HALF_WIDTH) } else { (lo, hi) };
         let range = HeightRange { min: vmin.unwrap_or(lo), max: vmax.unwrap_or(hi) };
         if !(range.min.is_finite() && range.max.is_finite()) {

@@ -1,4 +1,6 @@
-//! Statistics of a set of DEMs and the gap number between two such sets.
+//! The distribution gap: statistics of a set of DEMs and the gap number
+//! between two such sets, one definition shared by dem-gap (what it fits)
+//! and dem-eval (its `gap` column).
 //!
 //! Every statistic describes a *distribution* over records (rates,
 //! means, spreads, quantiles), never one random draw against another, so a
@@ -44,9 +46,9 @@ pub const MIN_SUPPORT: usize = 30;
 /// x (m) that separates "toward the sensor" from "beyond" for shadows.
 const SHADOW_REF_X: f64 = 0.1;
 /// Height jump (m) around a missing cell that makes it a `jump-missing`
-/// cell: the step `mixed-cells` acts on, so the statistic sees the effect's
-/// steps and no others.
-pub const JUMP: f64 = crate::sensor::effects::MIXED_JUMP;
+/// cell; dem-sensor's `mixed-cells` and `drop-blend` act on the same jump,
+/// so the statistic sees those effects' steps and no others.
+pub const JUMP: f64 = 0.05;
 /// Share of the largest spread samples left out of `spread-sd`.
 pub const SD_TRIM: f64 = 0.005;
 /// The difference, in scales, a component counts for when one side has the

@@ -15,7 +15,7 @@ use super::canvas::{Canvas, TEXT, WHITE};
 use super::colormap::HeightRange;
 use super::font;
 use super::tile::{self, TileStyle};
-use crate::format::Dem;
+use dem_core::format::Dem;
 
 /// One column of a figure.
 #[derive(Debug, Clone)]
@@ -190,8 +190,8 @@ impl Figure {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::format::{empty_dem, DemCells};
-    use crate::render::colormap::jet_rgb;
+    use dem_core::format::{empty_dem, DemCells};
+    use crate::colormap::jet_rgb;
 
     fn figure(n: usize, rows: usize, per_band: usize) -> Figure {
         let mut d = empty_dem();

@@ -1,5 +1,7 @@
-//! The tables dem-eval prints: a validation table, or a comparison of two,
-//! as aligned text, CSV, JSON or Markdown. CSV and JSON carry every digit
+//! The forms of a validation table and of a comparison of two: aligned
+//! text, CSV, JSON and Markdown, written by one writer and read back (CSV
+//! or JSON) by one reader, so every tool that prints or reads a table
+//! (dem-eval and its subcommands, CI's baseline) agrees on them. CSV and JSON carry every digit
 //! (f64 shortest round trip); text and Markdown four decimals for the pair
 //! error, two for centimetres and three for the gap, `-` for a measure a
 //! row lacks.
@@ -7,9 +9,9 @@
 use std::io::Write;
 
 use clap::ValueEnum;
-use dem_core::eval::{Compared, Measure, Status, TableRow, TABLE_HEADER};
-use dem_core::output::AtomicOutput;
-use dem_core::DemError;
+use super::{check_table, read_table_csv, Compared, Measure, Status, TableRow, TABLE_HEADER};
+use crate::error::{DemError, Result};
+use crate::output::AtomicOutput;
 use serde::Serialize;
 
 /// Output format of a table.
@@ -27,12 +29,14 @@ pub enum Format {
 
 /// A grid of strings: column groups (text shows them on a line of their own),
 /// column names and rows.
-pub(crate) struct Grid {
-    pub(crate) cols: Vec<(&'static str, &'static str)>,
-    pub(crate) rows: Vec<Vec<String>>,
+pub struct Grid<'a> {
+    /// (group, name) of each column; group "" for none.
+    pub cols: Vec<(&'a str, &'a str)>,
+    /// The cells, row by row.
+    pub rows: Vec<Vec<String>>,
 }
 
-impl Grid {
+impl Grid<'_> {
     fn name(&self, i: usize, sep: &str) -> String {
         match self.cols[i] {
             ("", n) => n.into(),
@@ -40,7 +44,8 @@ impl Grid {
         }
     }
 
-    pub(crate) fn write(&self, w: &mut impl Write, f: Format) -> std::io::Result<()> {
+    /// Write the grid in form `f` (JSON writes CSV: a grid has no types).
+    pub fn write(&self, w: &mut impl Write, f: Format) -> std::io::Result<()> {
         let n = self.cols.len();
         match f {
             Format::Csv | Format::Json => {
@@ -62,11 +67,13 @@ impl Grid {
                 let width: Vec<usize> = (0..n)
                     .map(|i| self.rows.iter().map(|r| r[i].len()).chain([self.cols[i].1.len()]).max().unwrap_or(0))
                     .collect();
+                // The leading names (method, terrain) to the left, numbers to the right.
+                let is_name = |i: usize| i == 0 || (i == 1 && self.rows.iter().any(|r| r[1].parse::<f64>().is_err() && r[1] != "-"));
                 let line = |cells: Vec<&str>| {
                     let s: Vec<String> = cells
                         .iter()
                         .enumerate()
-                        .map(|(i, c)| if i < 2 { format!("{c:<w$}", w = width[i]) } else { format!("{c:>w$}", w = width[i]) })
+                        .map(|(i, c)| if is_name(i) { format!("{c:<w$}", w = width[i]) } else { format!("{c:>w$}", w = width[i]) })
                         .collect();
                     s.join("  ").trim_end().to_string()
                 };
@@ -116,7 +123,7 @@ fn signed(v: f64, f: Format) -> String {
 
 /// A measure that may be absent, with `decimals` for people (`-` when absent;
 /// an empty CSV field).
-pub(crate) fn opt(v: Option<f64>, decimals: usize, sign: bool, f: Format) -> String {
+pub fn opt(v: Option<f64>, decimals: usize, sign: bool, f: Format) -> String {
     match (v, f) {
         (None, Format::Csv) => String::new(),
         (None, _) => "-".into(),
@@ -144,16 +151,16 @@ fn decimals(m: Measure) -> usize {
 }
 
 /// Write `body` to `path` (`-` for stdout), atomically for files.
-pub(crate) fn emit(path: &str, body: impl FnOnce(&mut AtomicOutput) -> std::io::Result<()>) -> anyhow::Result<()> {
+pub fn emit(path: &str, body: impl FnOnce(&mut AtomicOutput) -> std::io::Result<()>) -> Result<()> {
     let mut out = AtomicOutput::create(path)?;
     body(&mut out).map_err(|e| DemError::io(path, e))?;
-    Ok(out.commit()?)
+    out.commit()
 }
 
 /// Write a validation table.
-pub fn write_table(path: &str, rows: &[TableRow], f: Format) -> anyhow::Result<()> {
+pub fn write_table(path: &str, rows: &[TableRow], f: Format) -> Result<()> {
     if f == Format::Csv {
-        return Ok(dem_core::eval::write_table_csv(path, rows)?);
+        return super::write_table_csv(path, rows);
     }
     emit(path, |w| {
         if f == Format::Json {
@@ -207,7 +214,7 @@ fn status_str(s: Status) -> &'static str {
 /// (current minus baseline) of every measure compare checks (for roughness:
 /// of its distance from the real roughness, |rough - real_rough|), the
 /// verdict of each row and the measures that failed.
-pub fn write_comparison(path: &str, rows: &[Compared], f: Format) -> anyhow::Result<()> {
+pub fn write_comparison(path: &str, rows: &[Compared], f: Format) -> Result<()> {
     emit(path, |w| {
         if f == Format::Json {
             let js: Vec<ComparedJson> = rows
@@ -263,4 +270,59 @@ pub fn write_comparison(path: &str, rows: &[Compared], f: Format) -> anyhow::Res
             .collect();
         Grid { cols, rows: grid_rows }.write(w, f)
     })
+}
+
+/// Write `rows` as a pivot: one line per method, for each terrain a group
+/// of columns, `count` and each of `measures` ([`Measure::value`]), methods
+/// and terrains in the order they first appear. A method without a row for
+/// a terrain has empty cells (`-` for people). JSON is written as CSV.
+pub fn write_pivot(path: &str, rows: &[TableRow], measures: &[Measure], f: Format) -> Result<()> {
+    let (mut methods, mut terrains): (Vec<&str>, Vec<&str>) = (Vec::new(), Vec::new());
+    for r in rows {
+        if !methods.contains(&r.method.as_str()) {
+            methods.push(&r.method);
+        }
+        if !terrains.contains(&r.terrain.as_str()) {
+            terrains.push(&r.terrain);
+        }
+    }
+    let mut cols = vec![("", "method")];
+    for t in &terrains {
+        cols.push((*t, "count"));
+        cols.extend(measures.iter().map(|m| (*t, m.name())));
+    }
+    let empty = || if f == Format::Csv { String::new() } else { "-".into() };
+    let grid_rows = methods
+        .iter()
+        .map(|m| {
+            let mut v = vec![m.to_string()];
+            for t in &terrains {
+                match rows.iter().find(|r| r.method == *m && r.terrain == *t) {
+                    Some(r) => {
+                        v.push(r.count.to_string());
+                        v.extend(measures.iter().map(|&x| opt(x.value(r), decimals(x), false, f)));
+                    }
+                    None => v.extend(std::iter::repeat_with(empty).take(1 + measures.len())),
+                }
+            }
+            v
+        })
+        .collect();
+    emit(path, |w| Grid { cols, rows: grid_rows }.write(w, f))
+}
+
+/// Read a table written by dem-eval: JSON (one or more arrays back to back,
+/// as `cat a.json b.json` makes them) when the file starts with `[`, else
+/// CSV ([`read_table_csv`]: the old header too, repeated headers skipped).
+pub fn read_table(path: &str) -> Result<Vec<TableRow>> {
+    let text = if path == "-" { None } else { std::fs::read(path).ok() };
+    if text.as_deref().is_some_and(|t| t.trim_ascii_start().starts_with(b"[")) {
+        let text = text.unwrap_or_default();
+        let mut rows = Vec::new();
+        for v in serde_json::Deserializer::from_slice(&text).into_iter::<Vec<TableRow>>() {
+            rows.extend(v.map_err(|e| DemError::Table { path: path.into(), line: e.line() as u64, reason: e.to_string() })?);
+        }
+        return check_table(path, rows);
+    }
+    read_table_csv(path)
 }

@@ -24,15 +24,16 @@ use std::path::Path;
 
 use serde_json::{json, Map, Value};
 
-use crate::error::{DemError, Result};
-use crate::format::{row_center_x, Dem, GRID_ROWS};
-use crate::render::canvas::{Canvas, Rgb, BLACK, GRID, TEXT, WHITE};
-use crate::render::font::{draw_text, draw_text_centered, text_height, text_width};
-use crate::render::plot::line;
-use crate::render::{self, Captions, Pick, RenderConfig, Selection, TileStyle};
-use crate::{npy, output};
+use dem_core::error::{DemError, Result};
+use dem_core::format::{row_center_x, Dem, GRID_ROWS};
+use dem_render::canvas::{Canvas, Rgb, BLACK, GRID, TEXT, WHITE};
+use dem_render::font::{draw_text, draw_text_centered, text_height, text_width};
+use dem_render::plot::line;
+use dem_render::{self as render, Captions, Pick, RenderConfig, Selection, TileStyle};
+use dem_core::{npy, output};
 
-use super::{stats::gap_terms, Outcome, Sets};
+use dem_core::distribution::gap_terms;
+use super::{Outcome, Sets};
 
 /// Every file [`write`] leaves in its folder.
 pub const FILES: [&str; 6] = ["report.json", "sensor.json", "report.md", "compare.png", "rows-missing.png", "rows-height.png"];
@@ -52,7 +53,7 @@ pub fn report_json(o: &Outcome) -> Value {
         .refits
         .iter()
         .map(|r| {
-            let p = |e: &crate::sensor::Effect| -> Map<String, Value> { e.params().into_iter().map(|(k, v)| (k.to_string(), json!(v))).collect() };
+            let p = |e: &dem_sensor::Effect| -> Map<String, Value> { e.params().into_iter().map(|(k, v)| (k.to_string(), json!(v))).collect() };
             json!({"effect": r.after.name(), "params_named": p(&r.before), "params": p(&r.after),
                    "gap_before": r.gap_before, "gap_after": r.gap_after, "at_edge": r.at_edge})
         })
@@ -66,7 +67,7 @@ fn path(dir: &str, name: &str) -> String {
 
 /// Write `report.json`, `sensor.json`, the pictures and `report.md` into
 /// `dir` (created when missing). Each file appears whole or not at all.
-pub fn write(dir: &str, o: &Outcome, sets: &Sets, start: &crate::sensor::SensorModel, seed: u64) -> Result<()> {
+pub fn write(dir: &str, o: &Outcome, sets: &Sets, start: &dem_sensor::SensorModel, seed: u64) -> Result<()> {
     std::fs::create_dir_all(dir).map_err(|source| DemError::Open { path: dir.into(), source })?;
     let text = serde_json::to_string_pretty(&report_json(o)).expect("json");
     output::write_atomic(&path(dir, "report.json"), |w| writeln!(w, "{text}"))?;
@@ -79,19 +80,19 @@ pub fn write(dir: &str, o: &Outcome, sets: &Sets, start: &crate::sensor::SensorM
 
 use std::io::Write as _;
 
-fn pictures(dir: &str, o: &Outcome, sets: &Sets, start: &crate::sensor::SensorModel, seed: u64) -> Result<()> {
+fn pictures(dir: &str, o: &Outcome, sets: &Sets, start: &dem_sensor::SensorModel, seed: u64) -> Result<()> {
     // Twelve records spread over the set, preferring ones where real has
     // something to show (some but not all cells missing).
     let n = sets.sim.len();
     let interesting: Vec<usize> = (0..n.min(sets.real.len()))
         .filter(|&i| {
-            let v = crate::format::DemCells::valid_cells(&sets.real[i]);
+            let v = dem_core::format::DemCells::valid_cells(&sets.real[i]);
             (40..100).contains(&v)
         })
         .collect();
     let pool: Vec<usize> = if interesting.len() >= 12 { interesting } else { (0..n.min(sets.real.len())).collect() };
     let idx: Vec<usize> = (0..12.min(pool.len())).map(|k| pool[k * pool.len() / 12.min(pool.len())]).collect();
-    let apply = |m: &crate::sensor::SensorModel| -> Vec<Dem> {
+    let apply = |m: &dem_sensor::SensorModel| -> Vec<Dem> {
         let mut all = sets.sim.clone();
         // The same draws as the measurement: apply with the record's index.
         idx.iter()

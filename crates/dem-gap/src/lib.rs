@@ -2,9 +2,9 @@
 //! sensor model and show the gap shrink.
 //!
 //! The loop ([`run`]):
-//! 1. **measure** model(sim) against real with [`stats`]: missing-cell
+//! 1. **measure** model(sim) against real with [`dem_core::distribution`]: missing-cell
 //!    rates, shadows, residual or height means and spreads, edge profiles,
-//!    height steps, per row; one gap number ([`stats::gap`]) that compares
+//!    height steps, per row; one gap number ([`gap`]) that compares
 //!    distributions and is 0 when they match. With pairs, heights are
 //!    residuals against the paired sim record; without, the records'
 //!    own distributions are compared.
@@ -25,19 +25,18 @@
 pub mod evidence;
 pub mod fit;
 pub mod report;
-pub mod stats;
 
 use rand::seq::index::sample;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
-use crate::error::{DemError, Result};
-use crate::format::{Dem, Terrain};
-use crate::sensor::effects::NAMES;
-use crate::sensor::{Effect, SensorModel};
-use crate::{metric, npy, table};
+use dem_core::error::{DemError, Result};
+use dem_core::format::{Dem, Terrain};
+use dem_sensor::effects::NAMES;
+use dem_sensor::{Effect, SensorModel};
+use dem_core::{distribution, metric, npy, table};
 
-pub use stats::{gap, gap_terms, Stats};
+pub use dem_core::distribution::{gap, gap_terms, Stats};
 
 /// Everything one run needs.
 #[derive(Debug, Clone)]
@@ -255,7 +254,7 @@ pub fn measure(model: &SensorModel, sim: &[Dem], paired: bool, seed: u64) -> (Ve
 pub fn measure_at(model: &SensorModel, sim: &[Dem], times: Option<&[f64]>, paired: bool, seed: u64) -> (Vec<Dem>, Stats) {
     let mut out = sim.to_vec();
     model.apply_all_at(&mut out, seed, 0, times);
-    let s = stats::stats(&out, paired.then_some(sim));
+    let s = distribution::stats(&out, paired.then_some(sim));
     (out, s)
 }
 
@@ -263,22 +262,22 @@ pub fn measure_at(model: &SensorModel, sim: &[Dem], times: Option<&[f64]>, paire
 /// `tick` is called after each candidate fit (for a progress bar).
 pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) -> Outcome {
     let paired = sets.paired;
-    let real_stats = stats::stats(&sets.real, paired.then_some(&sets.sim[..]));
+    let real_stats = distribution::stats(&sets.real, paired.then_some(&sets.sim[..]));
     let split_floor = if paired { 0.0 } else { noise_floor(sets) };
     let times = sets.sim_time.as_deref();
     let floor_of = |m: &SensorModel| split_floor.max(draw_floor(m, &sets.sim, times, paired, cfg.seed));
     let halves: Option<Vec<Stats>> = (!paired && sets.real.len() >= 100)
-        .then(|| real_halves(sets).iter().map(|h| stats::stats(&pick(&sets.real, h), None)).collect());
+        .then(|| real_halves(sets).iter().map(|h| distribution::stats(&pick(&sets.real, h), None)).collect());
     let measure = |m: &SensorModel, sim: &[Dem], paired: bool, seed: u64| measure_at(m, sim, times, paired, seed);
     // The fitting subsample (all records when few).
-    let mut rng = ChaCha8Rng::seed_from_u64(crate::sensor::mix(cfg.seed ^ 0x5eed));
+    let mut rng = ChaCha8Rng::seed_from_u64(dem_core::seeded::mix(cfg.seed ^ 0x5eed));
     let n = sets.sim.len();
     let mut idx: Vec<usize> =
         if n > cfg.fit_records { sample(&mut rng, n, cfg.fit_records).into_vec() } else { (0..n).collect() };
     idx.sort_unstable();
     let fit_sim = pick(&sets.sim, &idx);
     let fit_times = times.map(|t| pick(t, &idx));
-    let fit_real = if paired { stats::stats(&pick(&sets.real, &idx), Some(&fit_sim)) } else { real_stats.clone() };
+    let fit_real = if paired { distribution::stats(&pick(&sets.real, &idx), Some(&fit_sim)) } else { real_stats.clone() };
     let target = fit::Target { sim: &fit_sim, times: fit_times.as_deref(), paired, real: &fit_real, seed: cfg.seed };
 
     let mut model = cfg.start.clone();
@@ -330,7 +329,7 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
         for (e, _, _) in ranking.iter().take(2) {
             let trial = model.with(*e);
             let (_, s) = measure(&trial, &sets.sim, paired, cfg.seed);
-            if let Some(why) = stats::hides_too_much(&s, &real_stats) {
+            if let Some(why) = distribution::hides_too_much(&s, &real_stats) {
                 log(format!("step {}: {e} refused: {why}", step + 1));
                 refused.push((*e, why));
                 continue;
@@ -409,7 +408,7 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
             let trial = base.with(f.effect);
             let (_, s) = measure(&trial, &sets.sim, paired, cfg.seed);
             let g = gap(&s, &real_stats);
-            if stats::hides_too_much(&s, &real_stats).is_none() && g < current.0 {
+            if distribution::hides_too_much(&s, &real_stats).is_none() && g < current.0 {
                 let edge = if f.at_edge.is_empty() { String::new() } else { format!(" (WARNING: at the edge of its box in {})", f.at_edge.join(", ")) };
                 log(format!("re-fitted {old} with the others in place: {}{edge}; gap {:.3} -> {g:.3}", f.effect, current.0));
                 refits.push(Refit { before: old, after: f.effect, gap_before: current.0, gap_after: g, at_edge: f.at_edge });
@@ -448,7 +447,7 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
 /// model(sim) with the run's seed against model(sim) with another seed.
 pub fn draw_floor(model: &SensorModel, sim: &[Dem], times: Option<&[f64]>, paired: bool, seed: u64) -> f64 {
     let (_, a) = measure_at(model, sim, times, paired, seed);
-    let (_, b) = measure_at(model, sim, times, paired, crate::sensor::mix(seed ^ 0xf100_f100));
+    let (_, b) = measure_at(model, sim, times, paired, dem_core::seeded::mix(seed ^ 0xf100_f100));
     gap(&a, &b)
 }
 
@@ -520,9 +519,9 @@ pub fn noise_floor(sets: &Sets) -> f64 {
     let side = |idx: &[usize]| {
         let r = pick(&sets.real, idx);
         if sets.paired {
-            stats::stats(&r, Some(&pick(&sets.sim, idx)))
+            distribution::stats(&r, Some(&pick(&sets.sim, idx)))
         } else {
-            stats::stats(&r, None)
+            distribution::stats(&r, None)
         }
     };
     let split = gap(&side(&a), &side(&b));
@@ -541,7 +540,7 @@ fn per_terrain(sets: &Sets, start: &SensorModel, model: &SensorModel, seed: u64)
         let sim = pick(&sets.sim, &si);
         let real = pick(&sets.real, &ri);
         let times = sets.sim_time.as_ref().map(|t| pick(t, &si));
-        let rs = stats::stats(&real, sets.paired.then_some(&sim[..]));
+        let rs = distribution::stats(&real, sets.paired.then_some(&sim[..]));
         let (_, s0) = measure_at(start, &sim, times.as_deref(), sets.paired, seed);
         let (_, s1) = measure_at(model, &sim, times.as_deref(), sets.paired, seed);
         let (_, sr) = measure(&SensorModel::default(), &sim, sets.paired, seed);
@@ -562,7 +561,7 @@ fn per_terrain(sets: &Sets, start: &SensorModel, model: &SensorModel, seed: u64)
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::format::{empty_dem, DemCells};
+    use dem_core::format::{empty_dem, DemCells};
 
     /// The point: the gap compares distributions, so sim with the
     /// right noise (other draws) beats noise-free sim, while the paired
@@ -583,7 +582,7 @@ mod tests {
         let noise = SensorModel { effects: vec![Effect::Noise { sigma0: 0.004, k: 0.01 }] };
         let (real, _) = measure(&noise, &sim, true, 1);
         for paired in [true, false] {
-            let rs = stats::stats(&real, paired.then_some(&sim[..]));
+            let rs = distribution::stats(&real, paired.then_some(&sim[..]));
             let (plain, s0) = measure(&SensorModel::default(), &sim, paired, 2);
             let (model, s1) = measure(&noise, &sim, paired, 2);
             assert!(gap(&s1, &rs) < 0.05 * gap(&s0, &rs), "paired {paired}: {} vs {}", gap(&s1, &rs), gap(&s0, &rs));

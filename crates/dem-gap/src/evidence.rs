@@ -1,9 +1,9 @@
 //! Evidence in words and numbers for a named effect: what in the data
 //! points at it, before (model) against real, and what the fit achieved.
 
-use crate::sensor::Effect;
+use dem_sensor::Effect;
 
-use super::stats::Stats;
+use dem_core::distribution::Stats;
 
 fn pct(x: f64) -> String {
     format!("{:.1}%", 100.0 * x)
@@ -126,7 +126,7 @@ pub fn evidence(effect: &Effect, before: &Stats, after: &Stats, real: &Stats, ga
         }
         Effect::Fov { x_min, x_max } => {
             let outside: Vec<usize> =
-                (0..20).filter(|&r| !(x_min..=x_max).contains(&crate::format::row_center_x(r))).collect();
+                (0..20).filter(|&r| !(x_min..=x_max).contains(&dem_core::format::row_center_x(r))).collect();
             let m = |s: &Stats| {
                 let t = s.term("missing").map(|t| t.values.clone()).unwrap_or_default();
                 outside.iter().map(|&r| t.get(r).copied().unwrap_or(0.0)).sum::<f64>() / outside.len().max(1) as f64

@@ -31,7 +31,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 use serde::{Deserialize, Serialize};
 
-use crate::format::{col_center_y, row_center_x, Dem, DemCells, COLS, GRID_ROWS};
+use dem_core::format::{col_center_y, row_center_x, Dem, DemCells, COLS, GRID_ROWS};
 
 /// Where `noise` measures its range from: the nominal depth camera mount,
 /// 0.15 m ahead of C and 0.45 m above it (x, z in metres).
@@ -51,9 +51,10 @@ pub const PATCH_SLOTS: usize = 8;
 /// Back edge of the grid (m): where a startup frame's blind edge ends.
 const X_BACK: f64 = -0.6;
 /// Height difference (m) between x-neighbours that `mixed-cells` treats as
-/// a step (dem-gap's `jump-missing` statistic uses the same): below it the
-/// terrain is a slope, whose cell mean is the centre's height.
-pub const MIXED_JUMP: f64 = 0.05;
+/// a step: the distribution gap's `jump-missing` jump, so dem-gap's
+/// statistic sees this effect's steps and no others. Below it the terrain
+/// is a slope, whose cell mean is the centre's height.
+pub const MIXED_JUMP: f64 = dem_core::distribution::JUMP;
 
 /// One effect with its parameters. JSON: `{"effect": NAME, "params": {...}}`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -697,7 +698,7 @@ fn smooth(d: &mut Dem, w: f64) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::format::{empty_dem, FLAT_GROUND};
+    use dem_core::format::{empty_dem, FLAT_GROUND};
     use rand::SeedableRng;
 
     fn flat() -> Dem {

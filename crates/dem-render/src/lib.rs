@@ -25,9 +25,9 @@ pub mod tile;
 
 use std::path::Path;
 
-use crate::error::{DemError, Result};
-use crate::format::{DemCells, COLS, GRID_ROWS};
-use crate::{metric, output, table};
+use dem_core::error::{DemError, Result};
+use dem_core::format::{DemCells, COLS, GRID_ROWS};
+use dem_core::{metric, output, table};
 use colormap::HeightRange;
 use layout::{Column, Figure};
 pub use select::{Selection, MAX_RECORDS};
@@ -173,12 +173,7 @@ fn index_past_end(csv: &str, indices: &[u64], npy: &str) -> Option<DemError> {
     if npy == "-" {
         return None;
     }
-    let mut rdr = crate::npy::open(npy).ok()?;
-    let mut chunk = Vec::new();
-    while rdr.read_chunk(&mut chunk, crate::npy::CHUNK_RECORDS).ok()? > 0 {
-        chunk.clear();
-    }
-    let total = rdr.records_read();
+    let total = dem_core::npy::open(npy).ok()?.for_each_chunk(dem_core::npy::CHUNK_RECORDS, |_, _| Ok::<_, DemError>(())).ok()?;
     let k = indices.iter().position(|&i| i >= total)?;
     Some(DemError::Table {
         path: csv.into(),

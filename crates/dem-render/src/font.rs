@@ -100,7 +100,7 @@ fn draw(canvas: &mut Canvas, s: &str, scale: u32, place: impl Fn(i64, i64) -> (i
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::render::canvas::{BLACK, WHITE};
+    use crate::canvas::{BLACK, WHITE};
 
     /// Inked pixels of a canvas as a set of (x, y).
     fn inked(c: &Canvas) -> Vec<(u32, u32)> {

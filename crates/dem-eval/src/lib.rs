@@ -1,0 +1,23 @@
+//! dem-eval's library: one file per command, each with its arguments and
+//! its run, as xsv's commands are; the binary only dispatches.
+//!
+//! - [`evaluate`]: the validation table of one method (identity, a file of
+//!   predictions, or an ONNX generator) over the sim records of a pairs CSV.
+//! - [`merge`]: the table of the whole from shards' per-record files.
+//! - [`compare`]: a table against a baseline; worse rows fail.
+//! - [`join`]: tables as one table, in any form.
+//! - [`transfer`]: the downstream test (policy-like models trained on each
+//!   set, tested on measured DEMs of held-out runs).
+//! - [`inputs`], [`records`], [`model`]: the selected records, the
+//!   per-record CSV, and the predictions' sources they share.
+//!
+//! The table itself (rows, measures, forms) is `dem_core::eval`.
+
+pub mod compare;
+pub mod evaluate;
+pub mod inputs;
+pub mod join;
+pub mod merge;
+pub mod model;
+pub mod records;
+pub mod transfer;
