@@ -7,7 +7,8 @@ use std::ops::Range;
 
 use dem_core::error::{DemError, Result};
 use dem_core::format::{Dem, DemCells, Terrain, COLS, GRID_CELLS};
-use dem_core::table::Label;
+use dem_core::npy::transform_checked;
+use dem_core::table::{IndexRow, Label, RowWriter};
 
 /// Rows that must be valid: keep a record when at least `min_rows` rows of
 /// `rows` have every cell valid.
@@ -90,14 +91,19 @@ impl Filter {
     pub fn keep(&mut self, input: &str, index: u64, d: &Dem) -> Result<bool> {
         self.counts.read += 1;
         let r = &self.rules;
-        if r.terrains.is_some() || r.drop_other || r.max_time.is_some() {
-            let (path, labels) = r.labels.as_ref().ok_or_else(|| DemError::Usage("terrain and time rules need --labels".into()))?;
-            let label = labels.get(index as usize).ok_or_else(|| {
-                DemError::input(
+        // Labels, when given, cover the stream whatever the rules: a kept
+        // record's label is written out (`--emit-labels`).
+        if let Some((path, labels)) = &r.labels {
+            if labels.len() as u64 <= index {
+                return Err(DemError::input(
                     path.as_str(),
                     format!("has {} rows but {input} has more records (record {index})", labels.len()),
-                )
-            })?;
+                ));
+            }
+        }
+        if r.terrains.is_some() || r.drop_other || r.max_time.is_some() {
+            let (path, labels) = r.labels.as_ref().ok_or_else(|| DemError::Usage("terrain and time rules need --labels".into()))?;
+            let label = &labels[index as usize];
             let wanted = r.terrains.as_ref().is_none_or(|ts| ts.contains(&label.terrain));
             if !wanted || (r.drop_other && label.terrain == Terrain::Other) {
                 self.counts.terrain += 1;
@@ -166,6 +172,69 @@ impl Filter {
     }
 }
 
+/// The files a filter run reads and writes.
+#[derive(Debug, Clone, Default)]
+pub struct FilterFiles {
+    /// Input NPY stream (`-` for stdin).
+    pub input: String,
+    /// Output NPY stream (`-` for stdout).
+    pub output: String,
+    /// Write the input index of every kept record to this CSV.
+    pub emit_index: Option<String>,
+    /// Write the labels of the kept records (re-indexed from 0) to this CSV.
+    pub emit_labels: Option<String>,
+}
+
+/// Stream `files.input` to `files.output`, keeping the records `rules`
+/// keep. Kept indices and labels are written as they are decided, so memory
+/// does not grow with the stream; every output appears only on success.
+/// Returns the counts of kept and dropped records.
+pub fn filter_stream(rules: FilterRules, files: &FilterFiles) -> Result<FilterCounts> {
+    let mut emit_index = files.emit_index.as_deref().map(RowWriter::create).transpose()?;
+    let mut emit_labels = files.emit_labels.as_deref().map(RowWriter::create).transpose()?;
+    // Borrowed by the chunk loop and by the end-of-stream check.
+    let filter = std::cell::RefCell::new(Filter::new(rules));
+    let mut kept = 0u64;
+    transform_checked(
+        &files.input,
+        &files.output,
+        |first, chunk| {
+            let mut i = first;
+            let mut err = None;
+            chunk.retain(|d| {
+                let mut filter = filter.borrow_mut();
+                let keep = err.is_none()
+                    && filter
+                        .keep(&files.input, i, d)
+                        .and_then(|keep| {
+                            if keep {
+                                if let Some(w) = &mut emit_index {
+                                    w.write(&IndexRow { index: i })?;
+                                }
+                                if let (Some(w), Some(all)) = (&mut emit_labels, filter.labels()) {
+                                    w.write(&Label { index: kept, ..all[i as usize].clone() })?;
+                                }
+                                kept += 1;
+                            }
+                            Ok(keep)
+                        })
+                        .unwrap_or_else(|e| {
+                            err = Some(e);
+                            false
+                        });
+                i += 1;
+                keep
+            });
+            err.map_or(Ok(()), Err)
+        },
+        |_| filter.borrow().finish(&files.input),
+    )?;
+    for w in [emit_index, emit_labels].into_iter().flatten() {
+        w.commit()?;
+    }
+    Ok(filter.into_inner().counts)
+}
+
 /// 128-bit hash of a record's bits: two independent SipHash passes, so a
 /// false duplicate among a billion records has odds of about 1e-20.
 fn record_hash(d: &Dem) -> u128 {
@@ -180,3 +249,49 @@ fn record_hash(d: &Dem) -> u128 {
 
 /// Salt of the second hash pass (the golden ratio's bits).
 const SALT: u64 = 0x9e37_79b9_7f4a_7c15;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use dem_core::format::empty_dem;
+    use dem_core::{npy, table};
+
+    #[test]
+    fn filter_stream_writes_the_kept_records_their_indices_and_relabelled_labels() {
+        let dir = dem_testkit::tempdir();
+        let path = |n: &str| dem_testkit::arg(dir.path(), n);
+        // Five records: heights 0..4; terrains alternate flat / pallet.
+        let records: Vec<Dem> = (0..5)
+            .map(|k| {
+                let mut d = empty_dem();
+                (0..GRID_CELLS).for_each(|i| d.set_valid(i / COLS, i % COLS, k as f32));
+                d
+            })
+            .collect();
+        npy::write_all(&path("in.npy"), &records).unwrap();
+        let terrain = |k: u64| if k.is_multiple_of(2) { Terrain::Flat } else { Terrain::Pallet };
+        let labels: Vec<Label> =
+            (0..5).map(|k| Label { index: k, terrain: terrain(k), x: None, y: None, yaw: None, sequence: Some(7), time: Some(k as f64) }).collect();
+        let rules = FilterRules { labels: Some((path("l.csv"), labels)), terrains: Some(vec![Terrain::Pallet]), ..FilterRules::default() };
+        let files = FilterFiles {
+            input: path("in.npy"),
+            output: path("out.npy"),
+            emit_index: Some(path("index.csv")),
+            emit_labels: Some(path("labels.csv")),
+        };
+        let counts = filter_stream(rules, &files).unwrap();
+        assert_eq!((counts.read, counts.kept, counts.terrain), (5, 2, 3));
+        let kept = npy::read_all(&path("out.npy")).unwrap();
+        assert_eq!(kept, vec![records[1], records[3]]);
+        assert_eq!(table::read_index(&path("index.csv")).unwrap(), vec![1, 3]);
+        let relabelled = table::read_labels(&path("labels.csv")).unwrap();
+        assert_eq!(relabelled.iter().map(|l| (l.index, l.time)).collect::<Vec<_>>(), vec![(0, Some(1.0)), (1, Some(3.0))]);
+
+        // Labels that do not cover the stream: an error, and no output appears.
+        let short = vec![Label { index: 0, terrain: Terrain::Flat, x: None, y: None, yaw: None, sequence: None, time: None }];
+        let files = FilterFiles { output: path("out2.npy"), emit_index: Some(path("index2.csv")), ..files };
+        let e = filter_stream(FilterRules { labels: Some((path("short.csv"), short)), ..FilterRules::default() }, &files).unwrap_err();
+        assert!(e.to_string().contains("short.csv"), "{e}");
+        assert!(!std::path::Path::new(&path("out2.npy")).exists() && !std::path::Path::new(&path("index2.csv")).exists());
+    }
+}

@@ -4,9 +4,8 @@ use std::process::ExitCode;
 
 use clap::Parser;
 
-use dem_filter::{Filter, FilterRules, RowRule};
-use dem_core::npy::transform_checked;
-use dem_core::table::{self, IndexRow, Label};
+use dem_filter::{filter_stream, FilterFiles, FilterRules, RowRule};
+use dem_core::table;
 use dem_core::cli::{self, value};
 use dem_core::{output, Terrain};
 
@@ -93,12 +92,7 @@ fn main() -> ExitCode {
             return Err(cli::usage("--min-rows is larger than the --rows region"));
         }
         let index = a.index.as_deref().map(|p| table::read_index(p).map(|rows| (p.to_string(), rows))).transpose()?;
-        // Kept indices and labels are written as they are decided, so memory
-        // does not grow with the stream; the files appear only on success.
-        let mut emit_index = a.emit_index.as_deref().map(table::RowWriter::create).transpose()?;
-        let mut emit_labels = a.emit_labels.as_deref().map(table::RowWriter::create).transpose()?;
-        // Borrowed by the chunk loop and by the end-of-stream check.
-        let filter = std::cell::RefCell::new(Filter::new(FilterRules {
+        let rules = FilterRules {
             labels,
             terrains: a.terrain,
             drop_other: a.drop_other,
@@ -108,55 +102,13 @@ fn main() -> ExitCode {
             min_valid: a.min_valid,
             rows,
             unique: a.unique,
-        }));
-        let mut kept = 0u64;
-        transform_checked(&a.input, &a.output, |first, chunk| {
-            let mut i = first;
-            let mut err = None;
-            chunk.retain(|d| {
-                let mut filter = filter.borrow_mut();
-                let keep = err.is_none()
-                    && filter.keep(&a.input, i, d).and_then(|keep| {
-                        if keep {
-                            emit(&mut emit_index, &mut emit_labels, &filter, i, kept)?;
-                            kept += 1;
-                        }
-                        Ok(keep)
-                    })
-                    .unwrap_or_else(|e| {
-                        err = Some(e);
-                        false
-                    });
-                i += 1;
-                keep
-            });
-            err.map_or(Ok(()), Err)
-        }, |_| filter.borrow().finish(&a.input))?;
-        for w in [emit_index, emit_labels].into_iter().flatten() {
-            w.commit()?;
-        }
-        let c = &filter.borrow().counts;
+        };
+        let files = FilterFiles { input: a.input, output: a.output, emit_index: a.emit_index, emit_labels: a.emit_labels };
+        let c = filter_stream(rules, &files)?;
         cli::log(format_args!(
             "kept {} of {} records (dropped: {} terrain, {} time, {} index, {} valid cells, {} rows, {} duplicates)",
             c.kept, c.read, c.terrain, c.time, c.index, c.valid, c.rows, c.duplicate
         ));
         Ok(())
     })
-}
-
-/// Write kept record `i` (the `n`-th kept) to the index and labels outputs.
-fn emit(
-    index: &mut Option<table::RowWriter>,
-    labels: &mut Option<table::RowWriter>,
-    filter: &Filter,
-    i: u64,
-    n: u64,
-) -> dem_core::Result<()> {
-    if let Some(w) = index {
-        w.write(&IndexRow { index: i })?;
-    }
-    if let (Some(w), Some(all)) = (labels, filter.labels()) {
-        w.write(&Label { index: n, ..all[i as usize].clone() })?;
-    }
-    Ok(())
 }

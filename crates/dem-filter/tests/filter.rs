@@ -108,6 +108,8 @@ fn bad_inputs_exit_2_naming_the_file_and_leave_no_output() {
     std::fs::write(&bad_idx, "index\n1\nx\n").unwrap();
     let cases: Vec<(Vec<String>, &str)> = vec![
         (vec!["--labels".into(), td("real_labels.csv"), "--drop-other".into(), td("sim.npy")], "real_labels.csv"),
+        // Labels shorter than the stream, no rule reading them: refused, not a panic.
+        (vec!["--labels".into(), td("real_labels.csv"), "--emit-labels".into(), arg(dir.path(), "l.csv"), td("sim.npy")], "real_labels.csv: has"),
         (vec!["--index".into(), bad_idx.clone(), td("sim.npy")], "line 3"),
         (vec!["--terrain".into(), "flat".into(), td("sim.npy")], "--labels"),
         (vec!["--rows".into(), "6..25".into(), td("sim.npy")], "6..25"),
