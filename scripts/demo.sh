@@ -78,15 +78,12 @@ train() {
   "${eval[@]}" --identity --format csv -o "$T/identity.csv"
   "${eval[@]}" --model "$OUT/gy.onnx" --name paired-data --format csv -o "$T/model.csv" \
       --emit-input "$T/input.npy" --emit-pred "$T/pred.npy" --emit-closest "$T/closest.npy"
-  # CSV tables join with cat: dem-eval compare reads repeated headers.
-  cat "$T/identity.csv" "$T/model.csv" > "$T/table.csv"
+  "$BIN/dem-eval" join "$T/identity.csv" "$T/model.csv" -o "$T/table.csv"
   "$BIN/dem-apply" --model "$OUT/gy.onnx" "$T/input.npy" -o "$T/apply.npy"
   "$BIN/dem-render" --compare "$T/input.npy" "$T/closest.npy" "$T/pred.npy" \
       --row-labels input,closest-real,generated --error-rows 2,1 --start 0 --count 12 \
       --title "G_Y on val keys: sim input, closest real, generated (eq. 7.1 pair error under each)" -o "$OUT/generated.png"
-  "${eval[@]}" --identity --name identity --format md -o "$T/identity.md"
-  "${eval[@]}" --model "$OUT/gy.onnx" --name paired-data --format md -o "$T/model.md"
-  cat "$T/identity.md" <(tail -n +3 "$T/model.md") | tee "$T/table.md"
+  "$BIN/dem-eval" join "$T/table.csv" --format md | tee "$T/table.md"
 }
 
 transfer() {

@@ -29,25 +29,12 @@ SEED=${SEED:-1}
 TRAIN_ARGS=${TRAIN_ARGS:---seed $SEED}
 mkdir -p "$OUT"
 
-# index_where LABELS KEEP: an index CSV of the records whose `sequence` is (KEEP=in)
-# or is not (KEEP=out) one of TEST_RUNS; the column is found by its header name.
-index_where() {
-    awk -F, -v runs="$TEST_RUNS" -v keep="$2" '
-        BEGIN { n = split(runs, r, " "); for (i = 1; i <= n; i++) held[r[i]] = 1; print "index" }
-        NR == 1 { for (i = 1; i <= NF; i++) if ($i == "sequence") col = i
-                  if (!col) { print "transfer.sh: " FILENAME " has no sequence column" > "/dev/stderr"; exit 2 }
-                  next }
-        { if ((($col in held) && keep == "in") || (!($col in held) && keep == "out")) print $1 }' "$1"
-}
-
-index_where "$TD/real_labels.csv" in > "$OUT/test_index.csv"
-index_where "$TD/real_labels.csv" out > "$OUT/real_index.csv"
-index_where "$TD/sim_labels.csv" out > "$OUT/sim_index.csv"
-"$BIN/dem-filter" --index "$OUT/test_index.csv" --labels "$TD/real_labels.csv" "$TD/real.npy" \
+held=${TEST_RUNS// /,}  # dem-filter's --runs take a comma-separated list
+"$BIN/dem-filter" --labels "$TD/real_labels.csv" --runs "$held" "$TD/real.npy" \
     -o "$OUT/test.npy" --emit-labels "$OUT/test_labels.csv"
-"$BIN/dem-filter" --index "$OUT/real_index.csv" --labels "$TD/real_labels.csv" "$TD/real.npy" \
+"$BIN/dem-filter" --labels "$TD/real_labels.csv" --except-runs "$held" "$TD/real.npy" \
     -o "$OUT/real.npy" --emit-labels "$OUT/real_labels.csv"
-"$BIN/dem-filter" --index "$OUT/sim_index.csv" --labels "$TD/sim_labels.csv" "$TD/sim.npy" \
+"$BIN/dem-filter" --labels "$TD/sim_labels.csv" --except-runs "$held" "$TD/sim.npy" \
     -o "$OUT/sim.npy" --emit-labels "$OUT/sim_labels.csv"
 
 # 1. G_Y from the non-held-out runs, as make demo prepares its data.

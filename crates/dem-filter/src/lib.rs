@@ -32,6 +32,11 @@ pub struct FilterRules {
     /// Keep records at most this many seconds into their run (the labels'
     /// `time`; 0 keeps the first frame of every run).
     pub max_time: Option<f64>,
+    /// Keep records of these runs (the labels' `sequence`), or with
+    /// `except_runs` all other runs'.
+    pub runs: Option<Vec<u64>>,
+    /// Invert the runs rule: drop the records of `runs`.
+    pub except_runs: bool,
     /// Keep only these indices (or all but these, with `invert_index`): the
     /// index CSV's path and its rows in file order.
     pub index: Option<(String, Vec<u64>)>,
@@ -56,6 +61,8 @@ pub struct FilterCounts {
     pub terrain: u64,
     /// Dropped by time in the run.
     pub time: u64,
+    /// Dropped by run (the labels' `sequence`).
+    pub run: u64,
     /// Dropped by the index rule.
     pub index: u64,
     /// Dropped for too few valid cells.
@@ -101,8 +108,8 @@ impl Filter {
                 ));
             }
         }
-        if r.terrains.is_some() || r.drop_other || r.max_time.is_some() {
-            let (path, labels) = r.labels.as_ref().ok_or_else(|| DemError::Usage("terrain and time rules need --labels".into()))?;
+        if r.terrains.is_some() || r.drop_other || r.max_time.is_some() || r.runs.is_some() {
+            let (path, labels) = r.labels.as_ref().ok_or_else(|| DemError::Usage("terrain, time and run rules need --labels".into()))?;
             let label = &labels[index as usize];
             let wanted = r.terrains.as_ref().is_none_or(|ts| ts.contains(&label.terrain));
             if !wanted || (r.drop_other && label.terrain == Terrain::Other) {
@@ -117,6 +124,17 @@ impl Filter {
                 })?;
                 if t > max {
                     self.counts.time += 1;
+                    return Ok(false);
+                }
+            }
+            if let Some(runs) = &r.runs {
+                let run = label.sequence.ok_or_else(|| DemError::Table {
+                    path: path.clone(),
+                    line: index + 2,
+                    reason: format!("record {index} has no sequence, which the run rule reads"),
+                })?;
+                if runs.contains(&run) == r.except_runs {
+                    self.counts.run += 1;
                     return Ok(false);
                 }
             }
@@ -286,6 +304,16 @@ mod tests {
         assert_eq!(table::read_index(&path("index.csv")).unwrap(), vec![1, 3]);
         let relabelled = table::read_labels(&path("labels.csv")).unwrap();
         assert_eq!(relabelled.iter().map(|l| (l.index, l.time)).collect::<Vec<_>>(), vec![(0, Some(1.0)), (1, Some(3.0))]);
+
+        // Runs: records 0..4 are runs 0, 1, 2, 0, 1 (sequence = k % 3).
+        let labels: Vec<Label> = (0..5).map(|k| Label { index: k, terrain: Terrain::Flat, x: None, y: None, yaw: None, sequence: Some(k % 3), time: None }).collect();
+        for (except, want) in [(false, vec![1, 2, 4]), (true, vec![0, 3])] {
+            let rules = FilterRules { labels: Some((path("r.csv"), labels.clone())), runs: Some(vec![1, 2]), except_runs: except, ..FilterRules::default() };
+            let files = FilterFiles { input: path("in.npy"), output: path("runs.npy"), emit_index: Some(path("runs.csv")), emit_labels: None };
+            let counts = filter_stream(rules, &files).unwrap();
+            assert_eq!((counts.kept, counts.run), (want.len() as u64, 5 - want.len() as u64));
+            assert_eq!(table::read_index(&path("runs.csv")).unwrap(), want);
+        }
 
         // Labels that do not cover the stream: an error, and no output appears.
         let short = vec![Label { index: 0, terrain: Terrain::Flat, x: None, y: None, yaw: None, sequence: None, time: None }];

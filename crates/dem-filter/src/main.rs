@@ -21,6 +21,8 @@ use dem_core::{output, Terrain};
   dem-filter --labels real_labels.csv --max-time 0 real.npy -o first_frames.npy   # each run's first frame
   dem-filter --labels sim_labels.csv --drop-other --unique --emit-index keep.csv sim.npy -o sim_clean.npy
   dem-filter --index keep.csv --invert sim.npy -o rest.npy     # the complement
+  dem-filter --labels real_labels.csv --runs 3,4,5 real.npy -o test.npy --emit-labels test_labels.csv   # held-out runs
+  dem-filter --labels real_labels.csv --except-runs 3,4,5 real.npy -o train.npy                      # all other runs
   dem-filter --rows 6..20 --min-valid 0.5 real.npy -o seen_ahead.npy")]
 struct Args {
     /// Input NPY stream (`-` for stdin).
@@ -42,6 +44,13 @@ struct Args {
     /// `time`): `--max-time 0` keeps the first frame of every run.
     #[arg(long, value_parser = value::non_negative::<f64>)]
     max_time: Option<f64>,
+    /// Keep only the records of these runs (the labels' `sequence`;
+    /// comma-separated numbers).
+    #[arg(long, value_delimiter = ',')]
+    runs: Option<Vec<u64>>,
+    /// Keep the records of all runs but these (comma-separated).
+    #[arg(long, value_delimiter = ',', conflicts_with = "runs")]
+    except_runs: Option<Vec<u64>>,
     /// Keep only the records listed in this index CSV (header `index`).
     #[arg(long)]
     index: Option<String>,
@@ -80,8 +89,9 @@ fn parse_rows(s: &str) -> Result<std::ops::Range<usize>, String> {
 fn main() -> ExitCode {
     cli::run(|| {
         let a: Args = cli::parse();
-        if (a.terrain.is_some() || a.drop_other || a.max_time.is_some()) && a.labels.is_none() {
-            return Err(cli::usage("--terrain, --drop-other and --max-time need --labels"));
+        let runs_rule = a.runs.is_some() || a.except_runs.is_some();
+        if (a.terrain.is_some() || a.drop_other || a.max_time.is_some() || runs_rule) && a.labels.is_none() {
+            return Err(cli::usage("--terrain, --drop-other, --max-time, --runs and --except-runs need --labels"));
         }
         let inputs: Vec<&str> = [Some(&a.input), a.labels.as_ref(), a.index.as_ref()].into_iter().flatten().map(String::as_str).collect();
         let outputs: Vec<&str> = [Some(&a.output), a.emit_index.as_ref(), a.emit_labels.as_ref()].into_iter().flatten().map(String::as_str).collect();
@@ -97,6 +107,8 @@ fn main() -> ExitCode {
             terrains: a.terrain,
             drop_other: a.drop_other,
             max_time: a.max_time,
+            except_runs: a.except_runs.is_some(),
+            runs: a.runs.or(a.except_runs),
             index,
             invert_index: a.invert,
             min_valid: a.min_valid,
@@ -106,8 +118,8 @@ fn main() -> ExitCode {
         let files = FilterFiles { input: a.input, output: a.output, emit_index: a.emit_index, emit_labels: a.emit_labels };
         let c = filter_stream(rules, &files)?;
         cli::log(format_args!(
-            "kept {} of {} records (dropped: {} terrain, {} time, {} index, {} valid cells, {} rows, {} duplicates)",
-            c.kept, c.read, c.terrain, c.time, c.index, c.valid, c.rows, c.duplicate
+            "kept {} of {} records (dropped: {} terrain, {} time, {} run, {} index, {} valid cells, {} rows, {} duplicates)",
+            c.kept, c.read, c.terrain, c.time, c.run, c.index, c.valid, c.rows, c.duplicate
         ));
         Ok(())
     })

@@ -82,6 +82,47 @@ fn max_time_keeps_the_first_seconds_of_every_run() {
 }
 
 #[test]
+fn runs_and_except_runs_split_the_stream_by_the_labels_sequence() {
+    let dir = tempdir();
+    let all = table::read_labels(&td("real_labels.csv")).unwrap();
+    let real = npy::read_all(&td("real.npy")).unwrap();
+    let held = [10u64, 11, 17];
+    let mut got = Vec::new();
+    for flag in ["--runs", "--except-runs"] {
+        let (out, idx, labels) = (arg(dir.path(), "r.npy"), arg(dir.path(), "r.csv"), arg(dir.path(), "l.csv"));
+        let o = run(
+            "dem-filter",
+            &["--labels", &td("real_labels.csv"), flag, "10,11,17", &td("real.npy"), "-o", &out, "--emit-index", &idx, "--emit-labels", &labels],
+            None,
+        );
+        ok(&o);
+        let keep_held = flag == "--runs";
+        let want: Vec<u64> = all.iter().filter(|l| held.contains(&l.sequence.unwrap()) == keep_held).map(|l| l.index).collect();
+        assert!(!want.is_empty());
+        let index = table::read_index(&idx).unwrap();
+        assert_eq!(index, want, "{flag}");
+        assert_eq!(npy::read_all(&out).unwrap(), want.iter().map(|&i| real[i as usize]).collect::<Vec<_>>());
+        let kept_runs: std::collections::BTreeSet<u64> = table::read_labels(&labels).unwrap().iter().map(|l| l.sequence.unwrap()).collect();
+        assert_eq!(kept_runs.iter().all(|r| held.contains(r)), keep_held, "{kept_runs:?}");
+        assert!(stderr(&o).contains(&format!("{} run", all.len() - want.len())), "{}", stderr(&o));
+        got.extend(index);
+    }
+    got.sort_unstable();
+    assert_eq!(got, (0..all.len() as u64).collect::<Vec<_>>(), "the two halves are the whole, once");
+
+    let bare = arg(dir.path(), "bare.csv");
+    std::fs::write(&bare, "index,terrain\n0,flat\n").unwrap();
+    let o = run("dem-filter", &["--labels", &bare, "--runs", "1", &td("real.npy")], None);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("bare.csv") && stderr(&o).contains("no sequence"), "{}", stderr(&o));
+    for args in [&["--runs", "1", "x.npy"][..], &["--labels", "l.csv", "--runs", "1", "--except-runs", "2", "x.npy"]] {
+        let o = run("dem-filter", args, None);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        assert_eq!(stderr(&o).trim().lines().count(), 1, "{}", stderr(&o));
+    }
+}
+
+#[test]
 fn unique_drops_exact_duplicates_and_valid_rules_hold() {
     let dir = tempdir();
     let out = arg(dir.path(), "u.npy");
