@@ -73,6 +73,10 @@ pub fn line_plot(title: &str, xlabel: &str, xs: &[f64], series: &[Series], log_y
         for p in pts.windows(2) {
             line(&mut c, p[0], p[1], *color, 2);
         }
+        // A lone point (a one-epoch run) has no segment: mark it.
+        if let [(x, y)] = pts[..] {
+            c.fill_rect(x - 3, y - 3, 7, 7, *color);
+        }
         let ly = t + 10 + k as i64 * (text_height(2) as i64 + 8);
         c.fill_rect(w - r + 15, ly + 2, 20, 10, *color);
         draw_text(&mut c, w - r + 42, ly, name, 1, TEXT);
