@@ -65,7 +65,8 @@ echo "== another sensor measuring the same poses" >&2
 # Every run measured (real-runs = runs) with the other camera; the sim DEMs
 # are the same poses as testdata's (checked), so the sim keys' index picks
 # the other sensor's DEM of each key.
-n_runs=$(awk -F, 'NR > 1 {print $6}' "$TD/sim_labels.csv" | sort -un | wc -l)
+# Runs in the labels: distinct values of the `sequence` column (found by name).
+n_runs=$(awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) if ($i == "sequence") c = i; next } c { print $c }' "$TD/sim_labels.csv" | sort -un | wc -l)
 if [[ $OTHER_SENSOR == none ]]; then
     echo "thesis_table: OTHER_SENSOR=none: no other-sensor row" >&2
 elif [[ ! -f "$OUT/other/real.npy" || "$(cat "$OUT/other/options" 2>/dev/null)" != "$OTHER_SENSOR" ]]; then
@@ -118,20 +119,15 @@ echo "== pictures" >&2
 # Columns: three records of each terrain, at a quarter, half and three
 # quarters of that terrain's val records (rows of the records CSV, which
 # every method shares: same selection, same order; the number above a
-# column is that row).
-cols=$(awk -F, 'NR > 1 { n[$4]++; row[$4, n[$4]] = NR - 2 }
-    END { split("flat stairs-up stairs-down pallet", ts, " ")
-          for (i = 1; i <= 4; i++) { t = ts[i]; for (k = 1; k <= 3; k++) if (n[t] > 0) {
-              j = int(n[t] * k / 4) + 1; if (j > n[t]) j = n[t]
-              if (!((t, j) in used)) { used[t, j] = 1; out = out (out == "" ? "" : ",") row[t, j] } } }
-          print out }' "$ROWS/identity.records.csv")
+# column is that row): dem-render --per-terrain 3.
+pick=(--per-terrain 3 --labels "$ROWS/identity.records.csv")
 for r in "${rows[@]}"; do
     if [[ $r == identity || $r == pallets-cleaned ]]; then
         "$BIN/dem-render" --compare "$ROWS/$r.input.npy" "$ROWS/$r.closest.npy" --row-labels "input,closest real" \
-            --error-rows 2,1 --indices "$cols" --title "${LABEL[$r]}: pair error under each column" -o "$OUT/fig-$r.png"
+            --error-rows 2,1 "${pick[@]}" --title "${LABEL[$r]}: pair error under each column" -o "$OUT/fig-$r.png"
     else
         "$BIN/dem-render" --compare "$ROWS/$r.input.npy" "$ROWS/$r.closest.npy" "$ROWS/$r.pred.npy" \
-            --row-labels "input,closest real,generated" --error-rows 2,3 --indices "$cols" \
+            --row-labels "input,closest real,generated" --error-rows 2,3 "${pick[@]}" \
             --title "${LABEL[$r]}: pair error under each column" -o "$OUT/fig-$r.png"
     fi
     echo "  $OUT/fig-$r.png" >&2

@@ -19,6 +19,7 @@
 //!
 //! Row 20 of the output is the input's row 20, untouched.
 
+use dem_core::format::{GRID_CELLS, GRID_LEN, RECORD_LEN};
 use dem_core::output::write_atomic;
 use dem_core::{Dem, DemError};
 use dem_nn::weights::{Arch, CORRECTION_SCALE, GATE_SHARPNESS, Conv2d, GeneratorWeights, InstanceNorm, LEAK, NORM_EPS};
@@ -172,7 +173,7 @@ pub fn generator_model(w: &GeneratorWeights, name: &str) -> pb::ModelProto {
         w.enc.len() == 3 && w.enc_norm.len() == 3 && w.dec.len() == 3 && w.dec_norm.len() == 2,
         "a generator has 3 encoder and 3 decoder convs"
     );
-    assert_eq!((w.fc.n_in, w.fc.n_out), (210, 200), "the generator head is 210 -> 200");
+    assert_eq!((w.fc.n_in, w.fc.n_out), (RECORD_LEN, GRID_LEN), "the generator head is 210 -> 200");
     let mut g = Builder { nodes: Vec::new(), inits: Vec::new() };
     let nchw = g.node("Transpose", &[INPUT], vec![attr_ints("perm", &[0, 3, 1, 2])], "nchw");
     let img = g.slice(&nchw, 2, 0, 20, "grid");
@@ -202,11 +203,13 @@ pub fn generator_model(w: &GeneratorWeights, name: &str) -> pb::ModelProto {
     let flat = g.node("Flatten", &[&h], vec![attr_int("axis", 1)], "grid_features");
     let att_flat = g.node("Flatten", &[&att], vec![attr_int("axis", 1)], "attitude_features");
     let feat = g.node("Concat", &[&flat, &att_flat], vec![attr_int("axis", 1)], "features");
-    let fw = g.f32s("fc.weight", &[200, 210], &w.fc.weight);
-    let fb = g.f32s("fc.bias", &[200], &w.fc.bias);
+    let fw = g.f32s("fc.weight", &[GRID_LEN, RECORD_LEN], &w.fc.weight);
+    let fb = g.f32s("fc.bias", &[GRID_LEN], &w.fc.bias);
     let o = g.node("Gemm", &[&feat, &fw, &fb], vec![attr_int("transB", 1)], "fc");
-    let heights = g.slice(&o, 1, 0, 100, "heights");
-    let masks_raw = g.slice(&o, 1, 100, 200, "masks_raw");
+    // The head's output: the 100 heights, then the 100 raw masks.
+    let (cells, values) = (GRID_CELLS as i64, GRID_LEN as i64);
+    let heights = g.slice(&o, 1, 0, cells, "heights");
+    let masks_raw = g.slice(&o, 1, cells, values, "masks_raw");
     let masks = g.node("Tanh", &[&masks_raw], vec![], "masks");
     let heights = match w.arch {
         Arch::Thesis => heights,

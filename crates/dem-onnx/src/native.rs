@@ -24,6 +24,7 @@
 use std::collections::HashMap;
 
 use dem_nn::weights::{Arch, Conv2d, GeneratorWeights, InstanceNorm, Linear, ResBlock, LEAK, NORM_EPS};
+use dem_core::format::{GRID_LEN, RECORD_LEN};
 use tract_onnx::pb;
 use tract_onnx::pb::tensor_proto::DataType;
 
@@ -108,15 +109,20 @@ pub fn recognise(proto: &pb::ModelProto) -> Result<GeneratorWeights, String> {
                 let plain = int(n, "transA", 0) == 0 && float(n, "alpha", 1.0) == 1.0 && float(n, "beta", 1.0) == 1.0;
                 let (dims, w) = weights(n, 1)?;
                 let bias = if n.input.len() > 2 { weights(n, 2)?.1 } else { Vec::new() };
+                // The head of spec/network.md: the record (210 values) in, the grid (200) out.
+                const IN: i64 = RECORD_LEN as i64;
+                const OUT: i64 = GRID_LEN as i64;
                 let weight = match (int(n, "transB", 0), dims.as_slice()) {
-                    (1, [200, 210]) => w,
-                    (0, [210, 200]) => (0..200 * 210).map(|k| w[(k % 210) * 200 + k / 210]).collect(),
-                    _ => return Err(format!("Gemm `{}` is not 210 -> 200", n.name)),
+                    (1, [OUT, IN]) => w,
+                    (0, [IN, OUT]) => {
+                        (0..GRID_LEN * RECORD_LEN).map(|k| w[(k % RECORD_LEN) * GRID_LEN + k / RECORD_LEN]).collect()
+                    }
+                    _ => return Err(format!("Gemm `{}` is not {RECORD_LEN} -> {GRID_LEN}", n.name)),
                 };
-                if !plain || bias.len() != 200 {
+                if !plain || bias.len() != GRID_LEN {
                     return Err(format!("Gemm `{}` is not x W^T + b", n.name));
                 }
-                fc = Some(Linear { n_out: 200, n_in: 210, weight, bias });
+                fc = Some(Linear { n_out: GRID_LEN, n_in: RECORD_LEN, weight, bias });
             }
             _ => {}
         }

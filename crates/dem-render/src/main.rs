@@ -19,6 +19,7 @@ use dem_core::cli::{self, value};
 #[command(version, after_long_help = "Examples:
   dem-synth --out run/ --runs 20 && dem-render run/sim.npy --count 12 -o sim.png
   dem-render run/real.npy --indices 130,140,150 --title 'measured, pallet' -o pallet.png
+  dem-render run/real.npy --per-terrain 3 --labels run/real_labels.csv -o terrains.png   # 3 of each terrain
   dem-render run/sim.npy --index-csv keep.csv -o kept.png      # keep.csv: header `index`
   dem-render --compare run/sim.npy run/real.npy --error-rows 2,1 -o pairs.png
   dem-render --compare in.npy closest.npy <(dem-apply --model g.onnx in.npy) --row-labels input,closest,generated -o fig.png
@@ -36,10 +37,10 @@ struct Args {
     #[arg(long)]
     compare: bool,
     /// First record to draw (zero-based).
-    #[arg(long, default_value_t = 0, conflicts_with_all = ["indices", "index_csv"])]
+    #[arg(long, default_value_t = 0, conflicts_with_all = ["indices", "index_csv", "per_terrain"])]
     start: u64,
     /// Records to draw from --start (fewer if the file ends first; at most 400).
-    #[arg(long, default_value_t = 24, conflicts_with_all = ["indices", "index_csv"])]
+    #[arg(long, default_value_t = 24, conflicts_with_all = ["indices", "index_csv", "per_terrain"])]
     count: u64,
     /// Draw these records, in this order: zero-based, comma-separated.
     #[arg(long, value_delimiter = ',', conflicts_with = "index_csv")]
@@ -47,6 +48,15 @@ struct Args {
     /// Draw the records listed in an index CSV (header `index`).
     #[arg(long, value_name = "FILE")]
     index_csv: Option<String>,
+    /// Draw K records of each terrain, evenly spaced among its records (at
+    /// 1/(K+1), 2/(K+1), ... of them), terrains in the order flat,
+    /// stairs-up, stairs-down, pallet, other; needs --labels.
+    #[arg(long, value_name = "K", requires = "labels", conflicts_with_all = ["indices", "index_csv"], value_parser = value::at_least_one::<usize>)]
+    per_terrain: Option<usize>,
+    /// A CSV with a `terrain` column, one row per record of the (first)
+    /// input in order: a labels CSV, or dem-eval's --records file.
+    #[arg(long, value_name = "FILE", requires = "per_terrain")]
+    labels: Option<String>,
     /// Records per picture row before wrapping [default: up to 12].
     #[arg(long)]
     columns: Option<usize>,
@@ -87,10 +97,14 @@ impl Args {
         if self.output == "-" && std::io::stdout().is_terminal() {
             return Err(cli::usage("refusing to write a PNG to a terminal: give -o FILE or redirect stdout"));
         }
-        let pick = match (self.index_csv, self.indices) {
-            (Some(path), _) => Pick::IndexCsv(path),
-            (None, Some(v)) => Pick::Direct(Selection::Indices(v)),
-            (None, None) => Pick::Direct(Selection::Range { start: self.start, count: self.count }),
+        let pick = match (self.index_csv, self.indices, self.per_terrain.zip(self.labels)) {
+            (Some(path), _, _) => Pick::IndexCsv(path),
+            (None, Some(v), _) => Pick::Direct(Selection::Indices(v)),
+            (None, None, Some((k, labels))) => {
+                dem_core::output::check_outputs(&[&labels], &[&self.output])?;
+                Pick::Direct(Selection::Indices(render::select::per_terrain(&labels, k)?))
+            }
+            (None, None, None) => Pick::Direct(Selection::Range { start: self.start, count: self.count }),
         };
         let captions = match (self.error_rows, self.captions) {
             (Some(r), _) if r.len() != 2 => return Err(cli::usage("--error-rows takes two rows, as R,P")),

@@ -9,7 +9,7 @@
 use std::collections::HashMap;
 
 use dem_core::error::{DemError, Result};
-use dem_core::format::Dem;
+use dem_core::format::{Dem, Terrain};
 use dem_core::npy;
 
 /// Most records one picture may show; more makes an unreadable picture
@@ -96,6 +96,37 @@ pub fn read_selected(path: &str, selection: &Selection) -> Result<Picked> {
         }
     }
     Ok(Picked { indices, records, total })
+}
+
+/// `--per-terrain K`: for each terrain, in [`Terrain::ALL`] order, the
+/// records at K evenly spaced places among that terrain's records (the
+/// j-th of n at j = floor(n k / (K + 1)), k = 1..K, each once), from the
+/// `terrain` column of the CSV at `path`, whose rows are the input's
+/// records in order (a labels CSV, or dem-eval's `--records` file).
+/// Terrains without records are skipped.
+pub fn per_terrain(path: &str, k: usize) -> Result<Vec<u64>> {
+    let mut rdr = csv::ReaderBuilder::new().trim(csv::Trim::All).from_reader(dem_core::table::open_input(path)?);
+    let bad = |line: u64, reason: String| DemError::Table { path: path.into(), line, reason };
+    let headers = rdr.headers().map_err(|e| bad(1, e.to_string()))?.clone();
+    let col = headers.iter().position(|h| h == "terrain").ok_or_else(|| {
+        bad(1, format!("no terrain column (columns: {})", headers.iter().collect::<Vec<_>>().join(",")))
+    })?;
+    let mut of: HashMap<Terrain, Vec<u64>> = HashMap::new();
+    for (i, rec) in rdr.records().enumerate() {
+        let line = i as u64 + 2;
+        let rec = rec.map_err(|e| bad(e.position().map_or(line, |p| p.line()), e.to_string()))?;
+        let t: Terrain = rec.get(col).unwrap_or("").parse().map_err(|e: String| bad(line, e))?;
+        of.entry(t).or_default().push(i as u64);
+    }
+    let mut picked = Vec::new();
+    for t in Terrain::ALL {
+        let Some(rows) = of.get(&t) else { continue };
+        let n = rows.len();
+        let mut at: Vec<usize> = (1..=k).map(|j| n * j / (k + 1)).collect();
+        at.dedup();
+        picked.extend(at.into_iter().map(|j| rows[j]));
+    }
+    Ok(picked)
 }
 
 /// One caption per drawn column from column `column` (default: the last)

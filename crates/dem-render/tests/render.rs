@@ -214,6 +214,35 @@ fn png_to_stdout_from_stdin() {
 
 /// Run, expect exit 2 with one error line containing every `needles`, and
 /// no output (nor a temp file) left in `dir`.
+#[test]
+fn per_terrain_draws_evenly_spaced_records_of_each_terrain_in_terrain_order() {
+    let dir = tempdir();
+    // Nine records: terrains p f s p f p u p f (pallet, flat, stairs-down, stairs-up).
+    let terrains = ["pallet", "flat", "stairs-down", "pallet", "flat", "pallet", "stairs-up", "pallet", "flat"];
+    let recs: Vec<Dem> = (0..9).map(|k| flat(k as f32 / 10.0)).collect();
+    let input = write(dir.path(), "d.npy", &recs);
+    let labels = arg(dir.path(), "l.csv");
+    let rows: String = terrains.iter().enumerate().map(|(i, t)| format!("{i},{t}\n")).collect();
+    std::fs::write(&labels, format!("index,terrain\n{rows}")).unwrap();
+    // K = 2: flat (1, 4, 8) -> places 1, 2 of 3 -> records 4, 8; stairs-up
+    // (6) -> 6 once; stairs-down (2) -> 2 once; pallet (0, 3, 5, 7) -> places 1, 2 -> 3, 5.
+    let (a, b) = (arg(dir.path(), "a.png"), arg(dir.path(), "b.png"));
+    ok(&run("dem-render", &[&input, "--per-terrain", "2", "--labels", &labels, "-o", &a], None));
+    ok(&run("dem-render", &[&input, "--indices", "4,8,6,2,3,5", "-o", &b], None));
+    assert_eq!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap(), "the same picture as the indices it picks");
+    // dem-eval's records file works too: the terrain column is found by name.
+    let records = arg(dir.path(), "r.csv");
+    let rows: String = terrains.iter().enumerate().map(|(i, t)| format!("{i},7,0.5,{t},1.0\n")).collect();
+    std::fs::write(&records, format!("sim_index,real_index,error,terrain,height_cm\n{rows}")).unwrap();
+    ok(&run("dem-render", &[&input, "--per-terrain", "2", "--labels", &records, "-o", &a], None));
+    assert_eq!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
+    // No terrain column, an unknown terrain: exit 2 naming the file and line.
+    std::fs::write(&records, "index,kind\n0,flat\n").unwrap();
+    refused(dir.path(), &[&input, "--per-terrain", "2", "--labels", &records, "-o", &arg(dir.path(), "x.png")], &["r.csv", "no terrain column"]);
+    std::fs::write(&records, "index,terrain\n0,flat\n1,moon\n").unwrap();
+    refused(dir.path(), &[&input, "--per-terrain", "2", "--labels", &records, "-o", &arg(dir.path(), "x.png")], &["r.csv", "line 3"]);
+}
+
 fn refused(dir: &Path, args: &[&str], needles: &[&str]) {
     let before: Vec<_> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name()).collect();
     let res = run("dem-render", args, None);
