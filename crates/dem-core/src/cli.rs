@@ -168,7 +168,7 @@ fn clap_one_line(rendered: &str) -> String {
 
 /// clap value parsers for numbers that must make sense: finite (no `nan`,
 /// `inf`), and inside the range a tool can use. Each error says what is
-/// expected, so clap's message reads "invalid value 'nan' for '--lr <LR>':
+/// expected, so clap's message reads "invalid value 'nan' for '`--lr <LR>`':
 /// must be a finite number > 0".
 pub mod value {
     use std::str::FromStr;

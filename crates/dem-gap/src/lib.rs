@@ -461,7 +461,7 @@ const MIN_RUNS_FOR_HALVES: usize = 8;
 
 /// Two halves of the real records, for the sampling checks. The units
 /// dealt are whole runs when the real labels give each record's run
-/// (`sequence`) and there are at least [`MIN_RUNS_FOR_HALVES`] runs, else
+/// (`sequence`) and there are at least `MIN_RUNS_FOR_HALVES` (8) runs, else
 /// blocks of consecutive records, so that neighbouring
 /// frames of a run stay together: a run's first frames (the startup rows)
 /// then go with the rest of it, not into one half. With terrain labels the

@@ -35,7 +35,7 @@ use dem_core::{npy, output};
 use dem_core::distribution::gap_terms;
 use super::{Outcome, Sets};
 
-/// Every file [`write`] leaves in its folder.
+/// Every file [`write()`] leaves in its folder.
 pub const FILES: [&str; 6] = ["report.json", "sensor.json", "report.md", "compare.png", "rows-missing.png", "rows-height.png"];
 
 /// `report.json` of an outcome, in the exact schema of the module doc.

@@ -2,7 +2,7 @@
 //! with kernels of our own over rayon and a packed GEMM.
 //!
 //! - [`weights`]: the parameters, in PyTorch's layout (checkpoints, export).
-//! - [`reference`]: a slow f64 forward pass the fast code is tested against.
+//! - [`reference`](mod@reference): a slow f64 forward pass the fast code is tested against.
 //! - [`layers`]: Winograd 3x3 conv, im2col conv over GEMM, instance norm +
 //!   activation, dense.
 //! - [`net`]: generator and discriminator on batches, forward and backward.

@@ -1,6 +1,6 @@
 //! NPY streams as the contract defines them: read one or many concatenated
 //! `.npy` arrays, write a numpy-loadable array or a stream of them; and
-//! [`array`], a plain `<f4` array writer of any record shape for side
+//! [`array`](mod@array), a plain `<f4` array writer of any record shape for side
 //! outputs outside the contract (NaN allowed).
 
 pub mod array;

@@ -124,7 +124,7 @@ impl Discriminator {
         dense::forward(&p[self.fo.w.clone()], &p[self.fo.b.clone()], &t.feat, FEAT, &mut t.logits);
     }
 
-    /// Backward of the last [`forward`] on `t` from `dlogits [n, 10]`.
+    /// Backward of the last [`forward`](Self::forward) on `t` from `dlogits [n, 10]`.
     /// `grads = Some(..)` accumulates parameter gradients (the discriminator's
     /// own step); `want_input` returns the gradient of the input grid (the
     /// generators' step, which needs no discriminator gradients).

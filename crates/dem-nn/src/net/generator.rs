@@ -211,7 +211,7 @@ impl Generator {
         }
     }
 
-    /// Backward of the last [`forward`] on `t`: `dout [n, 200]` is the loss
+    /// Backward of the last [`forward`](Self::forward) on `t`: `dout [n, 200]` is the loss
     /// gradient of the output grid. Accumulates into `grads`; returns the
     /// gradient of the input grid when `want_input` (the attitude's is never
     /// needed: it passes through from data).
