@@ -3,7 +3,9 @@
 //! Memory is one group of `batch x threads x` [`GROUP_BATCHES`] records in and
 //! out, whatever the stream's length. The batches of a group run in parallel
 //! on the current rayon pool and are written in input order, so the output is
-//! the same for any number of threads.
+//! the same for any number of threads. A group never spans two input
+//! arrays (`NpyReader::for_each_chunk`): in a live pipeline each array
+//! flows on as it arrives; from a file (one array) every group is full.
 
 use dem_core::format::{cell_of, RECORD_LEN};
 use dem_core::{npy, Dem, DemError};
