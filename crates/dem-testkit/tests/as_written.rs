@@ -21,7 +21,7 @@ use std::process::Command;
 use dem_testkit::{bin, python, tempdir, workspace_root};
 
 /// Every tool and subcommand with examples.
-const TOOLS: [&[&str]; 17] = [
+const TOOLS: [&[&str]; 18] = [
     &["dem-apply"],
     &["dem-cat"],
     &["dem-clean-pallet"],
@@ -29,6 +29,7 @@ const TOOLS: [&[&str]; 17] = [
     &["dem-eval", "compare"],
     &["dem-eval", "transfer"],
     &["dem-eval", "merge"],
+    &["dem-eval", "join"],
     &["dem-fill-nans"],
     &["dem-filter"],
     &["dem-gap"],

@@ -19,6 +19,7 @@ fn every_output_is_dash_o_out_and_old_spellings_are_hidden() {
         &["dem-eval"],
         &["dem-eval", "transfer"],
         &["dem-eval", "merge"],
+        &["dem-eval", "join"],
         &["dem-fill-nans"],
         &["dem-filter"],
         &["dem-gap"],
