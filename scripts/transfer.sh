@@ -13,6 +13,10 @@
 #   3. dem-eval transfer trains the flipper regressor and terrain classifier on
 #      sim, G_Y(sim) (thresholded, holes drawn, each then startup), sensor(sim)
 #      and measured, tests all on the held-out runs.
+#   4. The held-out runs' sims against their measured DEMs, paired 1:1
+#      (TD's pairs.csv: sim record i is the pose of measured record i):
+#      identity, G_Y's network, G_Y with its residual model (one ONNX file,
+#      `dem-train export --residual`), dem-gap's sensor model: OUT/heldout.md.
 #
 # Environment (all optional):
 #   BIN=target/release  TD=testdata  OUT=out/transfer
@@ -53,9 +57,10 @@ if [[ -z "$model" ]]; then
     "$BIN/dem-train" export "$OUT/train" -o "$OUT/gy.onnx"
     model=$OUT/gy.onnx
 fi
-"$BIN/dem-apply" --model "$model" "$OUT/sim.npy" -o "$OUT/gy_sim.npy"
+# The network alone (a MODEL exported with --residual carries more).
+"$BIN/dem-apply" --model "$model" --network-only "$OUT/sim.npy" -o "$OUT/gy_sim.npy"
 # The same with the holes drawn at the rate G_Y's raw masks predict.
-"$BIN/dem-apply" --model "$model" --sample-masks --seed "$SEED" "$OUT/sim.npy" -o "$OUT/gy_sampled_sim.npy"
+"$BIN/dem-apply" --model "$model" --network-only --sample-masks --seed "$SEED" "$OUT/sim.npy" -o "$OUT/gy_sampled_sim.npy"
 
 # 2. dem-gap's sensor model of the same gap, with the labels' times (so
 #    `startup` is fitted as the blind edge receding in each run's first
@@ -79,7 +84,9 @@ for v in gy gy_sampled; do
         --seed "$SEED" "$OUT/${v}_sim.npy" -o "$OUT/${v}_startup_sim.npy"
 done
 # G_Y, then what is left: dem-gap fitted between G_Y(sim) and the measured
-# DEMs (with times, so startup is by time), applied to G_Y(sim).
+# DEMs (with times, so startup is by time), applied to G_Y(sim). The same
+# bytes as `dem-train export --residual gap_gy/sensor.json` then dem-apply
+# --labels --seed (tested), the generator as one file.
 fit_and_apply "$OUT/gy_sim.npy" gap_gy "$OUT/gy_residual_sim.npy"
 
 # 3. The transfer table.
@@ -97,3 +104,25 @@ for fmt in text csv md; do
         --by-terrain --seed "$SEED" --format "$fmt" -o "$OUT/transfer.$ext"
 done
 cat "$OUT/transfer.txt"
+
+# 4. The paired table on the held-out runs. The generator with its residual
+#    model is one file when G_Y was trained here (MODEL given: the network
+#    piped through dem-sensor, the same bytes).
+"$BIN/dem-filter" --labels "$TD/real_labels.csv" --runs "$held" "$TD/real.npy" -o /dev/null --emit-index "$OUT/test_index.csv"
+{ echo sim_index,real_index; tail -n +2 "$OUT/test_index.csv" | sed 's/^\([0-9]*\).*/\1,\1/'; } > "$OUT/test_pairs.csv"
+ev=("$BIN/dem-eval" --sim "$TD/sim.npy" --real "$TD/real.npy" --pairs "$OUT/test_pairs.csv" --sim-labels "$TD/sim_labels.csv" --format csv)
+"${ev[@]}" --identity -o "$OUT/heldout_identity.csv"
+"${ev[@]}" --model "$model" --network-only --name gy-network -o "$OUT/heldout_network.csv"
+if [[ -z "${MODEL:-}" ]]; then
+    "$BIN/dem-train" export "$OUT/train" -o "$OUT/gy_residual.onnx" --residual "$OUT/gap_gy/sensor.json"
+    "${ev[@]}" --model "$OUT/gy_residual.onnx" --seed "$SEED" --name gy+residual -o "$OUT/heldout_residual.csv"
+else
+    "$BIN/dem-apply" --model "$model" --network-only "$TD/sim.npy" \
+        | "$BIN/dem-sensor" apply --sensor "$OUT/gap_gy/sensor.json" --labels "$TD/sim_labels.csv" --seed "$SEED" -o "$OUT/td_gy_residual.npy"
+    "${ev[@]}" --pred "$OUT/td_gy_residual.npy" --name gy+residual -o "$OUT/heldout_residual.csv"
+fi
+"$BIN/dem-sensor" apply --sensor "$OUT/gap/sensor.json" --labels "$TD/sim_labels.csv" --seed "$SEED" "$TD/sim.npy" -o "$OUT/td_sensor.npy"
+"${ev[@]}" --pred "$OUT/td_sensor.npy" --name sensor -o "$OUT/heldout_sensor.csv"
+"$BIN/dem-eval" join "$OUT/heldout_identity.csv" "$OUT/heldout_network.csv" "$OUT/heldout_residual.csv" "$OUT/heldout_sensor.csv" \
+    --format md -o "$OUT/heldout.md"
+cat "$OUT/heldout.md"

@@ -1,13 +1,13 @@
 //! dem-apply: run an ONNX model (a generator exported by dem-train) over an
-//! NPY stream of DEMs.
+//! NPY stream of DEMs; the work is in the library (`dem_apply::run`).
 
 use std::io::Write;
 use std::process::ExitCode;
 use std::time::Instant;
 
 use clap::Parser;
+use dem_apply::Config;
 use dem_core::{cli, output};
-use dem_onnx::apply::{apply, MaskSampling};
 use dem_onnx::OnnxModel;
 
 /// Run an ONNX model over every DEM of an NPY stream, in parallel batches,
@@ -18,11 +18,19 @@ use dem_onnx::OnnxModel;
 /// input and one such output runs. Outputs are written as the model gives
 /// them (a mask may be any value in [-1, 1]); a NaN or infinite output is an
 /// error naming the record. Memory: batch x threads x 4 records.
+///
+/// A generator exported with `dem-train export --residual SENSOR.json`
+/// carries a sensor model fitted by dem-gap on what its network leaves
+/// (per-record noise, startup rows by time): it is applied after the
+/// network, each record's time taken from --labels, the same bytes as
+/// `dem-apply --network-only | dem-sensor apply --sensor SENSOR.json`.
 #[derive(Parser)]
 #[command(version, after_long_help = "Examples:
   dem-apply --model g_y.onnx sim.npy -o realistic.npy
   dem-apply --model g_y.onnx --info                 # what it was trained on, how, its val table
   dem-apply --model g_y.onnx --sample-masks --seed 1 sim.npy -o realistic.npy   # holes drawn at the model's rate
+  dem-apply --model g_y.onnx --labels sim_labels.csv --seed 1 sim.npy -o realistic.npy  # with its residual model, startup by time
+  dem-apply --model g_y.onnx --network-only sim.npy -o expected.npy    # the network alone
   dem-synth --out w --runs 20 --seed 3 && dem-apply --model g_y.onnx w/sim.npy | dem-render - -o fake.png
   dem-filter --labels l.csv --terrain pallet sim.npy | dem-apply --model g_y.onnx --threads 2 > pallets_real.npy
   dem-render --compare sim.npy <(dem-apply --model g_y.onnx sim.npy) real.npy --row-labels 'sim,G(sim),real' -o cmp.png")]
@@ -48,12 +56,22 @@ struct Args {
     /// the model predicts, as a sensor's do; masks come out +-1.
     #[arg(long)]
     sample_masks: bool,
-    /// Seed of --sample-masks.
-    #[arg(long, default_value_t = 0, requires = "sample_masks")]
+    /// Run the network alone: leave out the residual sensor model the
+    /// model carries (`dem-train export --residual`).
+    #[arg(long)]
+    network_only: bool,
+    /// Labels CSV of the input's records: their `time` in the run places
+    /// the residual model's startup rows (without it, startup frames are
+    /// drawn at the model's rate).
+    #[arg(long)]
+    labels: Option<String>,
+    /// Seed of every draw: --sample-masks and the residual sensor model.
+    #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// With --sample-masks: index of the input's first record in the whole
-    /// data set, when the input is a shard (`dem-split` prints it).
-    #[arg(long, default_value_t = 0, requires = "sample_masks")]
+    /// Index of the input's first record in the whole data set, when the
+    /// input is a shard (`dem-split` prints it): the draws of a shard equal
+    /// the whole's.
+    #[arg(long, default_value_t = 0)]
     first_index: u64,
     /// Worker threads (default: one per core).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
@@ -72,7 +90,8 @@ fn main() -> ExitCode {
         if a.info {
             return print_info(&a.model);
         }
-        output::check_outputs(&[&a.input, &a.model], &[&a.output])?;
+        let inputs: Vec<&str> = [Some(&a.input), Some(&a.model), a.labels.as_ref()].into_iter().flatten().map(String::as_str).collect();
+        output::check_outputs(&inputs, &[&a.output])?;
         let mut pool = rayon::ThreadPoolBuilder::new();
         if let Some(n) = a.threads {
             pool = pool.num_threads(n as usize);
@@ -81,28 +100,41 @@ fn main() -> ExitCode {
         let model = OnnxModel::load(&a.model)?;
         let start = Instant::now();
         let bar = cli::progress(dem_core::npy::estimate_records(&a.input), "records");
-        let stats = pool.install(|| {
-            let sample = a.sample_masks.then_some(MaskSampling { seed: a.seed, first_index: a.first_index });
-            apply(&model, &a.input, &a.output, a.batch as usize, a.strict, sample, |done| {
+        let config = Config {
+            model: a.model.clone(),
+            input: a.input.clone(),
+            output: a.output.clone(),
+            batch: a.batch as usize,
+            strict: a.strict,
+            sample_masks: a.sample_masks,
+            network_only: a.network_only,
+            labels: a.labels.clone(),
+            seed: a.seed,
+            first_index: a.first_index,
+        };
+        let report = pool.install(|| {
+            dem_apply::run(&config, &model, |done| {
                 bar.set_length(bar.length().unwrap_or(0).max(done));
                 bar.set_position(done);
             })
         })?;
         bar.finish_and_clear();
+        let stats = report.stats;
         if let Some(w) = stats.attitude.warning(&a.model, &a.input) {
             cli::log(w);
         }
         let secs = start.elapsed().as_secs_f64();
         cli::log(format_args!(
-            "{} records in {secs:.2} s ({:.0} records/s), {} threads, batch {}, {}",
+            "{} records in {secs:.2} s ({:.0} records/s), {} threads, batch {}, {}{}",
             stats.records,
             stats.records as f64 / secs.max(1e-9),
             pool.current_num_threads(),
             a.batch,
-            model.engine_name()
+            model.engine_name(),
+            report.residual.map_or(String::new(), |r| format!(", then its residual sensor model: {r}"))
         ));
         // After the run: a refused input still gets exactly one line.
-        if let Some(note) = model.note() {
+        for note in model.note().map(str::to_string).into_iter().chain(report.notes) {
             cli::log(note);
         }
         Ok(())

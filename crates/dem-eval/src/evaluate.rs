@@ -58,6 +58,14 @@ pub struct EvalArgs {
     /// which must pass through); without it, such a model gets a warning.
     #[arg(long, requires = "model")]
     strict: bool,
+    /// With --model: score the network alone, without the residual sensor
+    /// model the generator carries (`dem-train export --residual`).
+    #[arg(long, requires = "model")]
+    network_only: bool,
+    /// With --model: seed of the residual sensor model's draws (as
+    /// dem-apply's --seed; the records' times come from --sim-labels).
+    #[arg(long, default_value_t = 0, requires = "model")]
+    seed: u64,
     /// Index of the sim file's first record in the whole data set, when it
     /// is a shard (`dem-split` prints it): the pairs keep the whole set's
     /// indices and only this shard's sims are scored; `dem-eval merge` joins
@@ -153,6 +161,8 @@ pub fn run(a: EvalArgs) -> anyhow::Result<()> {
         by_terrain: a.table.by.is_some(),
         batch: a.batch,
         strict: a.strict,
+        network_only: a.network_only,
+        seed: a.seed,
         emit_input: a.emit_input,
         emit_pred: a.emit_pred,
         emit_closest: a.emit_closest,

@@ -16,6 +16,7 @@ use dem_core::npy::{self, RecordIndex, CHUNK_RECORDS};
 use dem_core::table::{self, Split};
 use dem_core::{cli, Dem, DemError, Terrain};
 use dem_onnx::apply::AttitudeCheck;
+use rayon::prelude::*;
 
 /// How the predictions are made.
 pub enum Method {
@@ -54,6 +55,10 @@ pub struct Request {
     pub batch: usize,
     /// Refuse a model that changes row 20.
     pub strict: bool,
+    /// Run a model's network without the residual sensor model it carries.
+    pub network_only: bool,
+    /// Seed of the residual sensor model's draws.
+    pub seed: u64,
     /// Also one table row per terrain (needs the labels).
     pub by_terrain: bool,
     /// Write the per-record results here (CSV), in index order.
@@ -296,10 +301,14 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
     drop(all_reals);
     real_max.check(&q.pairs, n_real, &q.real, "real_index")?;
     // One terrain byte per sim record; the labels' other columns are not kept.
-    let terrains: Option<Vec<Terrain>> = q.labels_sim.as_deref().map(|p| table::read_labels(p).map(|l| l.into_iter().map(|l| l.terrain).collect())).transpose()?;
+    let labels = q.labels_sim.as_deref().map(table::read_labels).transpose()?;
+    let terrains: Option<Vec<Terrain>> = labels.as_ref().map(|l| l.iter().map(|l| l.terrain).collect());
+    let times: Option<Vec<f64>> = labels.as_deref().map(table::times);
+    drop(labels);
     // Labels are the sim file's own (a shard's are indexed from 0).
     let first_index = q.first_index.unwrap_or(0);
     let terrain_of = |i: u64| -> Option<Terrain> { terrains.as_ref().and_then(|t| t.get((i - first_index) as usize)).copied() };
+    let time_of = |i: u64| -> Option<f64> { times.as_ref().and_then(|t| t.get((i - first_index) as usize)).copied().filter(|t| t.is_finite()) };
     // The sims this run scores: the whole set, or a shard's range (its
     // length from the labels or the file; a shard on stdin runs to the end).
     let scored = if q.first_index.is_none() {
@@ -324,6 +333,14 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
         Method::Model(path) => Some(dem_onnx::OnnxModel::load(path)?),
         _ => None,
     };
+    // What dem-apply runs after the network: the generator's residual model.
+    let residual = match &q.method {
+        Method::Model(path) if !q.network_only => dem_apply::residual_of(path)?,
+        _ => None,
+    };
+    if residual.as_ref().is_some_and(|r| r.effects.iter().any(|e| e.name() == "startup")) && times.is_none() {
+        cli::log("note: the model's residual has `startup` but no --sim-labels gave the records' times: startup frames are drawn at its rate p instead of by time");
+    }
     let mut acc = Acc::default();
     let mut emit = Emit::create(q)?;
     let mut sim_rdr = npy::open(&q.sim)?;
@@ -331,7 +348,7 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
         Method::Pred(path) => Some((path, npy::open(path)?)),
         _ => None,
     };
-    let ctx = BlockCtx { q, pairs: &pairs, model: model.as_ref(), terrain_of: &terrain_of, row_sizes: &row_sizes };
+    let ctx = BlockCtx { q, pairs: &pairs, model: model.as_ref(), residual: residual.as_ref(), terrain_of: &terrain_of, time_of: &time_of, row_sizes: &row_sizes };
     let (mut chunk, mut pchunk) = (Vec::with_capacity(CHUNK_RECORDS), Vec::with_capacity(CHUNK_RECORDS));
     let mut block: Vec<(u64, Dem, Dem)> = Vec::with_capacity(BLOCK);
     loop {
@@ -392,7 +409,9 @@ struct BlockCtx<'a> {
     q: &'a Request,
     pairs: &'a Pairs,
     model: Option<&'a dem_onnx::OnnxModel>,
+    residual: Option<&'a dem_sensor::SensorModel>,
     terrain_of: &'a dyn Fn(u64) -> Option<Terrain>,
+    time_of: &'a (dyn Fn(u64) -> Option<f64> + Sync),
     row_sizes: &'a HashMap<Option<Terrain>, u64>,
 }
 
@@ -404,6 +423,11 @@ fn evaluate_block(ctx: &BlockCtx, mut block: Vec<(u64, Dem, Dem)>, reals: &mut R
         let inputs: Vec<Dem> = block.iter().map(|b| b.1).collect();
         let preds = crate::model::predict(model, path, &keys, &inputs, &ctx.q.sim, ctx.q.batch, ctx.q.strict, &mut acc.attitude)?;
         block.iter_mut().zip(preds).for_each(|(b, p)| b.2 = p);
+        if let Some(r) = ctx.residual {
+            // Keyed by the record's index in the whole sim set, as dem-apply
+            // keys it: the same draws as `dem-apply | dem-eval --pred`.
+            block.par_iter_mut().for_each(|b| r.apply_at(&mut b.2, ctx.q.seed, b.0, (ctx.time_of)(b.0)));
+        }
     }
     let (lo, hi) = (block[0].0, block[block.len() - 1].0 + 1);
     let mut sub = Selection::new();

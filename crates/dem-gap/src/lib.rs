@@ -183,7 +183,7 @@ fn terrains(path: &Option<String>, n: usize) -> Result<Labelled> {
     if l.len() != n {
         return Err(DemError::input(p, format!("{} labels for {n} records", l.len())));
     }
-    let times = l.iter().any(|l| l.time.is_some()).then(|| l.iter().map(|l| l.time.unwrap_or(f64::NAN)).collect());
+    let times = l.iter().any(|l| l.time.is_some()).then(|| table::times(&l));
     let runs = l.iter().map(|l| l.sequence).collect::<Option<Vec<u64>>>();
     Ok(Some((l.into_iter().map(|l| l.terrain).collect(), times, runs)))
 }

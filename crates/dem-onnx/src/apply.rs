@@ -32,14 +32,17 @@ pub struct ApplyStats {
 /// far after each group. A non-finite output value (the model made a NaN or
 /// an infinity) is an error naming the record; a named output file is then
 /// not written. A model that changes row 20 (the attitude) is counted in
-/// the stats, and refused when `strict`.
+/// the stats, and refused when `strict`. `finish`, when given, then changes
+/// each batch's checked outputs before they are written (holes drawn, a
+/// residual sensor model): it gets the batch's inputs, its outputs and the
+/// index of its first record in the input stream, batches in stream order.
 pub fn apply(
     model: &OnnxModel,
     input: &str,
     output: &str,
     batch: usize,
     strict: bool,
-    sample: Option<MaskSampling>,
+    finish: Option<Finish>,
     mut progress: impl FnMut(u64),
 ) -> Result<ApplyStats, DemError> {
     let mut attitude = AttitudeCheck::default();
@@ -52,10 +55,8 @@ pub fn apply(
         for (k, (inp, out)) in chunk.chunks(batch).zip(outs.iter_mut()).enumerate() {
             let at = first + (k * batch) as u64;
             check_outputs(inp, out, at, input, model.name(), strict, &mut attitude)?;
-            if let Some(s) = sample {
-                for (i, (x, y)) in inp.iter().zip(out.iter_mut()).enumerate() {
-                    crate::masks::sample_masks(x, y, s.seed, s.first_index + at + i as u64);
-                }
+            if let Some(f) = finish {
+                f(inp, out, at)?;
             }
             writer.write(out)?;
         }
@@ -67,6 +68,10 @@ pub fn apply(
     Ok(ApplyStats { records, attitude })
 }
 
+/// What [`apply`] does to a batch's outputs after the model: `(inputs,
+/// outputs, index of the batch's first record in the input stream)`.
+pub type Finish<'a> = &'a (dyn Fn(&[Dem], &mut [Dem], u64) -> Result<(), DemError> + Sync);
+
 /// Draw the holes from the model's raw masks ([`crate::masks::sample_masks`]):
 /// the seed, and the index of the input's first record in the whole data set.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -75,6 +80,16 @@ pub struct MaskSampling {
     pub seed: u64,
     /// Index of the input's first record in the whole data set (shards).
     pub first_index: u64,
+}
+
+impl MaskSampling {
+    /// Draw the holes of `out`, the outputs for `inp`, whose first record is
+    /// record `first` of the input stream.
+    pub fn draw(&self, inp: &[Dem], out: &mut [Dem], first: u64) {
+        for (i, (x, y)) in inp.iter().zip(out.iter_mut()).enumerate() {
+            crate::masks::sample_masks(x, y, self.seed, self.first_index + first + i as u64);
+        }
+    }
 }
 
 /// What a model did with row 20 (the attitude, which spec/network.md says

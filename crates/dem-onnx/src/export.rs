@@ -329,6 +329,12 @@ pub fn export_checked_with(
     Ok(ExportReport { path: path.into(), bytes: bytes.len(), records: check_inputs.len(), max_abs_diff })
 }
 
+/// The `metadata_props` key of a generator's residual sensor model: the
+/// JSON of a dem-sensor model that dem-gap fitted between the network's
+/// output and measured DEMs, which `dem-apply` applies after the network
+/// (`dem-train export --residual`).
+pub const RESIDUAL_KEY: &str = "dem.residual";
+
 /// What an ONNX file says about itself: producer, description and the
 /// `metadata_props` an export stored ([`export_checked_with`]), in file order.
 #[derive(Clone, Debug, PartialEq)]

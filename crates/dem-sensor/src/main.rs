@@ -83,7 +83,7 @@ fn main() -> ExitCode {
                 m = m.only(&only).map_err(|why| dem_core::DemError::input(model.as_str(), why))?;
             }
             let times = match &labels {
-                Some(p) => Some(dem_core::table::read_labels(p)?.iter().map(|l| l.time.unwrap_or(f64::NAN)).collect::<Vec<f64>>()),
+                Some(p) => Some(dem_core::table::times(&dem_core::table::read_labels(p)?)),
                 None => None,
             };
             let bar = cli::progress(0, "records");

@@ -19,7 +19,8 @@ pub mod settings;
 use std::path::Path;
 
 use anyhow::Result;
-use dem_core::{cli, npy, output, table};
+use dem_core::{cli, npy, output, table, DemError};
+use dem_onnx::export::RESIDUAL_KEY;
 use dem_nn::train::checkpoint;
 use dem_nn::train::{CycleGan, Sampler, TrainData};
 use dem_sensor::SensorModel;
@@ -158,22 +159,32 @@ fn train_in_folder(cfg: &TrainConfig) -> Result<()> {
 /// Export generator `y` (G_Y, sim -> real) or G_X of the run in `run` to
 /// the ONNX file `out`, after tract reproduces the trainer on the run's
 /// check records; the model records its provenance.
-pub fn export(run: &str, out: &str, y: bool) -> Result<()> {
-    let inputs = [run_file(run, "checkpoint.bin"), run_file(run, "check_sim.npy"), run_file(run, "check_real.npy")];
+pub fn export(run: &str, out: &str, y: bool, residual: Option<&str>) -> Result<()> {
+    let mut inputs = vec![run_file(run, "checkpoint.bin"), run_file(run, "check_sim.npy"), run_file(run, "check_real.npy")];
+    inputs.extend(residual.map(String::from));
     output::check_outputs(&inputs.iter().map(String::as_str).collect::<Vec<_>>(), &[out])?;
+    let residual = residual.map(|p| Ok::<_, anyhow::Error>((p, SensorModel::read(p)?))).transpose()?;
+    if residual.is_some() && !y {
+        return Err(DemError::Usage("--residual is a sensor model of G_Y's output: it needs --generator y".into()).into());
+    }
     let (meta, gan) = checkpoint::load(&run_file(run, "checkpoint.bin"))?;
     let which = if y { "y" } else { "x" };
     let check = npy::read_all(&run_file(run, if y { "check_sim.npy" } else { "check_real.npy" }))?;
     let expected = gan.generate(y, &check);
-    let metadata = provenance::export_metadata(&meta, which, std::fs::read_to_string(run_file(run, "val.csv")).ok());
+    let mut metadata = provenance::export_metadata(&meta, which, std::fs::read_to_string(run_file(run, "val.csv")).ok());
+    if let Some((path, model)) = &residual {
+        metadata.push((RESIDUAL_KEY.into(), serde_json::to_string(model)?));
+        metadata.push((format!("{RESIDUAL_KEY}.source"), format!("{path}, sha256 {}", provenance::sha256_file(path)?)));
+    }
     let report = dem_onnx::export::export_checked_with(&gan.generator_weights(y), &check, &expected, out, &metadata)?;
     cli::log(format!(
-        "wrote {} ({} bytes): G_{} of {run}, tract reproduces the trainer on {} check records (max |diff| {:.2e})",
+        "wrote {} ({} bytes): G_{} of {run}, tract reproduces the trainer on {} check records (max |diff| {:.2e}){}",
         report.path,
         report.bytes,
         which.to_uppercase(),
         report.records,
-        report.max_abs_diff
+        report.max_abs_diff,
+        residual.map_or(String::new(), |(_, m)| format!(", with the residual sensor model {}", m.summary()))
     ));
     Ok(())
 }

@@ -23,6 +23,9 @@ use dem_train::{RunOptions, Settings, TrainConfig};
   dem-train --sim sim.npy --real real.npy --pairs pairs.csv --out run/ --epochs 20
   dem-train --sim sim.npy --real real.npy --pairs pairs.csv --out run/ --epochs 40 --resume   # go on to 40
   dem-train export run/ -o gy.onnx
+  dem-apply --model gy.onnx sim.npy -o gy_sim.npy        # what the network leaves, named by dem-gap (1 min):
+  dem-gap --sim gy_sim.npy --real real.npy --sim-labels sim_labels.csv --real-labels real_labels.csv -o gap/
+  dem-train export run/ -o gy.onnx --residual gap/sensor.json   # the generator with what its network leaves
   dem-train curves run/ -o curves.png                   # losses and val error per epoch
   dem-apply --model gy.onnx < sim.npy > realistic.npy")]
 struct Cli {
@@ -147,13 +150,19 @@ struct ExportArgs {
     /// Which generator: y (sim -> real) or x (real -> sim).
     #[arg(long, default_value = "y", value_parser = ["y", "x"])]
     generator: String,
+    /// A sensor model JSON that dem-gap fitted between the network's
+    /// output and the measured DEMs (what a deterministic network cannot
+    /// write: per-record noise, startup rows by time). It is stored in the
+    /// model (`dem.residual`), and dem-apply applies it after the network.
+    #[arg(long)]
+    residual: Option<String>,
 }
 
 fn main() -> ExitCode {
     cli::run(|| {
         let c: Cli = cli::parse();
         match c.command {
-            Some(Command::Export(e)) => dem_train::export(&e.run, &e.output, e.generator == "y"),
+            Some(Command::Export(e)) => dem_train::export(&e.run, &e.output, e.generator == "y", e.residual.as_deref()),
             Some(Command::Curves { run, output }) => dem_train::draw_curves(&run, &output),
             None => {
                 if let Some(t) = c.train.threads {

@@ -151,6 +151,84 @@ fn export_matches_the_trainer_in_onnxruntime_and_dem_apply() {
     assert!(text.contains("dem.trained: 8 steps"), "{text}");
 }
 
+/// A generator exported with `--residual` carries the sensor model, and
+/// dem-apply and dem-eval --model apply it after the network: the same
+/// bytes as the network alone piped through dem-sensor apply, with each
+/// record's time from the labels.
+#[test]
+fn a_residual_sensor_model_travels_with_the_generator() {
+    let d = tempdir();
+    let r = arg(d.path(), "run");
+    ok(&train(d.path(), &r, &["--max-steps", "8"]));
+    let sensor = arg(d.path(), "residual.json");
+    std::fs::write(
+        &sensor,
+        r#"{"effects": [{"effect": "startup", "params": {"x0": 0.4, "v": 0.2, "p": 0.1}},
+                        {"effect": "noise", "params": {"sigma0": 0.003, "k": 0.01}}]}"#,
+    )
+    .unwrap();
+    let model = arg(d.path(), "gy.onnx");
+    let out = run("dem-train", &["export", &r, "-o", &model, "--residual", &sensor], None);
+    ok(&out);
+    assert!(stderr(&out).contains("with the residual sensor model startup"), "{}", stderr(&out));
+    let info = String::from_utf8_lossy(&run("dem-apply", &["--model", &model, "--info"], None).stdout).into_owned();
+    assert!(info.contains("dem.residual: {\"effects\":[{\"effect\":\"startup\"") && info.contains("dem.residual.source: "), "{info}");
+    // The first 200 sim records of testdata (first frames of runs among them).
+    let (sim, labels) = (arg(d.path(), "sim.npy"), arg(d.path(), "sim_labels.csv"));
+    npy::write_all(&sim, &npy::read_all(&td("sim.npy")).unwrap()[..200]).unwrap();
+    let text = std::fs::read_to_string(td("sim_labels.csv")).unwrap();
+    std::fs::write(&labels, text.lines().take(201).map(|l| format!("{l}\n")).collect::<String>()).unwrap();
+    let whole = arg(d.path(), "whole.npy");
+    let out = run("dem-apply", &["--model", &model, "--labels", &labels, "--seed", "5", "--batch", "7", &sim, "-o", &whole], None);
+    ok(&out);
+    assert!(stderr(&out).contains("then its residual sensor model: startup"), "{}", stderr(&out));
+    let net = arg(d.path(), "net.npy");
+    ok(&run("dem-apply", &["--model", &model, "--network-only", &sim, "-o", &net], None));
+    let piped = arg(d.path(), "piped.npy");
+    ok(&run("dem-sensor", &["apply", "--sensor", &sensor, "--labels", &labels, "--seed", "5", &net, "-o", &piped], None));
+    assert_eq!(std::fs::read(&whole).unwrap(), std::fs::read(&piped).unwrap(), "dem-apply with the residual != network | dem-sensor apply");
+    assert_ne!(std::fs::read(&whole).unwrap(), std::fs::read(&net).unwrap(), "the residual changed nothing");
+    // A shard (records 120..) with --first-index gets the whole's draws.
+    let (shard, shard_labels) = (arg(d.path(), "shard.npy"), arg(d.path(), "shard_labels.csv"));
+    npy::write_all(&shard, &npy::read_all(&sim).unwrap()[120..]).unwrap();
+    let mut lines = text.lines();
+    let head = lines.next().unwrap().to_string();
+    // A shard's labels are its own, indexed from 0 (as dem-split writes them).
+    let rows: Vec<String> =
+        lines.skip(120).take(80).enumerate().map(|(i, l)| format!("{i},{}", l.split_once(',').unwrap().1)).collect();
+    std::fs::write(&shard_labels, format!("{head}\n{}\n", rows.join("\n"))).unwrap();
+    let part = arg(d.path(), "part.npy");
+    ok(&run("dem-apply", &["--model", &model, "--labels", &shard_labels, "--seed", "5", "--first-index", "120", &shard, "-o", &part], None));
+    assert_eq!(npy::read_all(&part).unwrap(), npy::read_all(&whole).unwrap()[120..].to_vec());
+    // Labels shorter than the stream: refused, nothing written.
+    let short = arg(d.path(), "short.npy");
+    let out = run("dem-apply", &["--model", &model, "--labels", &shard_labels, &sim, "-o", &short], None);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("shard_labels.csv") && stderr(&out).lines().count() == 1, "{}", stderr(&out));
+    assert!(!Path::new(&short).exists());
+    // dem-eval --model scores what dem-apply writes.
+    let pairs = arg(d.path(), "pairs200.csv");
+    std::fs::write(&pairs, std::iter::once("sim_index,real_index\n".to_string()).chain((0..200).map(|i| format!("{i},{i}\n"))).collect::<String>()).unwrap();
+    let real = td("real.npy");
+    let eval = |extra: &[&str]| {
+        let mut a = vec!["--sim", &sim, "--real", &real, "--pairs", &pairs, "--sim-labels", &labels, "--name", "g", "--format", "csv"];
+        a.extend_from_slice(extra);
+        let out = run("dem-eval", &a, None);
+        ok(&out);
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    assert_eq!(eval(&["--model", &model, "--seed", "5"]), eval(&["--pred", &whole]));
+    assert_eq!(eval(&["--model", &model, "--network-only"]), eval(&["--pred", &net]));
+    // G_X has no residual; a bad sensor model is refused before anything is written.
+    let out = run("dem-train", &["export", &r, "-o", &arg(d.path(), "gx.onnx"), "--generator", "x", "--residual", &sensor], None);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    let bad = arg(d.path(), "bad.json");
+    std::fs::write(&bad, r#"{"effects": [{"effect": "noise", "params": {"sigma0": -1, "k": 0}}]}"#).unwrap();
+    let out = run("dem-train", &["export", &r, "-o", &arg(d.path(), "g2.onnx"), "--residual", &bad], None);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("bad.json") && !d.path().join("g2.onnx").exists(), "{}", stderr(&out));
+}
+
 #[test]
 fn bad_inputs_are_refused_clearly() {
     let d = tempdir();

@@ -1,0 +1,113 @@
+//! dem-apply: run an ONNX generator over an NPY stream, then what its
+//! network cannot write: holes drawn at the rate its masks predict, and the
+//! residual sensor model the generator carries.
+//!
+//! A generator trained on sim DEMs is deterministic and sees no time: it
+//! writes the *expected* measured DEM of a sim DEM. What a measured DEM
+//! has on top (per-record noise, the rows behind the robot missing in a
+//! run's first frames) is drawn by a sensor model that dem-gap fits between
+//! the network's output and the measured DEMs; `dem-train export
+//! --residual` stores that model in the ONNX file (`dem.residual`), and
+//! [`run`] applies it after the network, with each record's time from its
+//! labels. The result equals `dem-apply --network-only | dem-sensor apply`
+//! with the same seed, byte for byte.
+
+use dem_core::format::Dem;
+use dem_core::{table, DemError};
+use dem_onnx::apply::{apply, ApplyStats, MaskSampling};
+use dem_onnx::OnnxModel;
+use dem_sensor::SensorModel;
+
+pub use dem_onnx::export::RESIDUAL_KEY;
+
+/// What to run, validated from the command line.
+#[derive(Clone, Debug)]
+pub struct Config {
+    /// The ONNX model.
+    pub model: String,
+    /// Input NPY stream (`-` for stdin).
+    pub input: String,
+    /// Output NPY stream (`-` for stdout).
+    pub output: String,
+    /// Records per model call.
+    pub batch: usize,
+    /// Refuse a model that changes row 20.
+    pub strict: bool,
+    /// Draw the holes from the raw masks.
+    pub sample_masks: bool,
+    /// Run the network only, without the residual sensor model it carries.
+    pub network_only: bool,
+    /// Labels of the input's records (their `time` drives `startup`).
+    pub labels: Option<String>,
+    /// Seed of every draw (holes, the residual model).
+    pub seed: u64,
+    /// Index of the input's first record in the whole data set (shards).
+    pub first_index: u64,
+}
+
+/// What [`run`] did.
+#[derive(Clone, Debug)]
+pub struct Report {
+    /// Records, and what the model did to row 20.
+    pub stats: ApplyStats,
+    /// The residual sensor model applied, if any (its one-line summary).
+    pub residual: Option<String>,
+    /// Said once after the run (e.g. no times for a time effect).
+    pub notes: Vec<String>,
+}
+
+/// The residual sensor model stored in the ONNX file at `path`, if any.
+pub fn residual_of(path: &str) -> Result<Option<SensorModel>, DemError> {
+    let info = dem_onnx::read_info(path)?;
+    let Some((_, json)) = info.metadata.iter().find(|(k, _)| k == RESIDUAL_KEY) else { return Ok(None) };
+    SensorModel::from_json(json)
+        .map(Some)
+        .map_err(|e| DemError::input(path, format!("its residual sensor model ({RESIDUAL_KEY}) is not valid: {e}")))
+}
+
+/// Run `model` (loaded from `c.model`) over `c.input` into `c.output`: the
+/// network, then holes drawn (`sample_masks`), then the residual sensor
+/// model unless `network_only`. `progress` gets the records done so far.
+pub fn run(c: &Config, model: &OnnxModel, progress: impl FnMut(u64)) -> Result<Report, DemError> {
+    let residual = if c.network_only { None } else { residual_of(&c.model)? };
+    let times = match &c.labels {
+        Some(p) => Some(table::times(&table::read_labels(p)?)),
+        None => None,
+    };
+    let mut notes = Vec::new();
+    if let Some(r) = &residual {
+        if times.is_none() && r.effects.iter().any(|e| e.name() == "startup") {
+            notes.push(
+                "note: the model's residual has `startup` but no --labels gave the records' times: \
+                 startup frames are drawn at its rate p instead of by time"
+                    .to_string(),
+            );
+        }
+    }
+    let sample = c.sample_masks.then_some(MaskSampling { seed: c.seed, first_index: c.first_index });
+    let finish = |inp: &[Dem], out: &mut [Dem], first: u64| -> Result<(), DemError> {
+        if let Some(s) = &sample {
+            s.draw(inp, out, first);
+        }
+        if let Some(r) = &residual {
+            let t = match (&times, &c.labels) {
+                (Some(t), Some(path)) => {
+                    let end = first as usize + out.len();
+                    if end > t.len() {
+                        return Err(DemError::input(
+                            path,
+                            format!("{} labels, but {} has more records ({end} so far)", t.len(), c.input),
+                        ));
+                    }
+                    Some(&t[first as usize..end])
+                }
+                _ => None,
+            };
+            r.apply_all_at(out, c.seed, c.first_index + first, t);
+        }
+        Ok(())
+    };
+    let any = sample.is_some() || residual.is_some();
+    let stats = apply(model, &c.input, &c.output, c.batch, c.strict, any.then_some(&finish as _), progress)?;
+    Ok(Report { stats, residual: residual.map(|r| r.summary()), notes })
+}
