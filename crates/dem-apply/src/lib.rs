@@ -71,12 +71,12 @@ pub fn residual_of(path: &str) -> Result<Option<SensorModel>, DemError> {
 pub fn run(c: &Config, model: &OnnxModel, progress: impl FnMut(u64)) -> Result<Report, DemError> {
     let residual = if c.network_only { None } else { residual_of(&c.model)? };
     let times = match &c.labels {
-        Some(p) => Some(table::times(&table::read_labels(p)?)),
+        Some(p) => Some((p.as_str(), table::times(&table::read_labels(p)?))),
         None => None,
     };
     let mut notes = Vec::new();
     if let Some(r) = &residual {
-        if times.is_none() && r.effects.iter().any(|e| e.name() == "startup") {
+        if times.is_none() && r.uses_time() {
             notes.push(
                 "note: the model's residual has `startup` but no --labels gave the records' times: \
                  startup frames are drawn at its rate p instead of by time"
@@ -90,20 +90,7 @@ pub fn run(c: &Config, model: &OnnxModel, progress: impl FnMut(u64)) -> Result<R
             s.draw(inp, out, first);
         }
         if let Some(r) = &residual {
-            let t = match (&times, &c.labels) {
-                (Some(t), Some(path)) => {
-                    let end = first as usize + out.len();
-                    if end > t.len() {
-                        return Err(DemError::input(
-                            path,
-                            format!("{} labels, but {} has more records ({end} so far)", t.len(), c.input),
-                        ));
-                    }
-                    Some(&t[first as usize..end])
-                }
-                _ => None,
-            };
-            r.apply_all_at(out, c.seed, c.first_index + first, t);
+            r.apply_chunk(out, c.seed, c.first_index, first, times.as_ref().map(|(p, t)| (*p, t.as_slice())))?;
         }
         Ok(())
     };

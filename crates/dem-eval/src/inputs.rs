@@ -338,7 +338,7 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
         Method::Model(path) if !q.network_only => dem_apply::residual_of(path)?,
         _ => None,
     };
-    if residual.as_ref().is_some_and(|r| r.effects.iter().any(|e| e.name() == "startup")) && times.is_none() {
+    if residual.as_ref().is_some_and(|r| r.uses_time()) && times.is_none() {
         cli::log("note: the model's residual has `startup` but no --sim-labels gave the records' times: startup frames are drawn at its rate p instead of by time");
     }
     let mut acc = Acc::default();

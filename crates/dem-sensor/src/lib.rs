@@ -132,6 +132,38 @@ impl SensorModel {
             .for_each(|(i, d)| self.apply_at(d, seed, first + i as u64, times.and_then(|t| t.get(i).copied()).filter(|t| t.is_finite())));
     }
 
+    /// [`SensorModel::apply_all_at`] on `records`, records `first..` of a
+    /// stream whose first record is record `first_index` of the whole data
+    /// set; `times` (the labels file and its times) index the stream's own
+    /// records, and a stream longer than them is refused naming the file.
+    pub fn apply_chunk(
+        &self,
+        records: &mut [Dem],
+        seed: u64,
+        first_index: u64,
+        first: u64,
+        times: Option<(&str, &[f64])>,
+    ) -> Result<()> {
+        let t = match times {
+            Some((path, t)) => {
+                let (a, b) = (first as usize, first as usize + records.len());
+                if b > t.len() {
+                    return Err(DemError::input(path, format!("{} labels, but the stream has more records ({b} so far)", t.len())));
+                }
+                Some(&t[a..b])
+            }
+            None => None,
+        };
+        self.apply_all_at(records, seed, first_index + first, t);
+        Ok(())
+    }
+
+    /// True when an effect reads each record's time (`startup`): without
+    /// times it falls back to a per-record rate.
+    pub fn uses_time(&self) -> bool {
+        self.effects.iter().any(|e| matches!(e, Effect::Startup { .. }))
+    }
+
     /// Names of the effects, comma-separated (`none` when empty).
     pub fn summary(&self) -> String {
         if self.effects.is_empty() {
@@ -175,17 +207,7 @@ pub fn apply_shard(
     progress: impl Fn(u64),
 ) -> Result<u64> {
     let (_, written) = transform(input, output, |first, chunk| {
-        let t = match times {
-            Some((path, t)) => {
-                let (a, b) = (first as usize, first as usize + chunk.len());
-                if b > t.len() {
-                    return Err(DemError::input(path, format!("{} labels, but the stream has more records ({b} so far)", t.len())));
-                }
-                Some(&t[a..b])
-            }
-            None => None,
-        };
-        model.apply_all_at(chunk, seed, first_index + first, t);
+        model.apply_chunk(chunk, seed, first_index, first, times)?;
         progress(chunk.len() as u64);
         Ok(())
     })?;
