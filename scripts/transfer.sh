@@ -24,6 +24,10 @@
 #   TRAIN_ARGS="--seed 1"                       dem-train options (defaults otherwise)
 #   MODEL=gy.onnx                               use this G_Y instead of training one
 #   SEED=1
+#   CLEAN_PALLETS=1     the sim DEMs go through dem-clean-pallet first (the
+#                       thesis's section 6.3: solid pallet tops) for every
+#                       method: G_Y is trained and applied on them, dem-gap
+#                       fits on them; the transfer table gains a `sim-clean` row
 set -euo pipefail
 BIN=${BIN:-target/release}
 TD=${TD:-testdata}
@@ -31,6 +35,7 @@ OUT=${OUT:-out/transfer}
 TEST_RUNS=${TEST_RUNS:-10 11 12 13 14 15 16 17 18 19}
 SEED=${SEED:-1}
 TRAIN_ARGS=${TRAIN_ARGS:---seed $SEED}
+CLEAN_PALLETS=${CLEAN_PALLETS:-0}
 mkdir -p "$OUT"
 
 held=${TEST_RUNS// /,}  # dem-filter's --runs take a comma-separated list
@@ -40,12 +45,23 @@ held=${TEST_RUNS// /,}  # dem-filter's --runs take a comma-separated list
     -o "$OUT/real.npy" --emit-labels "$OUT/real_labels.csv"
 "$BIN/dem-filter" --labels "$TD/sim_labels.csv" --except-runs "$held" "$TD/sim.npy" \
     -o "$OUT/sim.npy" --emit-labels "$OUT/sim_labels.csv"
+# SIM: what every method starts from; TD_SIM: the same for the held-out table.
+SIM=$OUT/sim.npy
+TD_SIM=$TD/sim.npy
+clean_rows=()
+if [[ $CLEAN_PALLETS == 1 ]]; then
+    "$BIN/dem-clean-pallet" --labels "$OUT/sim_labels.csv" "$OUT/sim.npy" -o "$OUT/sim_clean.npy"
+    "$BIN/dem-clean-pallet" --labels "$TD/sim_labels.csv" "$TD/sim.npy" -o "$OUT/td_sim_clean.npy"
+    SIM=$OUT/sim_clean.npy
+    TD_SIM=$OUT/td_sim_clean.npy
+    clean_rows=(--train sim-clean "$SIM" "$OUT/sim_labels.csv")
+fi
 
 # 1. G_Y from the non-held-out runs, as make demo prepares its data.
 model=${MODEL:-}
 if [[ -z "$model" ]]; then
     mkdir -p "$OUT/prep"
-    "$BIN/dem-filter" --labels "$OUT/sim_labels.csv" --drop-other --unique "$OUT/sim.npy" -o "$OUT/prep/sim.npy" \
+    "$BIN/dem-filter" --labels "$OUT/sim_labels.csv" --drop-other --unique "$SIM" -o "$OUT/prep/sim.npy" \
         --emit-labels "$OUT/prep/sim_labels.csv"
     "$BIN/dem-filter" --labels "$OUT/real_labels.csv" --drop-other "$OUT/real.npy" -o "$OUT/prep/real.npy"
     "$BIN/dem-pair" --match content --sim "$OUT/prep/sim.npy" --real "$OUT/prep/real.npy" \
@@ -58,9 +74,9 @@ if [[ -z "$model" ]]; then
     model=$OUT/gy.onnx
 fi
 # The network alone (a MODEL exported with --residual carries more).
-"$BIN/dem-apply" --model "$model" --network-only "$OUT/sim.npy" -o "$OUT/gy_sim.npy"
+"$BIN/dem-apply" --model "$model" --network-only "$SIM" -o "$OUT/gy_sim.npy"
 # The same with the holes drawn at the rate G_Y's raw masks predict.
-"$BIN/dem-apply" --model "$model" --network-only --sample-masks --seed "$SEED" "$OUT/sim.npy" -o "$OUT/gy_sampled_sim.npy"
+"$BIN/dem-apply" --model "$model" --network-only --sample-masks --seed "$SEED" "$SIM" -o "$OUT/gy_sampled_sim.npy"
 
 # 2. dem-gap's sensor model of the same gap, with the labels' times (so
 #    `startup` is fitted as the blind edge receding in each run's first
@@ -76,7 +92,7 @@ fit_and_apply() {
     "$BIN/dem-sensor" apply --sensor "$OUT/$2/sensor.json" --labels "$OUT/sim_labels.csv" --seed "$SEED" \
         "$1" -o "$3"
 }
-fit_and_apply "$OUT/sim.npy" gap "$OUT/sensor_sim.npy"
+fit_and_apply "$SIM" gap "$OUT/sensor_sim.npy"
 # The virtual sensor: G_Y (terrain-made effects), then the one effect a sim
 # DEM cannot carry, the startup rows of a run's first frames, by time.
 for v in gy gy_sampled; do
@@ -93,7 +109,7 @@ fit_and_apply "$OUT/gy_sim.npy" gap_gy "$OUT/gy_residual_sim.npy"
 for fmt in text csv md; do
     ext=$([[ $fmt == text ]] && echo txt || echo "$fmt")
     "$BIN/dem-eval" transfer --test "$OUT/test.npy" --test-labels "$OUT/test_labels.csv" \
-        --train sim "$OUT/sim.npy" "$OUT/sim_labels.csv" \
+        --train sim "$OUT/sim.npy" "$OUT/sim_labels.csv" "${clean_rows[@]}" \
         --train gy "$OUT/gy_sim.npy" "$OUT/sim_labels.csv" \
         --train gy-sampled "$OUT/gy_sampled_sim.npy" "$OUT/sim_labels.csv" \
         --train gy+startup "$OUT/gy_startup_sim.npy" "$OUT/sim_labels.csv" \
@@ -110,18 +126,18 @@ cat "$OUT/transfer.txt"
 #    piped through dem-sensor, the same bytes).
 "$BIN/dem-filter" --labels "$TD/real_labels.csv" --runs "$held" "$TD/real.npy" -o /dev/null --emit-index "$OUT/test_index.csv"
 { echo sim_index,real_index; tail -n +2 "$OUT/test_index.csv" | sed 's/^\([0-9]*\).*/\1,\1/'; } > "$OUT/test_pairs.csv"
-ev=("$BIN/dem-eval" --sim "$TD/sim.npy" --real "$TD/real.npy" --pairs "$OUT/test_pairs.csv" --sim-labels "$TD/sim_labels.csv" --format csv)
+ev=("$BIN/dem-eval" --sim "$TD_SIM" --real "$TD/real.npy" --pairs "$OUT/test_pairs.csv" --sim-labels "$TD/sim_labels.csv" --format csv)
 "${ev[@]}" --identity -o "$OUT/heldout_identity.csv"
 "${ev[@]}" --model "$model" --network-only --name gy-network -o "$OUT/heldout_network.csv"
 if [[ -z "${MODEL:-}" ]]; then
     "$BIN/dem-train" export "$OUT/train" -o "$OUT/gy_residual.onnx" --residual "$OUT/gap_gy/sensor.json"
     "${ev[@]}" --model "$OUT/gy_residual.onnx" --seed "$SEED" --name gy+residual -o "$OUT/heldout_residual.csv"
 else
-    "$BIN/dem-apply" --model "$model" --network-only "$TD/sim.npy" \
+    "$BIN/dem-apply" --model "$model" --network-only "$TD_SIM" \
         | "$BIN/dem-sensor" apply --sensor "$OUT/gap_gy/sensor.json" --labels "$TD/sim_labels.csv" --seed "$SEED" -o "$OUT/td_gy_residual.npy"
     "${ev[@]}" --pred "$OUT/td_gy_residual.npy" --name gy+residual -o "$OUT/heldout_residual.csv"
 fi
-"$BIN/dem-sensor" apply --sensor "$OUT/gap/sensor.json" --labels "$TD/sim_labels.csv" --seed "$SEED" "$TD/sim.npy" -o "$OUT/td_sensor.npy"
+"$BIN/dem-sensor" apply --sensor "$OUT/gap/sensor.json" --labels "$TD/sim_labels.csv" --seed "$SEED" "$TD_SIM" -o "$OUT/td_sensor.npy"
 "${ev[@]}" --pred "$OUT/td_sensor.npy" --name sensor -o "$OUT/heldout_sensor.csv"
 "$BIN/dem-eval" join "$OUT/heldout_identity.csv" "$OUT/heldout_network.csv" "$OUT/heldout_residual.csv" "$OUT/heldout_sensor.csv" \
     --format md -o "$OUT/heldout.md"
