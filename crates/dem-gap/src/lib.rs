@@ -27,7 +27,7 @@ pub mod fit;
 pub mod report;
 
 use rand::seq::index::sample;
-use rand::SeedableRng;
+use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use dem_core::error::{DemError, Result};
@@ -63,6 +63,9 @@ pub struct GapConfig {
     pub fit_records: usize,
     /// Smallest fraction of the gap an added effect must remove.
     pub min_gain: f64,
+    /// Unpaired, with terrain labels on both sides: draw the sim records
+    /// to the real set's terrain mix first (see [`terrain_mix`]).
+    pub match_terrain: bool,
 }
 
 /// One added effect.
@@ -151,6 +154,10 @@ pub struct Outcome {
     pub refits: Vec<Refit>,
     /// Per terrain, when labels are given.
     pub terrains: Vec<TerrainRow>,
+    /// Sim records compared after drawing them to the real set's terrain
+    /// mix, and sim records read (unpaired, both sides labelled, when the
+    /// draw changed anything).
+    pub terrain_mix: Option<(usize, usize)>,
 }
 
 /// The compared sets: model side (sim) and real side, aligned when paired.
@@ -171,6 +178,9 @@ pub struct Sets {
     /// Run (labels' `sequence`) of each real record, when every real label
     /// has one (unpaired only: the sampling halves deal whole runs).
     pub real_runs: Option<Vec<u64>>,
+    /// Sim records compared after drawing them to the real set's terrain
+    /// mix, and sim records read, when the draw changed anything.
+    pub terrain_mix: Option<(usize, usize)>,
 }
 
 /// Terrains; times when any label has one; runs when every label has one.
@@ -206,7 +216,17 @@ pub fn load(cfg: &GapConfig) -> Result<Sets> {
         None => (None, None),
     };
     let Some(pp) = &cfg.pairs else {
-        return Ok(Sets { sim, real, paired: false, sim_terrain: ts, real_terrain: tr, sim_time: times, real_runs });
+        let (mut sim, mut ts, mut times, mut mix) = (sim, ts, times, None);
+        if let (true, Some(s), Some(r)) = (cfg.match_terrain, &ts, &tr) {
+            let keep = terrain_mix(s, r, cfg.seed);
+            if !keep.iter().copied().eq(0..sim.len()) {
+                mix = Some((keep.len(), sim.len()));
+                sim = pick(&sim, &keep);
+                times = times.map(|t| pick(&t, &keep));
+                ts = Some(pick(s, &keep));
+            }
+        }
+        return Ok(Sets { sim, real, paired: false, sim_terrain: ts, real_terrain: tr, sim_time: times, real_runs, terrain_mix: mix });
     };
     let pairs = table::read_pairs(pp)?;
     if pairs.is_empty() {
@@ -238,7 +258,49 @@ pub fn load(cfg: &GapConfig) -> Result<Sets> {
     }
     // Paired: both sides share the pair's terrain; prefer the real label.
     let t = if tr.is_some() { Some(rt) } else if ts.is_some() { Some(st) } else { None };
-    Ok(Sets { sim: s, real: r, paired: true, sim_terrain: t.clone(), real_terrain: t, sim_time: times.map(|_| tt), real_runs: None })
+    Ok(Sets { sim: s, real: r, paired: true, sim_terrain: t.clone(), real_terrain: t, sim_time: times.map(|_| tt), real_runs: None, terrain_mix: None })
+}
+
+/// The sim records (indices, ascending, a record may repeat) to compare
+/// unpaired when both sides carry terrain labels: as many records as sim
+/// has, shared among the terrains as real's records are, each terrain's
+/// share drawn from its sim records (seeded; without replacement while
+/// they last, then with). Sim terrains that real lacks are left out. A
+/// distribution comparison otherwise reads a difference of terrain mix as
+/// a sensor effect: more stairs on the sim side looks like more holes and
+/// a height bias, and the fit names those. Prepared sims deduplicated to
+/// unique keys (one flat record) are the extreme case. Equal mixes keep
+/// every record once.
+pub fn terrain_mix(sim: &[Terrain], real: &[Terrain], seed: u64) -> Vec<usize> {
+    let mut by_terrain: Vec<(Terrain, Vec<usize>, usize)> = Vec::new();
+    for (i, &t) in sim.iter().enumerate() {
+        match by_terrain.iter_mut().find(|(u, _, _)| *u == t) {
+            Some(e) => e.1.push(i),
+            None => by_terrain.push((t, vec![i], 0)),
+        }
+    }
+    for &t in real {
+        if let Some(e) = by_terrain.iter_mut().find(|(u, _, _)| *u == t) {
+            e.2 += 1;
+        }
+    }
+    let shared: usize = by_terrain.iter().map(|e| e.2).sum();
+    if shared == 0 {
+        return (0..sim.len()).collect();
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(dem_core::seeded::mix(seed ^ 0x7e22a1));
+    let mut keep = Vec::with_capacity(sim.len());
+    for (_, idx, n_real) in &by_terrain {
+        let n = (sim.len() as f64 * *n_real as f64 / shared as f64).round() as usize;
+        if n >= idx.len() {
+            keep.extend_from_slice(idx);
+            keep.extend((idx.len()..n).map(|_| idx[rng.gen_range(0..idx.len())]));
+        } else {
+            keep.extend(sample(&mut rng, idx.len(), n).into_iter().map(|j| idx[j]));
+        }
+    }
+    keep.sort_unstable();
+    keep
 }
 
 fn pick<T: Copy>(v: &[T], idx: &[usize]) -> Vec<T> {
@@ -440,6 +502,7 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
         eq71,
         terrains,
         refits,
+        terrain_mix: sets.terrain_mix,
     }
 }
 
@@ -589,5 +652,32 @@ mod tests {
             let e = |p: &[Dem]| p.iter().zip(&real).map(|(p, y)| metric::dem_error(y, p)).sum::<f64>();
             assert!(e(&model) > e(&plain));
         }
+    }
+
+    /// Equal mixes keep every record once; a sim set heavy in stairs is
+    /// drawn to real's shares: a terrain real lacks is left out, one with
+    /// too few sim records is taken whole and then repeated.
+    #[test]
+    fn sim_records_are_drawn_to_the_real_terrain_mix() {
+        use Terrain::{Flat, Pallet, StairsUp};
+        let real = [vec![Flat; 50], vec![StairsUp; 50]].concat();
+        assert_eq!(terrain_mix(&real, &real, 1), (0..100).collect::<Vec<_>>());
+        let sim = [vec![StairsUp; 120], vec![Flat; 10], vec![Pallet; 40], vec![StairsUp; 30]].concat();
+        let keep = terrain_mix(&sim, &real, 1);
+        assert_eq!(keep.len(), sim.len());
+        assert!(keep.windows(2).all(|w| w[0] <= w[1]), "ascending");
+        let distinct = |t: Terrain| {
+            let mut k: Vec<usize> = keep.iter().copied().filter(|&i| sim[i] == t).collect();
+            let n = k.len();
+            k.dedup();
+            (n, k.len())
+        };
+        assert_eq!(distinct(Flat), (100, 10));
+        assert_eq!(distinct(StairsUp), (100, 100));
+        assert_eq!(distinct(Pallet), (0, 0));
+        assert_eq!(keep, terrain_mix(&sim, &real, 1), "by seed");
+        assert_ne!(keep, terrain_mix(&sim, &real, 2));
+        // No terrain in common: nothing to match, every record as it is.
+        assert_eq!(terrain_mix(&[Pallet; 5], &real, 1), (0..5).collect::<Vec<_>>());
     }
 }

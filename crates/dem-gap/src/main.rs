@@ -63,6 +63,11 @@ struct Args {
     /// Smallest fraction of the gap an added effect must remove.
     #[arg(long, default_value_t = 0.05, value_parser = value::fraction::<f64>)]
     min_gain: f64,
+    /// Unpaired, with both label files: draw the sim records (by --seed) to
+    /// the real set's terrain mix before comparing, so that a different mix
+    /// is not read as sensor effects.
+    #[arg(long)]
+    match_terrain_mix: bool,
 }
 
 fn main() -> ExitCode {
@@ -111,9 +116,13 @@ fn main() -> ExitCode {
             seed: a.seed,
             fit_records: a.fit_records,
             min_gain: a.min_gain,
+            match_terrain: a.match_terrain_mix,
         };
         let t = std::time::Instant::now();
         let sets = gap::load(&cfg)?;
+        if let Some((kept, of)) = sets.terrain_mix {
+            cli::log(format_args!("{kept} sim records drawn from {of} to the real set's terrain mix"));
+        }
         // Candidates fitted: the whole vocabulary at the first step, one fewer at each next.
         let n = dem_sensor::effects::NAMES.len();
         let fits = (0..cfg.max_steps.min(n)).map(|k| (n - k) as u64).sum();

@@ -58,7 +58,9 @@ pub fn report_json(o: &Outcome) -> Value {
                    "gap_before": r.gap_before, "gap_after": r.gap_after, "at_edge": r.at_edge})
         })
         .collect();
-    json!({"steps": steps, "refits": refits, "gap_initial": o.gap_initial, "gap_final": o.gap_final})
+    json!({"steps": steps, "refits": refits, "gap_initial": o.gap_initial, "gap_final": o.gap_final,
+        "sim_records": o.sizes.0, "real_records": o.sizes.1,
+        "terrain_mix": o.terrain_mix.map(|(kept, of)| json!({"drawn": kept, "from": of}))})
 }
 
 fn path(dir: &str, name: &str) -> String {
@@ -246,6 +248,12 @@ pub fn markdown(o: &Outcome) -> String {
         if o.gap_initial > 0.0 { 100.0 * (1.0 - o.gap_final / o.gap_initial) } else { 0.0 },
         o.floor
     );
+    if let Some((kept, of)) = o.terrain_mix {
+        let _ = writeln!(
+            s,
+            "The sim side is {kept} records drawn from the {of} sim records per terrain, to the real set's terrain mix (`--match-terrain-mix`).\n"
+        );
+    }
     let _ = writeln!(s, "Final sensor model (`sensor.json`): {}\n", o.model.summary());
     let flagged: Vec<String> =
         o.steps.iter().filter(|st| !st.at_edge.is_empty()).map(|st| format!("`{}` ({})", st.effect.name(), st.at_edge.join(", "))).collect();

@@ -295,7 +295,7 @@ fn the_report_has_the_schema_pictures_and_a_usable_model() {
     let r = gap(dir.path(), &sim, &real, Some(&pairs), &["--max-steps", "1"], "out");
     let mut keys: Vec<&String> = r.as_object().unwrap().keys().collect();
     keys.sort();
-    assert_eq!(keys, ["gap_final", "gap_initial", "refits", "steps"]);
+    assert_eq!(keys, ["gap_final", "gap_initial", "real_records", "refits", "sim_records", "steps", "terrain_mix"]);
     let step = r["steps"][0].as_object().unwrap();
     let mut k: Vec<&String> = step.keys().collect();
     k.sort();
@@ -403,4 +403,44 @@ fn leave_one_stage_out_on_other_camera_mounts() {
         let (g0, g1) = (r["gap_initial"].as_f64().unwrap(), r["gap_final"].as_f64().unwrap());
         assert!(g1 <= (1.0 - removed) * g0, "{what}: gap {g0} -> {g1}");
     }
+}
+
+/// `--match-terrain-mix`: real holds only the stairs-up records of sim, so
+/// the sim side is drawn to stairs up alone, says so in both reports, and
+/// the same sets without the flag or with one mix compare as they are.
+#[test]
+fn sim_is_drawn_to_the_real_terrain_mix_when_asked() {
+    let dir = tempdir();
+    let (sim, _) = setup(dir.path());
+    dem_testkit::py(
+        dir.path(),
+        &format!(
+            "import numpy as np, csv\n\
+             rows = list(csv.DictReader(open({:?})))[::10]\n\
+             s = np.load('sim.npy')\n\
+             up = [i for i, r in enumerate(rows) if r['terrain'] == 'stairs-up']\n\
+             np.save('up.npy', s[up])\n\
+             for name, rs in [('sim_labels.csv', rows), ('up_labels.csv', [rows[i] for i in up])]:\n\
+             \x20   w = csv.writer(open(name, 'w', newline=''))\n\
+             \x20   w.writerow(['index', 'terrain'])\n\
+             \x20   w.writerows([k, r['terrain']] for k, r in enumerate(rs))\n",
+            testdata("sim_labels.csv")
+        ),
+    );
+    let (up, sl, ul) = (arg(dir.path(), "up.npy"), arg(dir.path(), "sim_labels.csv"), arg(dir.path(), "up_labels.csv"));
+    let labels = ["--sim-labels", sl.as_str(), "--real-labels", ul.as_str(), "--max-steps", "1"];
+    let drawn = gap(dir.path(), &sim, &up, None, &[&labels[..], &["--match-terrain-mix"]].concat(), "drawn");
+    let n_sim = drawn["sim_records"].as_u64().unwrap();
+    assert_eq!(drawn["terrain_mix"]["from"].as_u64(), Some(n_sim));
+    assert_eq!(drawn["terrain_mix"]["drawn"].as_u64(), Some(n_sim));
+    let md = std::fs::read_to_string(dir.path().join("drawn/report.md")).unwrap();
+    assert!(md.contains("drawn from the") && md.contains("--match-terrain-mix"), "{md}");
+    // Every compared sim record is stairs up: the per-terrain table has one row.
+    assert_eq!(md.matches("| stairs-up |").count(), 1, "{md}");
+    assert!(!md.contains("| flat |"), "{md}");
+    let plain = gap(dir.path(), &sim, &up, None, &labels, "plain");
+    assert!(plain["terrain_mix"].is_null());
+    let one_mix = ["--sim-labels", ul.as_str(), "--real-labels", ul.as_str(), "--max-steps", "1", "--match-terrain-mix"];
+    let same = gap(dir.path(), &up, &up, None, &one_mix, "same");
+    assert!(same["terrain_mix"].is_null(), "one mix: nothing drawn");
 }
