@@ -79,6 +79,9 @@ fn main() -> ExitCode {
         if a.fit_records < 50 {
             return Err(cli::usage("--fit-records must be at least 50"));
         }
+        if a.match_terrain_mix && (a.pairs.is_some() || a.labels_sim.is_none() || a.labels_real.is_none()) {
+            return Err(cli::usage("--match-terrain-mix draws the sim side of an unpaired comparison: give --sim-labels and --real-labels, and no --pairs"));
+        }
         if a.sim == "-" || a.real == "-" {
             return Err(cli::usage("--sim and --real are read more than once; give files, not `-`"));
         }

@@ -443,4 +443,14 @@ fn sim_is_drawn_to_the_real_terrain_mix_when_asked() {
     let one_mix = ["--sim-labels", ul.as_str(), "--real-labels", ul.as_str(), "--max-steps", "1", "--match-terrain-mix"];
     let same = gap(dir.path(), &up, &up, None, &one_mix, "same");
     assert!(same["terrain_mix"].is_null(), "one mix: nothing drawn");
+    // Paired, or without both label files, there is nothing to draw: refused.
+    let out = arg(dir.path(), "refused");
+    for extra in [&["--pairs", sl.as_str()][..], &["--sim-labels", sl.as_str()][..]] {
+        let mut a = vec!["--sim", sim.as_str(), "--real", up.as_str(), "--out", out.as_str(), "--match-terrain-mix"];
+        a.extend(extra);
+        let o = run("dem-gap", &a, None);
+        assert_eq!(o.status.code(), Some(2), "{a:?}");
+        assert!(stderr(&o).contains("--match-terrain-mix"), "{}", stderr(&o));
+        assert!(!Path::new(&out).exists(), "nothing written");
+    }
 }
