@@ -36,6 +36,7 @@ TEST_RUNS=${TEST_RUNS:-10 11 12 13 14 15 16 17 18 19}
 SEED=${SEED:-1}
 TRAIN_ARGS=${TRAIN_ARGS:---seed $SEED}
 CLEAN_PALLETS=${CLEAN_PALLETS:-0}
+[[ $CLEAN_PALLETS == [01] ]] || { echo "transfer.sh: CLEAN_PALLETS must be 0 or 1, not '$CLEAN_PALLETS'" >&2; exit 2; }
 mkdir -p "$OUT"
 
 held=${TEST_RUNS// /,}  # dem-filter's --runs take a comma-separated list
