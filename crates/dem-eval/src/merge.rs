@@ -77,7 +77,7 @@ fn keys(r: &RecordResult, by_terrain: bool) -> Vec<Option<Terrain>> {
 
 /// The gap of every row: the emitted predictions sampled as one run samples
 /// them, against the real partners the pairs give the rows' sims.
-fn gaps(a: &MergeArgs, recs: &[RecordResult], sizes: &HashMap<Option<Terrain>, u64>) -> anyhow::Result<HashMap<Option<Terrain>, f64>> {
+fn gaps(a: &MergeArgs, recs: &[RecordResult]) -> anyhow::Result<HashMap<Option<Terrain>, f64>> {
     let (Some(pred_path), Some(real), Some(pairs_path)) = (&a.emitted_pred, &a.real, &a.pairs) else {
         cli::log("gap not computed: give --emitted-pred (the shards' --emit-pred joined), --real and --pairs");
         return Ok(HashMap::new());
@@ -99,6 +99,14 @@ fn gaps(a: &MergeArgs, recs: &[RecordResult], sizes: &HashMap<Option<Terrain>, u
     let needed: BTreeSet<u64> = if real == "-" { pairs.pairs.iter().map(|p| p.1).collect() } else { BTreeSet::new() };
     let (mut reals, n_real) = Reals::open(real, &needed)?;
     real_max.check(pairs_path, n_real, real, "real_index")?;
+    // Pairs per row, for the samples' rates (as one run counts them).
+    let mut row_pairs: HashMap<Option<Terrain>, u64> = HashMap::new();
+    for r in recs {
+        let n = pairs.within(r.sim_index..r.sim_index + 1).len() as u64;
+        for key in keys(r, a.table.by.is_some()) {
+            *row_pairs.entry(key).or_default() += n;
+        }
+    }
     let mut samples: HashMap<Option<Terrain>, GapSample> = HashMap::new();
     let mut rows = recs.iter();
     let n_pred = npy::open(pred_path)?.for_each_chunk(CHUNK_RECORDS, |_, chunk| {
@@ -108,7 +116,7 @@ fn gaps(a: &MergeArgs, recs: &[RecordResult], sizes: &HashMap<Option<Terrain>, u
             };
             for key in keys(r, a.table.by.is_some()) {
                 let partners = pairs.within(r.sim_index..r.sim_index + 1).iter().map(|p| p.1);
-                samples.entry(key).or_default().add(r.sim_index, pred, partners, sizes.get(&key).copied().unwrap_or(0));
+                samples.entry(key).or_default().add(r.sim_index, pred, partners, row_pairs.get(&key).copied().unwrap_or(0));
             }
         }
         Ok(())
@@ -120,7 +128,7 @@ fn gaps(a: &MergeArgs, recs: &[RecordResult], sizes: &HashMap<Option<Terrain>, u
         )
         .into());
     }
-    row_gaps(samples, sizes, &mut reals)
+    row_gaps(samples, &row_pairs, &mut reals)
 }
 
 /// Merge as `a` asks and write the table.
@@ -143,13 +151,11 @@ pub fn run(a: MergeArgs) -> anyhow::Result<()> {
         }
     }
     let mut rows: BTreeMap<Option<Terrain>, RowAcc> = BTreeMap::new();
-    let mut sizes: HashMap<Option<Terrain>, u64> = HashMap::new();
     for r in &recs {
         for key in keys(r, a.table.by.is_some()) {
             rows.entry(key).or_default().add(r);
-            *sizes.entry(key).or_default() += 1;
         }
     }
-    let gaps = gaps(&a, &recs, &sizes)?;
+    let gaps = gaps(&a, &recs)?;
     a.table.write(&Evaluation::new(rows, gaps), &a.name)
 }

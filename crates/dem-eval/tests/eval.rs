@@ -7,7 +7,7 @@ use std::path::Path;
 
 use dem_core::distribution;
 use dem_core::metric::dem_error;
-use dem_core::{npy, table};
+use dem_core::{npy, table, Dem};
 use dem_testkit::{arg, ok, py, run, stderr, tempdir, testdata};
 use serde_json::Value;
 
@@ -325,6 +325,37 @@ print(json.dumps(evaluate(sim, real, pairs, None, terrain)[1]))
         }
         assert!(out.contains(&format!(" {h:.2} ")) && out.contains(&format!(" {:.3}", rows[0]["gap"].as_f64().unwrap())), "{fmt}: {out}");
     }
+}
+
+/// With pairs that repeat records (dem-pair gives a sim key many measured
+/// partners), the gap compares the two sides over the pairs: each pair's
+/// prediction against its real partner, repeats and all, so the terrain
+/// mixes agree; over the unique records they would not.
+#[test]
+fn the_gap_is_taken_over_the_pairs_when_records_repeat() {
+    let dir = tempdir();
+    let (sim, real) = (npy::read_all(&td("sim.npy")).unwrap(), npy::read_all(&td("real.npy")).unwrap());
+    let labels = table::read_labels(&td("sim_labels.csv")).unwrap();
+    // One flat sim stands for every flat measured record, stairs sims for
+    // one each (their own poses).
+    let real_labels = table::read_labels(&td("real_labels.csv")).unwrap();
+    let flat = labels.iter().position(|l| l.terrain.as_str() == "flat").unwrap() as u64;
+    let mut pairs: Vec<(u64, u64)> = real_labels.iter().filter(|l| l.terrain.as_str() == "flat").map(|l| (flat, l.index)).collect();
+    pairs.extend(labels.iter().filter(|l| l.terrain.as_str() == "stairs-up" && l.index < 966).map(|l| (l.index, l.index)));
+    pairs.sort_unstable();
+    let path = arg(dir.path(), "pairs.csv");
+    let text: String = pairs.iter().map(|(s, r)| format!("{s},{r}\n")).collect();
+    std::fs::write(&path, format!("sim_index,real_index\n{text}")).unwrap();
+    let o = run("dem-eval", &["--sim", &td("sim.npy"), "--real", &td("real.npy"), "--pairs", &path, "--identity", "--format", "json"], None);
+    let got: Value = serde_json::from_slice(ok(&o)).unwrap();
+    let got = got[0]["gap"].as_f64().unwrap();
+    let gap = |p: Vec<Dem>, r: Vec<Dem>| distribution::gap(&distribution::stats(&p, None), &distribution::stats(&r, None));
+    let over_pairs = gap(pairs.iter().map(|p| sim[p.0 as usize]).collect(), pairs.iter().map(|p| real[p.1 as usize]).collect());
+    assert!(close(got, over_pairs), "dem-eval gap {got}, over the pairs {over_pairs}");
+    let sims: std::collections::BTreeSet<u64> = pairs.iter().map(|p| p.0).collect();
+    let reals: std::collections::BTreeSet<u64> = pairs.iter().map(|p| p.1).collect();
+    let unique = gap(sims.iter().map(|&s| sim[s as usize]).collect(), reals.iter().map(|&r| real[r as usize]).collect());
+    assert!(unique > over_pairs + 1.0, "one flat sim against every flat real is a mix gap: unique {unique}, pairs {over_pairs}");
 }
 
 #[test]

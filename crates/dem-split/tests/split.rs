@@ -222,9 +222,20 @@ fn dem_eval_shard_tables_merge_into_the_whole() {
     let dir = tempdir();
     let d = dir.path();
     let model = dem_testkit::onnx_one_node(d, "tanh.onnx", "Tanh");
-    let (sim, real, pairs, labels) = (td("sim.npy"), td("real.npy"), td("pairs.csv"), td("sim_labels.csv"));
+    let (sim, real, labels) = (td("sim.npy"), td("real.npy"), td("sim_labels.csv"));
     // testdata's pairs name sims 0..965: shards of 400 give three with
-    // pairs and five without (an empty records file must merge too).
+    // pairs and five without (an empty records file must merge too). Every
+    // third sim gets a second partner, so the gap's pairs repeat records on
+    // both sides, as `dem-pair`'s do.
+    let pairs = arg(d, "pairs.csv");
+    let mut text = String::from("sim_index,real_index\n");
+    for s in 0..966u64 {
+        text.push_str(&format!("{s},{s}\n"));
+        if s % 3 == 0 {
+            text.push_str(&format!("{s},{}\n", (s * 7 + 1) % 966));
+        }
+    }
+    std::fs::write(&pairs, text).unwrap();
     let rows = manifest(ok(&run("dem-split", &["--records", "400", "--labels", &labels, "--out", &arg(d, "p"), &sim], None)));
     assert_eq!(rows.len(), 8);
     for method in [vec!["--model", model.as_str()], vec!["--identity"]] {
