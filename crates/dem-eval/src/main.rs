@@ -17,7 +17,8 @@ use dem_eval::{compare, evaluate, join, merge, transfer};
 /// against the closest real record, cells valid in both), the roughness
 /// across and along of the predictions and of the closest real records
 /// (mean abs difference of neighbouring valid cells, cm), and gap (dem-gap's
-/// distribution gap of the predictions against the paired real records).
+/// distribution gap of the predictions against their real partners, over
+/// the evaluated pairs: a sim with k partners counts k times).
 ///
 /// The prediction is the sim record itself (--identity), record i of a file
 /// made by another tool (--pred), or an ONNX generator run on the selected
