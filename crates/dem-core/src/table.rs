@@ -33,8 +33,9 @@ pub struct Label {
     pub time: Option<f64>,
 }
 
-/// Train or validation half of a pairs CSV.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+/// Train or validation half of a pairs CSV (also a command-line value:
+/// `train`, `val`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "lowercase")]
 pub enum Split {
     /// Used for training.

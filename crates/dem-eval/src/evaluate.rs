@@ -24,7 +24,7 @@ pub struct EvalArgs {
     pairs: Option<String>,
     /// Only the pairs of this split [default: every pair].
     #[arg(long, value_enum)]
-    split: Option<SplitArg>,
+    split: Option<Split>,
     /// The prediction is the sim record as is (the thesis's Identity row).
     #[arg(long, group = "method")]
     identity: bool,
@@ -100,23 +100,8 @@ impl TableOut {
 }
 
 #[derive(Clone, Copy, ValueEnum)]
-pub(crate) enum SplitArg {
-    Train,
-    Val,
-}
-
-#[derive(Clone, Copy, ValueEnum)]
 pub(crate) enum By {
     Terrain,
-}
-
-impl SplitArg {
-    pub(crate) fn split(self) -> Split {
-        match self {
-            SplitArg::Train => Split::Train,
-            SplitArg::Val => Split::Val,
-        }
-    }
 }
 
 fn stem(path: &str) -> String {
@@ -154,7 +139,7 @@ pub fn run(a: EvalArgs) -> anyhow::Result<()> {
         sim: need(a.sim, "--sim")?,
         real: need(a.real, "--real")?,
         pairs: need(a.pairs, "--pairs")?,
-        split: a.split.map(SplitArg::split),
+        split: a.split,
         labels_sim: a.labels_sim,
         method,
         records: a.records,

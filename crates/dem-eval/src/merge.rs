@@ -9,9 +9,10 @@ use std::collections::{BTreeMap, BTreeSet, HashMap};
 use clap::Args as ClapArgs;
 use dem_core::eval::{RecordResult, RowAcc};
 use dem_core::npy::{self, CHUNK_RECORDS};
+use dem_core::table::Split;
 use dem_core::{cli, DemError, Terrain};
 
-use crate::evaluate::{SplitArg, TableOut};
+use crate::evaluate::TableOut;
 use crate::inputs::{row_gaps, Evaluation, GapSample, Pairs, Reals};
 
 /// The arguments of `dem-eval merge`.
@@ -37,7 +38,7 @@ pub struct MergeArgs {
     pairs: Option<String>,
     /// The split the shards evaluated.
     #[arg(long, value_enum, requires = "pairs")]
-    split: Option<SplitArg>,
+    split: Option<Split>,
     #[command(flatten)]
     table: TableOut,
 }
@@ -82,7 +83,7 @@ fn gaps(a: &MergeArgs, recs: &[RecordResult]) -> anyhow::Result<HashMap<Option<T
         cli::log("gap not computed: give --emitted-pred (the shards' --emit-pred joined), --real and --pairs");
         return Ok(HashMap::new());
     };
-    let (pairs, _, real_max) = Pairs::read(pairs_path, a.split.map(SplitArg::split))?;
+    let (pairs, _, real_max) = Pairs::read(pairs_path, a.split)?;
     let sims: Vec<u64> = pairs.pairs.chunk_by(|x, y| x.0 == y.0).map(|g| g[0].0).collect();
     if !sims.iter().copied().eq(recs.iter().map(|r| r.sim_index)) {
         return Err(DemError::input(

@@ -34,6 +34,7 @@ use dem_core::error::{DemError, Result};
 use dem_core::format::{Dem, Terrain};
 use dem_sensor::effects::NAMES;
 use dem_sensor::{Effect, SensorModel};
+use dem_core::table::Split;
 use dem_core::{distribution, metric, npy, table};
 
 pub use dem_core::distribution::{gap, gap_terms, Stats};
@@ -66,6 +67,12 @@ pub struct GapConfig {
     /// Unpaired, with terrain labels on both sides: draw the sim records
     /// to the real set's terrain mix first (see [`terrain_mix`]).
     pub match_terrain: bool,
+    /// Only the pairs of this split.
+    pub split: Option<Split>,
+    /// With pairs: compare the pairs' records as two sets (each record once
+    /// per pair it is in), not per position: the gap over the pairs, as
+    /// dem-eval's.
+    pub over_pairs: bool,
 }
 
 /// One added effect.
@@ -158,6 +165,8 @@ pub struct Outcome {
     /// mix, and sim records read (unpaired, both sides labelled, when the
     /// draw changed anything).
     pub terrain_mix: Option<(usize, usize)>,
+    /// Unpaired over the records of pairs (`--unpaired` with `--pairs`).
+    pub over_pairs: bool,
 }
 
 /// The compared sets: model side (sim) and real side, aligned when paired.
@@ -181,6 +190,9 @@ pub struct Sets {
     /// Sim records compared after drawing them to the real set's terrain
     /// mix, and sim records read, when the draw changed anything.
     pub terrain_mix: Option<(usize, usize)>,
+    /// Unpaired over the records of pairs: each record once per pair it is
+    /// in, so both sides share the pairs' terrain mix.
+    pub over_pairs: bool,
 }
 
 /// Terrains; times when any label has one; runs when every label has one.
@@ -215,6 +227,7 @@ pub fn load(cfg: &GapConfig) -> Result<Sets> {
         Some((t, _, runs)) => (Some(t), runs),
         None => (None, None),
     };
+    let over_pairs = cfg.over_pairs && cfg.pairs.is_some();
     let Some(pp) = &cfg.pairs else {
         let (mut sim, mut ts, mut times, mut mix) = (sim, ts, times, None);
         if let (true, Some(s), Some(r)) = (cfg.match_terrain, &ts, &tr) {
@@ -226,15 +239,19 @@ pub fn load(cfg: &GapConfig) -> Result<Sets> {
                 ts = Some(pick(s, &keep));
             }
         }
-        return Ok(Sets { sim, real, paired: false, sim_terrain: ts, real_terrain: tr, sim_time: times, real_runs, terrain_mix: mix });
+        return Ok(Sets { sim, real, paired: false, sim_terrain: ts, real_terrain: tr, sim_time: times, real_runs, terrain_mix: mix, over_pairs });
     };
-    let pairs = table::read_pairs(pp)?;
+    let mut pairs = table::read_pairs(pp)?;
+    if let Some(split) = cfg.split {
+        pairs.retain(|p| p.split == Some(split));
+    }
     if pairs.is_empty() {
-        return Err(DemError::input(pp, "no pairs"));
+        let of = cfg.split.map_or(String::new(), |s| format!(" of split {}", if s == Split::Train { "train" } else { "val" }));
+        return Err(DemError::input(pp, format!("no pairs{of}")));
     }
     let mut s = Vec::with_capacity(pairs.len());
     let mut r = Vec::with_capacity(pairs.len());
-    let (mut st, mut rt, mut tt) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut st, mut rt, mut tt, mut runs) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for (line, p) in pairs.iter().enumerate() {
         let (si, ri) = (p.sim_index as usize, p.real_index as usize);
         if si >= sim.len() || ri >= real.len() {
@@ -255,10 +272,26 @@ pub fn load(cfg: &GapConfig) -> Result<Sets> {
         if let Some(t) = &tr {
             rt.push(t[ri]);
         }
+        if let Some(r) = &real_runs {
+            runs.push(r[ri]);
+        }
+    }
+    if over_pairs {
+        return Ok(Sets {
+            sim: s,
+            real: r,
+            paired: false,
+            sim_terrain: ts.map(|_| st),
+            real_terrain: tr.map(|_| rt),
+            sim_time: times.map(|_| tt),
+            real_runs: real_runs.map(|_| runs),
+            terrain_mix: None,
+            over_pairs,
+        });
     }
     // Paired: both sides share the pair's terrain; prefer the real label.
     let t = if tr.is_some() { Some(rt) } else if ts.is_some() { Some(st) } else { None };
-    Ok(Sets { sim: s, real: r, paired: true, sim_terrain: t.clone(), real_terrain: t, sim_time: times.map(|_| tt), real_runs: None, terrain_mix: None })
+    Ok(Sets { sim: s, real: r, paired: true, sim_terrain: t.clone(), real_terrain: t, sim_time: times.map(|_| tt), real_runs: None, terrain_mix: None, over_pairs })
 }
 
 /// The sim records (indices, ascending, a record may repeat) to compare
@@ -503,6 +536,7 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
         terrains,
         refits,
         terrain_mix: sets.terrain_mix,
+        over_pairs: sets.over_pairs,
     }
 }
 

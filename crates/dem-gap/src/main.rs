@@ -7,6 +7,7 @@ use clap::Parser;
 use dem_gap::{self as gap, report, GapConfig};
 use dem_sensor::SensorModel;
 use dem_core::cli::{self, value};
+use dem_core::table::Split;
 use dem_core::{output, DemError};
 
 /// Measure the gap between model(sim) and real, name the effect that
@@ -19,7 +20,8 @@ use dem_core::{output, DemError};
 /// `dem-sensor apply`), DIR/report.md with pictures; progress on stderr.
 ///
 /// Labels and pairs are optional: without pairs the distributions of the
-/// records are compared, with pairs the residuals per position.
+/// records are compared, with pairs the residuals per position, and with
+/// pairs and --unpaired the distributions of the pairs' records.
 #[derive(Parser)]
 #[command(version, after_long_help = "Examples:
   dem-gap --sim testdata/sim.npy --real testdata/real.npy --out gap/
@@ -28,6 +30,8 @@ use dem_core::{output, DemError};
   dem-gap --sim sim.npy --real real.npy --sensor start.json --max-steps 2 --out gap2/
   dem-gap --sim no_fov/real.npy --real all/real.npy --sim-labels no_fov/real_labels.csv \
       --real-labels all/real_labels.csv --out gap3/     # labels' time lets `startup` fit its speed
+  dem-gap --sim prep/sim.npy --real prep/real.npy --pairs prep/pairs.csv --split train --unpaired \
+      --sim-labels prep/sim_labels.csv --real-labels prep/real_labels.csv --out gap4/   # dem-pair's keys
   dem-sensor apply --sensor gap/sensor.json sim.npy -o sim_as_measured.npy   # use the result")]
 struct Args {
     /// Sim NPY file.
@@ -68,6 +72,15 @@ struct Args {
     /// is not read as sensor effects.
     #[arg(long)]
     match_terrain_mix: bool,
+    /// With --pairs: only the pairs of this split (train or val).
+    #[arg(long, value_enum)]
+    split: Option<Split>,
+    /// With --pairs: compare the pairs' records as two sets, each record
+    /// once per pair it is in (dem-eval's gap), not per position. For pairs
+    /// that repeat records, as dem-pair's do: both sides keep the pairs'
+    /// terrain mix, which the unique records would not.
+    #[arg(long)]
+    unpaired: bool,
 }
 
 fn main() -> ExitCode {
@@ -81,6 +94,9 @@ fn main() -> ExitCode {
         }
         if a.match_terrain_mix && (a.pairs.is_some() || a.labels_sim.is_none() || a.labels_real.is_none()) {
             return Err(cli::usage("--match-terrain-mix draws the sim side of an unpaired comparison: give --sim-labels and --real-labels, and no --pairs"));
+        }
+        if (a.unpaired || a.split.is_some()) && a.pairs.is_none() {
+            return Err(cli::usage("--unpaired and --split choose among the pairs: give --pairs"));
         }
         if a.sim == "-" || a.real == "-" {
             return Err(cli::usage("--sim and --real are read more than once; give files, not `-`"));
@@ -120,6 +136,8 @@ fn main() -> ExitCode {
             fit_records: a.fit_records,
             min_gain: a.min_gain,
             match_terrain: a.match_terrain_mix,
+            split: a.split,
+            over_pairs: a.unpaired,
         };
         let t = std::time::Instant::now();
         let sets = gap::load(&cfg)?;

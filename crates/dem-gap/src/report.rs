@@ -59,7 +59,7 @@ pub fn report_json(o: &Outcome) -> Value {
         })
         .collect();
     json!({"steps": steps, "refits": refits, "gap_initial": o.gap_initial, "gap_final": o.gap_final,
-        "sim_records": o.sizes.0, "real_records": o.sizes.1,
+        "sim_records": o.sizes.0, "real_records": o.sizes.1, "over_pairs": o.over_pairs,
         "terrain_mix": o.terrain_mix.map(|(kept, of)| json!({"drawn": kept, "from": of}))})
 }
 
@@ -248,6 +248,12 @@ pub fn markdown(o: &Outcome) -> String {
         if o.gap_initial > 0.0 { 100.0 * (1.0 - o.gap_final / o.gap_initial) } else { 0.0 },
         o.floor
     );
+    if o.over_pairs {
+        let _ = writeln!(
+            s,
+            "Both sides are the records of the pairs, each once per pair it is in (`--unpaired` with `--pairs`): the sets share the pairs' terrain mix.\n"
+        );
+    }
     if let Some((kept, of)) = o.terrain_mix {
         let _ = writeln!(
             s,

@@ -295,7 +295,7 @@ fn the_report_has_the_schema_pictures_and_a_usable_model() {
     let r = gap(dir.path(), &sim, &real, Some(&pairs), &["--max-steps", "1"], "out");
     let mut keys: Vec<&String> = r.as_object().unwrap().keys().collect();
     keys.sort();
-    assert_eq!(keys, ["gap_final", "gap_initial", "real_records", "refits", "sim_records", "steps", "terrain_mix"]);
+    assert_eq!(keys, ["gap_final", "gap_initial", "over_pairs", "real_records", "refits", "sim_records", "steps", "terrain_mix"]);
     let step = r["steps"][0].as_object().unwrap();
     let mut k: Vec<&String> = step.keys().collect();
     k.sort();
@@ -451,6 +451,58 @@ fn sim_is_drawn_to_the_real_terrain_mix_when_asked() {
         let o = run("dem-gap", &a, None);
         assert_eq!(o.status.code(), Some(2), "{a:?}");
         assert!(stderr(&o).contains("--match-terrain-mix"), "{}", stderr(&o));
+        assert!(!Path::new(&out).exists(), "nothing written");
+    }
+}
+
+/// `--unpaired` with `--pairs` (and `--split`): the two sides are the
+/// records of the split's pairs, each once per pair, as dem-eval takes its
+/// gap; the start gap is dem-eval's for Identity over the same pairs.
+#[test]
+fn pairs_compared_unpaired_give_dem_eval_s_gap_over_the_pairs() {
+    let dir = tempdir();
+    let td = |name: &str| testdata(name).to_string_lossy().into_owned();
+    let (sim, real, sl, rl) = (td("sim.npy"), td("real.npy"), td("sim_labels.csv"), td("real_labels.csv"));
+    let labels = dem_core::table::read_labels(&sl).unwrap();
+    let real_labels = dem_core::table::read_labels(&rl).unwrap();
+    // One flat sim for every flat real (train), stairs up 1:1 (train), pallets 1:1 (val).
+    let flat = labels.iter().position(|l| l.terrain.as_str() == "flat").unwrap();
+    let mut rows: Vec<(usize, usize, &str)> =
+        real_labels.iter().filter(|l| l.terrain.as_str() == "flat").map(|l| (flat, l.index as usize, "train")).collect();
+    for (t, split) in [("stairs-up", "train"), ("pallet", "val")] {
+        rows.extend(real_labels.iter().filter(|l| l.terrain.as_str() == t).map(|l| (l.index as usize, l.index as usize, split)));
+    }
+    rows.sort_unstable();
+    let pairs = arg(dir.path(), "pairs.csv");
+    let text: String = rows.iter().map(|(s, r, sp)| format!("{s},{r},{sp}\n")).collect();
+    std::fs::write(&pairs, format!("sim_index,real_index,split\n{text}")).unwrap();
+    let extra = ["--split", "train", "--unpaired", "--sim-labels", sl.as_str(), "--real-labels", rl.as_str(), "--max-steps", "1"];
+    let r = gap(dir.path(), &sim, &real, Some(&pairs), &extra, "over");
+    let n_train = rows.iter().filter(|p| p.2 == "train").count() as u64;
+    assert_eq!((r["sim_records"].as_u64(), r["real_records"].as_u64(), r["over_pairs"].as_bool()), (Some(n_train), Some(n_train), Some(true)));
+    let md = std::fs::read_to_string(dir.path().join("over/report.md")).unwrap();
+    assert!(md.starts_with("# dem-gap report\n\nUnpaired") && md.contains("once per pair it is in"), "{md}");
+    let o = run("dem-eval", &["--sim", &sim, "--real", &real, "--pairs", &pairs, "--split", "train", "--identity", "--format", "json"], None);
+    let table: Value = serde_json::from_slice(ok(&o)).unwrap();
+    let (want, got) = (table[0]["gap"].as_f64().unwrap(), r["gap_initial"].as_f64().unwrap());
+    assert!((want - got).abs() < 1e-9 * want.max(1.0), "dem-eval {want}, dem-gap {got}");
+    // Per position the same pairs give another comparison (residuals).
+    let paired = gap(dir.path(), &sim, &real, Some(&pairs), &["--split", "train", "--max-steps", "1"], "paired");
+    assert_eq!(paired["over_pairs"].as_bool(), Some(false));
+    // Refused, one line, nothing written: no pairs to choose among, an empty split.
+    let out = arg(dir.path(), "refused");
+    let val_only = arg(dir.path(), "val.csv");
+    std::fs::write(&val_only, "sim_index,real_index,split\n0,0,val\n").unwrap();
+    for (a, says) in [
+        (vec!["--unpaired"], "--pairs"),
+        (vec!["--split", "val"], "--pairs"),
+        (vec!["--pairs", val_only.as_str(), "--split", "train"], "no pairs of split train"),
+    ] {
+        let mut args = vec!["--sim", sim.as_str(), "--real", real.as_str(), "--out", out.as_str()];
+        args.extend(a);
+        let o = run("dem-gap", &args, None);
+        assert_eq!(o.status.code(), Some(2), "{args:?}");
+        assert!(stderr(&o).contains(says) && stderr(&o).lines().count() == 1, "{}", stderr(&o));
         assert!(!Path::new(&out).exists(), "nothing written");
     }
 }

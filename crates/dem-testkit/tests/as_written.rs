@@ -155,8 +155,9 @@ dem-synth --out world --runs 6 --real-runs 6 --seed 1 2>/dev/null
 cp world/sim.npy world/real.npy world/sim_labels.csv world/real_labels.csv .
 cp sim_labels.csv l.csv
 dem-pair --by pose --sim-labels sim_labels.csv --real-labels real_labels.csv --val-fraction 0.5 --seed 1 -o pairs.csv 2>/dev/null
-mkdir testdata all
+mkdir testdata all prep
 cp sim.npy real.npy sim_labels.csv real_labels.csv pairs.csv testdata/
+cp sim.npy real.npy sim_labels.csv real_labels.csv pairs.csv prep/
 cp "$ROOT/testdata/eval_baseline.csv" testdata/
 cp world/* all/
 dem-synth --out no_fov --runs 6 --real-runs 6 --seed 1 --no-fov 2>/dev/null
