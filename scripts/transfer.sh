@@ -28,6 +28,9 @@
 #                       thesis's section 6.3: solid pallet tops) for every
 #                       method: G_Y is trained and applied on them, dem-gap
 #                       fits on them; the transfer table gains a `sim-clean` row
+#   KEEP_OTHER=1        G_Y's training data keeps the `other` terrain, which
+#                       make demo's preparation drops (dem-filter --drop-other);
+#                       G_Y is applied to every sim record, `other` included
 set -euo pipefail
 BIN=${BIN:-target/release}
 TD=${TD:-testdata}
@@ -37,6 +40,10 @@ SEED=${SEED:-1}
 TRAIN_ARGS=${TRAIN_ARGS:---seed $SEED}
 CLEAN_PALLETS=${CLEAN_PALLETS:-0}
 [[ $CLEAN_PALLETS == [01] ]] || { echo "transfer.sh: CLEAN_PALLETS must be 0 or 1, not '$CLEAN_PALLETS'" >&2; exit 2; }
+KEEP_OTHER=${KEEP_OTHER:-0}
+[[ $KEEP_OTHER == [01] ]] || { echo "transfer.sh: KEEP_OTHER must be 0 or 1, not '$KEEP_OTHER'" >&2; exit 2; }
+drop_other=(--drop-other)
+[[ $KEEP_OTHER == 1 ]] && drop_other=()
 mkdir -p "$OUT"
 
 held=${TEST_RUNS// /,}  # dem-filter's --runs take a comma-separated list
@@ -62,9 +69,9 @@ fi
 model=${MODEL:-}
 if [[ -z "$model" ]]; then
     mkdir -p "$OUT/prep"
-    "$BIN/dem-filter" --labels "$OUT/sim_labels.csv" --drop-other --unique "$SIM" -o "$OUT/prep/sim.npy" \
+    "$BIN/dem-filter" --labels "$OUT/sim_labels.csv" "${drop_other[@]}" --unique "$SIM" -o "$OUT/prep/sim.npy" \
         --emit-labels "$OUT/prep/sim_labels.csv"
-    "$BIN/dem-filter" --labels "$OUT/real_labels.csv" --drop-other "$OUT/real.npy" -o "$OUT/prep/real.npy"
+    "$BIN/dem-filter" --labels "$OUT/real_labels.csv" "${drop_other[@]}" "$OUT/real.npy" -o "$OUT/prep/real.npy"
     "$BIN/dem-pair" --match content --sim "$OUT/prep/sim.npy" --real "$OUT/prep/real.npy" \
         --sim-labels "$OUT/prep/sim_labels.csv" --k 3 --val-fraction 0.2 --seed "$SEED" -o "$OUT/prep/pairs.csv"
     rm -rf "$OUT/train"
