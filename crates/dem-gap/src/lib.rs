@@ -291,7 +291,7 @@ pub fn load(cfg: &GapConfig) -> Result<Sets> {
     }
     // Paired: both sides share the pair's terrain; prefer the real label.
     let t = if tr.is_some() { Some(rt) } else if ts.is_some() { Some(st) } else { None };
-    Ok(Sets { sim: s, real: r, paired: true, sim_terrain: t.clone(), real_terrain: t, sim_time: times.map(|_| tt), real_runs: None, terrain_mix: None, over_pairs })
+    Ok(Sets { sim: s, real: r, paired: true, sim_terrain: t.clone(), real_terrain: t, sim_time: times.map(|_| tt), real_runs: None, terrain_mix: None, over_pairs: false })
 }
 
 /// The sim records (indices, ascending, a record may repeat) to compare
