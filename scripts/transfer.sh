@@ -39,9 +39,11 @@ TEST_RUNS=${TEST_RUNS:-10 11 12 13 14 15 16 17 18 19}
 SEED=${SEED:-1}
 TRAIN_ARGS=${TRAIN_ARGS:---seed $SEED}
 CLEAN_PALLETS=${CLEAN_PALLETS:-0}
-[[ $CLEAN_PALLETS == [01] ]] || { echo "transfer.sh: CLEAN_PALLETS must be 0 or 1, not '$CLEAN_PALLETS'" >&2; exit 2; }
 KEEP_OTHER=${KEEP_OTHER:-0}
-[[ $KEEP_OTHER == [01] ]] || { echo "transfer.sh: KEEP_OTHER must be 0 or 1, not '$KEEP_OTHER'" >&2; exit 2; }
+# on_off NAME: the switch NAME is 0 or 1, else exit 2 before anything is made.
+on_off() { [[ ${!1} == [01] ]] || { echo "transfer.sh: $1 must be 0 or 1, not '${!1}'" >&2; exit 2; }; }
+on_off CLEAN_PALLETS
+on_off KEEP_OTHER
 drop_other=(--drop-other)
 [[ $KEEP_OTHER == 1 ]] && drop_other=()
 mkdir -p "$OUT"

@@ -44,6 +44,16 @@ pub enum Split {
     Val,
 }
 
+impl std::fmt::Display for Split {
+    /// The name a pairs CSV and the `--split` flag use: `train`, `val`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Split::Train => "train",
+            Split::Val => "val",
+        })
+    }
+}
+
 /// One row of a pairs CSV: `sim_index,real_index[,split][,distance]`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Pair {

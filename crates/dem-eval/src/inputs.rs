@@ -305,7 +305,7 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
     }
     let (pairs, sim_max, real_max) = Pairs::read(&q.pairs, q.split)?;
     if pairs.pairs.is_empty() {
-        let which = q.split.map_or(String::new(), |s| format!(" of split {}", if s == Split::Val { "val" } else { "train" }));
+        let which = q.split.map_or(String::new(), |s| format!(" of split {s}"));
         return Err(DemError::input(q.pairs.as_str(), format!("holds no pairs{which} to evaluate")).into());
     }
     let all_reals: BTreeSet<u64> = if q.real == "-" { pairs.pairs.iter().map(|p| p.1).collect() } else { BTreeSet::new() };

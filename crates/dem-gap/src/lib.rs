@@ -246,7 +246,7 @@ pub fn load(cfg: &GapConfig) -> Result<Sets> {
         pairs.retain(|p| p.split == Some(split));
     }
     if pairs.is_empty() {
-        let of = cfg.split.map_or(String::new(), |s| format!(" of split {}", if s == Split::Train { "train" } else { "val" }));
+        let of = cfg.split.map_or(String::new(), |s| format!(" of split {s}"));
         return Err(DemError::input(pp, format!("no pairs{of}")));
     }
     let mut s = Vec::with_capacity(pairs.len());
