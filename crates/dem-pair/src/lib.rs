@@ -12,6 +12,8 @@
 //! (the mask term is the same for every all-valid sim candidate, so it
 //! cannot rank them).
 
+pub mod expand;
+
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 
 use rayon::prelude::*;

@@ -3,7 +3,7 @@
 use std::collections::BTreeSet;
 use std::process::ExitCode;
 
-use clap::{Parser, ValueEnum};
+use clap::{Parser, Subcommand, ValueEnum};
 use dem_pair::{by_content, by_pose, counts, first_occurrence, pair_rows, PoseRule};
 use dem_core::table::{self, Pair};
 use dem_core::cli::{self, value};
@@ -24,14 +24,16 @@ enum Method {
 /// Writes `sim_index,real_index,split,distance`; counts per split (and per
 /// terrain, with labels) go to stderr.
 #[derive(Parser)]
-#[command(version, after_long_help = "Examples:
+#[command(version, args_conflicts_with_subcommands = true, subcommand_negates_reqs = true, after_long_help = "Examples:
   dem-pair --match pose --sim-labels sim_labels.csv --real-labels real_labels.csv --same-sequence -o pairs.csv
   dem-pair --match content --sim sim.npy --real real.npy --k 3 --val-fraction 0.5 --seed 1 -o pairs.csv
   dem-filter --labels l.csv --drop-other sim.npy -o s.npy && dem-pair --match content --sim s.npy --real real.npy")]
 struct Args {
+    #[command(subcommand)]
+    cmd: Option<Cmd>,
     /// How to pair.
-    #[arg(long = "match", alias = "by", value_name = "METHOD", value_enum)]
-    by: Method,
+    #[arg(long = "match", alias = "by", value_name = "METHOD", value_enum, required = true)]
+    by: Option<Method>,
     /// Sim NPY (needed by content; used to deduplicate keys by pose too).
     #[arg(long)]
     sim: Option<String>,
@@ -70,6 +72,76 @@ struct Args {
     output: String,
 }
 
+#[derive(Subcommand)]
+enum Cmd {
+    /// One record per pair: the sim record and the real record of pair i
+    /// become record i of OUT/sim.npy and OUT/real.npy, with OUT/pairs.csv
+    /// pairing them 1:1 (split and distance kept). With labels, each pair's
+    /// sim labels row has the sim's terrain and the real partner's pose,
+    /// sequence and time: a deduplicated sim key keeps its first pose's time,
+    /// which a time-based effect (`startup`) must not read for every
+    /// partner. Then dem-gap fits, and dem-sensor or dem-apply draws, once
+    /// per pair at the pair's time; dem-eval's gap over the expanded pairs
+    /// is the gap over the original pairs.
+    #[command(after_long_help = "Examples:
+  dem-pair expand --pairs pairs.csv --sim sim.npy --real real.npy --sim-labels sim_labels.csv \\
+      --real-labels real_labels.csv --split val --out val/
+  dem-apply --model gy.onnx --labels val/sim_labels.csv --seed 1 val/sim.npy -o val/gy.npy   # a draw per pair
+  dem-eval --sim val/sim.npy --real val/real.npy --pairs val/pairs.csv --pred val/gy.npy")]
+    Expand {
+        /// Pairs CSV (sim_index,real_index[,split][,distance]).
+        #[arg(long)]
+        pairs: String,
+        /// Sim NPY the pairs index.
+        #[arg(long)]
+        sim: String,
+        /// Real NPY the pairs index.
+        #[arg(long)]
+        real: String,
+        /// Labels CSV of the sim records.
+        #[arg(long, value_name = "CSV")]
+        sim_labels: Option<String>,
+        /// Labels CSV of the real records (the pairs' pose and time).
+        #[arg(long, value_name = "CSV")]
+        real_labels: Option<String>,
+        /// Only the pairs of this split [default: every pair].
+        #[arg(long, value_enum)]
+        split: Option<table::Split>,
+        /// Output folder (sim.npy, real.npy, pairs.csv, and with labels sim_labels.csv, real_labels.csv).
+        #[arg(long)]
+        out: String,
+    },
+}
+
+fn expand(cfg: dem_pair::expand::ExpandConfig) -> anyhow::Result<()> {
+    let inputs: Vec<&str> = [Some(&cfg.pairs), Some(&cfg.sim), Some(&cfg.real), cfg.sim_labels.as_ref(), cfg.real_labels.as_ref()]
+        .into_iter()
+        .flatten()
+        .map(String::as_str)
+        .collect();
+    if inputs.iter().filter(|p| **p == "-").count() > 1 {
+        return Err(cli::usage("only one input can be `-` (stdin)"));
+    }
+    // The folder first: the output check tries a file in it. A folder made
+    // here is taken away again when the run fails (it is empty then).
+    let made = !std::path::Path::new(&cfg.out).exists();
+    std::fs::create_dir_all(&cfg.out).map_err(|source| DemError::Open { path: cfg.out.clone(), source })?;
+    let done = checked_expand(&cfg, &inputs);
+    if done.is_err() && made {
+        let _ = std::fs::remove_dir(&cfg.out);
+    }
+    done
+}
+
+fn checked_expand(cfg: &dem_pair::expand::ExpandConfig, inputs: &[&str]) -> anyhow::Result<()> {
+    let names = ["sim.npy", "real.npy", "pairs.csv", "sim_labels.csv", "real_labels.csv"];
+    let outputs: Vec<String> = names.iter().map(|n| std::path::Path::new(&cfg.out).join(n).to_string_lossy().into_owned()).collect();
+    output::check_outputs(inputs, &outputs.iter().map(String::as_str).collect::<Vec<_>>())?;
+    let done = dem_pair::expand::run(cfg)?;
+    cli::log(format_args!("{} pairs of {} sim keys expanded into {}", done.pairs, done.sim_keys, cfg.out));
+    Ok(())
+}
+
 fn need<'a>(v: &'a Option<String>, flag: &str, by: &str) -> anyhow::Result<&'a str> {
     v.as_deref().ok_or_else(|| cli::usage(format!("--match {by} needs {flag}")))
 }
@@ -77,6 +149,10 @@ fn need<'a>(v: &'a Option<String>, flag: &str, by: &str) -> anyhow::Result<&'a s
 fn main() -> ExitCode {
     cli::run(|| {
         let a: Args = cli::parse();
+        if let Some(Cmd::Expand { pairs, sim, real, sim_labels, real_labels, split, out }) = a.cmd {
+            return expand(dem_pair::expand::ExpandConfig { pairs, sim, real, sim_labels, real_labels, split, out });
+        }
+        let by = a.by.expect("clap requires --match without a subcommand");
         let inputs: Vec<&str> = [&a.sim, &a.real, &a.sim_labels, &a.real_labels].into_iter().flatten().map(String::as_str).collect();
         output::check_outputs(&inputs, &[&a.output])?;
         let sim = a.sim.as_deref().map(npy::read_all).transpose()?;
@@ -90,7 +166,7 @@ fn main() -> ExitCode {
             }
         }
         let keys = sim.as_deref().map(first_occurrence);
-        let found = match a.by {
+        let found = match by {
             Method::Pose => {
                 let (s, r) = (need(&a.sim_labels, "--sim-labels", "pose")?, need(&a.real_labels, "--real-labels", "pose")?);
                 let rule = PoseRule { max_dist: a.max_dist, max_yaw: a.max_yaw, same_sequence: a.same_sequence };

@@ -85,3 +85,71 @@ fn missing_inputs_for_the_method_are_usage_errors() {
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("--real-labels"));
 }
+
+/// `dem-pair expand`: record i of the outputs is pair i's sim and real
+/// record; the sim labels carry the sim's terrain and the partner's time;
+/// dem-eval's gap over the expanded pairs is its gap over the pairs.
+#[test]
+fn expanded_pairs_are_one_record_per_pair_at_the_partner_s_time() {
+    let dir = tempdir();
+    let pairs = arg(dir.path(), "c.csv");
+    ok(&run("dem-pair", &["--by", "content", "--sim", &td("sim.npy"), "--real", &td("real.npy"), "--k", "2", "--val-fraction", "0.4", "--seed", "3", "-o", &pairs], None));
+    let out = arg(dir.path(), "val");
+    let o = run(
+        "dem-pair",
+        &["expand", "--pairs", &pairs, "--sim", &td("sim.npy"), "--real", &td("real.npy"), "--sim-labels", &td("sim_labels.csv"), "--real-labels", &td("real_labels.csv"), "--split", "val", "--out", &out],
+        None,
+    );
+    ok(&o);
+    let val: Vec<table::Pair> = table::read_pairs(&pairs).unwrap().into_iter().filter(|p| p.split == Some(Split::Val)).collect();
+    let (sim, real) = (npy::read_all(&td("sim.npy")).unwrap(), npy::read_all(&td("real.npy")).unwrap());
+    let (sl, rl) = (table::read_labels(&td("sim_labels.csv")).unwrap(), table::read_labels(&td("real_labels.csv")).unwrap());
+    let f = |n: &str| format!("{out}/{n}");
+    let (xs, xr) = (npy::read_all(&f("sim.npy")).unwrap(), npy::read_all(&f("real.npy")).unwrap());
+    let (xsl, xrl) = (table::read_labels(&f("sim_labels.csv")).unwrap(), table::read_labels(&f("real_labels.csv")).unwrap());
+    let xp = table::read_pairs(&f("pairs.csv")).unwrap();
+    assert_eq!((xs.len(), xr.len(), xsl.len(), xrl.len(), xp.len()), (val.len(), val.len(), val.len(), val.len(), val.len()));
+    let keys: BTreeSet<u64> = val.iter().map(|p| p.sim_index).collect();
+    assert!(keys.len() < val.len(), "the test needs keys with several partners");
+    let mut moved = 0;
+    for (i, p) in val.iter().enumerate() {
+        let (s, r) = (p.sim_index as usize, p.real_index as usize);
+        assert_eq!((xs[i], xr[i]), (sim[s], real[r]), "pair {i}");
+        assert_eq!((xp[i].sim_index, xp[i].real_index, xp[i].split, xp[i].distance), (i as u64, i as u64, Some(Split::Val), p.distance));
+        assert_eq!((xsl[i].terrain, xsl[i].time, xsl[i].sequence), (sl[s].terrain, rl[r].time, rl[r].sequence), "pair {i}");
+        assert_eq!((xrl[i].terrain, xrl[i].time), (rl[r].terrain, rl[r].time));
+        moved += usize::from(sl[s].time != rl[r].time);
+    }
+    assert!(moved > 0, "no pair took a time other than its key's");
+    assert!(stderr(&o).contains(&format!("{} pairs of {} sim keys", val.len(), keys.len())), "{}", stderr(&o));
+
+    // One gap: over the original pairs, and over the expanded ones.
+    let gap = |args: &[&str]| -> f64 {
+        let o = run("dem-eval", &[args, &["--identity", "--format", "csv"]].concat(), None);
+        let t = String::from_utf8(ok(&o).to_vec()).unwrap();
+        t.lines().nth(1).unwrap().rsplit(',').next().unwrap().parse().unwrap()
+    };
+    let whole = gap(&["--sim", &td("sim.npy"), "--real", &td("real.npy"), "--pairs", &pairs, "--split", "val"]);
+    let expanded = gap(&["--sim", &f("sim.npy"), "--real", &f("real.npy"), "--pairs", &f("pairs.csv")]);
+    assert!((whole - expanded).abs() < 1e-9, "{whole} vs {expanded}");
+}
+
+#[test]
+fn expand_refuses_a_pair_past_the_end_and_leaves_nothing() {
+    let dir = tempdir();
+    let pairs = arg(dir.path(), "p.csv");
+    std::fs::write(&pairs, "sim_index,real_index\n0,0\n1,999999\n").unwrap();
+    let out = arg(dir.path(), "x");
+    let o = run("dem-pair", &["expand", "--pairs", &pairs, "--sim", &td("sim.npy"), "--real", &td("real.npy"), "--out", &out], None);
+    assert_eq!(o.status.code(), Some(2));
+    let e = stderr(&o);
+    assert_eq!(e.lines().count(), 1, "{e}");
+    assert!(e.contains(&pairs) && e.contains("line 3") && e.contains("real_index 999999"), "{e}");
+    assert!(!std::path::Path::new(&out).exists(), "a refused run left {out}");
+    // A split the pairs do not have, and --match without a subcommand, are refused too.
+    let o = run("dem-pair", &["expand", "--pairs", &pairs, "--sim", &td("sim.npy"), "--real", &td("real.npy"), "--split", "val", "--out", &out], None);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let o = run("dem-pair", &["--sim", &td("sim.npy")], None);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("--match"), "{}", stderr(&o));
+}
