@@ -5,8 +5,8 @@
 #   bash scripts/demo.sh prep train      # some steps (a step reads what earlier steps wrote)
 #   BIN=target/release OUT=out PY=.venv/bin/python TD=testdata DEMO_EPOCHS=30 bash scripts/demo.sh
 #
-# Steps: pairs stages prep train transfer ci gap import (then the list of
-# what was written).
+# Steps: pairs stages prep train transfer sensor ci gap import (then the
+# list of what was written).
 set -euo pipefail
 BIN=${BIN:-target/release}
 OUT=${OUT:-out}
@@ -91,6 +91,11 @@ transfer() {
   BIN=$BIN TD=$TD OUT=$OUT/transfer bash scripts/transfer.sh
 }
 
+sensor() {
+  say "4c. the virtual sensor on the val split: G_Y + residual and dem-gap's sensor model, fitted on the train pairs, drawn once per pair at its time (dem-pair expand)"
+  BIN=$BIN P=$P MODEL=$OUT/gy.onnx OUT=$OUT/val_sensor bash scripts/val_sensor.sh
+}
+
 ci() {
   say "5. CI guard: the validation table of a tiny model against testdata/eval_baseline.csv"
   BIN=$BIN OUT=$OUT/eval_ci bash scripts/eval_ci.sh
@@ -122,11 +127,12 @@ Data: $OUT/prep/ (sim keys, real, pairs.csv, cleaned and filled streams)
 Model: $OUT/gy.onnx (dem-apply --model $OUT/gy.onnx < sim.npy > realistic.npy); run: $OUT/train/
 Tables: $OUT/train/table.md (Identity vs G_Y: pair error, height error, roughness, gap), $OUT/eval_ci/compare.txt (CI guard)
 Transfer: $OUT/transfer/transfer.txt (flipper and terrain models trained on sim, G_Y(sim) (holes thresholded and drawn, then startup by time), sensor(sim), measured)
+Virtual sensor on the val split (a draw per pair): $OUT/val_sensor/table.md (identity, G_Y, G_Y + residual, sensor model, per terrain)
 Gap: $OUT/gap/summary.md (effects named per emulator stage left out), $OUT/gap/exact-paired/report.md (report with pictures)
 EOF
 }
 
-ALL=(pairs stages prep train transfer ci gap import)
+ALL=(pairs stages prep train transfer sensor ci gap import)
 mkdir -p "$OUT"
 steps=("$@")
 [ ${#steps[@]} -gt 0 ] || steps=("${ALL[@]}")

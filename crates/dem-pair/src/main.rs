@@ -27,7 +27,8 @@ enum Method {
 #[command(version, args_conflicts_with_subcommands = true, subcommand_negates_reqs = true, after_long_help = "Examples:
   dem-pair --match pose --sim-labels sim_labels.csv --real-labels real_labels.csv --same-sequence -o pairs.csv
   dem-pair --match content --sim sim.npy --real real.npy --k 3 --val-fraction 0.5 --seed 1 -o pairs.csv
-  dem-filter --labels l.csv --drop-other sim.npy -o s.npy && dem-pair --match content --sim s.npy --real real.npy")]
+  dem-filter --labels l.csv --drop-other sim.npy -o s.npy && dem-pair --match content --sim s.npy --real real.npy
+  dem-pair expand --pairs pairs.csv --sim sim.npy --real real.npy --split val --out val/   # one record per pair")]
 struct Args {
     #[command(subcommand)]
     cmd: Option<Cmd>,

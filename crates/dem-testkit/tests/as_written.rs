@@ -21,7 +21,7 @@ use std::process::Command;
 use dem_testkit::{bin, python, tempdir, workspace_root};
 
 /// Every tool and subcommand with examples.
-const TOOLS: [&[&str]; 18] = [
+const TOOLS: [&[&str]; 19] = [
     &["dem-apply"],
     &["dem-cat"],
     &["dem-clean-pallet"],
@@ -35,6 +35,7 @@ const TOOLS: [&[&str]; 18] = [
     &["dem-gap"],
     &["dem-import"],
     &["dem-pair"],
+    &["dem-pair", "expand"],
     &["dem-render"],
     &["dem-sensor"],
     &["dem-split"],
