@@ -207,6 +207,24 @@ pub fn read_pairs(path: &str) -> Result<Vec<Pair>> {
     read_rows(path, &["sim_index", "real_index"])
 }
 
+/// Read a pairs CSV that is to give the pairs of `split` (all with None):
+/// a `split` asked of a file without the column is an error naming it.
+/// Every row is returned (a caller range-checks them all).
+pub fn read_pairs_for(path: &str, split: Option<Split>) -> Result<Vec<Pair>> {
+    let all = read_pairs(path)?;
+    if split.is_some() && all.iter().all(|p| p.split.is_none()) {
+        return Err(DemError::input(path, "has no split column for --split (dem-pair writes one)"));
+    }
+    Ok(all)
+}
+
+/// The error of a pairs file that holds no pair of `split` to `verb`
+/// ("evaluate", "expand").
+pub fn no_pairs(path: &str, split: Option<Split>, verb: &str) -> DemError {
+    let which = split.map_or(String::new(), |s| format!(" of split {s}"));
+    DemError::input(path, format!("holds no pairs{which} to {verb}"))
+}
+
 /// Read an index CSV.
 pub fn read_index(path: &str) -> Result<Vec<u64>> {
     Ok(read_rows::<IndexRow>(path, &["index"])?.into_iter().map(|r| r.index).collect())

@@ -12,7 +12,7 @@ use std::collections::{BTreeSet, HashMap};
 
 use dem_core::eval::{self, RowAcc, Selection, TableRow};
 use dem_core::distribution;
-use dem_core::npy::{self, RecordIndex, CHUNK_RECORDS};
+use dem_core::npy::{self, ByIndex, RecordIndex, CHUNK_RECORDS};
 use dem_core::table::{self, Split};
 use dem_core::{cli, Dem, DemError, Terrain};
 use dem_onnx::apply::AttitudeCheck;
@@ -131,10 +131,7 @@ impl Pairs {
     /// Read the pairs CSV; every row is range-checked later, also those of
     /// the split not evaluated.
     pub(crate) fn read(path: &str, split: Option<Split>) -> anyhow::Result<(Pairs, Largest, Largest)> {
-        let all = table::read_pairs(path)?;
-        if split.is_some() && all.iter().all(|p| p.split.is_none()) {
-            return Err(DemError::input(path, "has no split column for --split (dem-pair writes one)").into());
-        }
+        let all = table::read_pairs_for(path, split)?;
         let (mut sim_max, mut real_max) = (Largest::default(), Largest::default());
         for (n, p) in all.iter().enumerate() {
             let line = n as u64 + 2;
@@ -168,32 +165,6 @@ fn sample_hash(i: u64, j: u64) -> u64 {
 /// Keeps pair (i, j) of a row of `n` pairs with probability GAP_SAMPLE / n, by hash.
 fn in_sample(i: u64, j: u64, n: u64) -> bool {
     n <= GAP_SAMPLE || (sample_hash(i, j) as f64) < GAP_SAMPLE as f64 / n as f64 * u64::MAX as f64
-}
-
-/// The real records the pairs name: by index from a file, or (stdin, which
-/// cannot seek) the needed ones read once and held.
-pub(crate) enum Reals {
-    Indexed(RecordIndex),
-    Held(HashMap<u64, Dem>),
-}
-
-impl Reals {
-    pub(crate) fn open(path: &str, needed: &BTreeSet<u64>) -> anyhow::Result<(Reals, u64)> {
-        if path == "-" {
-            let (n, held) = npy::read_selected(path, |i| needed.contains(&i))?;
-            return Ok((Reals::Held(held), n));
-        }
-        let idx = RecordIndex::build(path)?;
-        let n = idx.len();
-        Ok((Reals::Indexed(idx), n))
-    }
-
-    fn fetch(&mut self, wanted: &BTreeSet<u64>) -> anyhow::Result<HashMap<u64, Dem>> {
-        match self {
-            Reals::Indexed(idx) => Ok(wanted.iter().map(|&j| idx.get(j).map(|d| (j, d))).collect::<Result<_, _>>()?),
-            Reals::Held(m) => Ok(wanted.iter().map(|j| (*j, m[j])).collect()),
-        }
-    }
 }
 
 /// The writers of --records and --emit-input, --emit-pred, --emit-closest:
@@ -261,7 +232,7 @@ impl GapSample {
 pub(crate) fn row_gaps(
     samples: HashMap<Option<Terrain>, GapSample>,
     sizes: &HashMap<Option<Terrain>, u64>,
-    reals: &mut Reals,
+    reals: &mut ByIndex,
 ) -> anyhow::Result<HashMap<Option<Terrain>, f64>> {
     let mut gaps = HashMap::new();
     for (key, mut sample) in samples {
@@ -305,11 +276,11 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
     }
     let (pairs, sim_max, real_max) = Pairs::read(&q.pairs, q.split)?;
     if pairs.pairs.is_empty() {
-        let which = q.split.map_or(String::new(), |s| format!(" of split {s}"));
-        return Err(DemError::input(q.pairs.as_str(), format!("holds no pairs{which} to evaluate")).into());
+        return Err(table::no_pairs(&q.pairs, q.split, "evaluate").into());
     }
     let all_reals: BTreeSet<u64> = if q.real == "-" { pairs.pairs.iter().map(|p| p.1).collect() } else { BTreeSet::new() };
-    let (mut reals, n_real) = Reals::open(&q.real, &all_reals)?;
+    let mut reals = ByIndex::open(&q.real, |i| all_reals.contains(&i))?;
+    let n_real = reals.len();
     drop(all_reals);
     real_max.check(&q.pairs, n_real, &q.real, "real_index")?;
     // One terrain byte per sim record; the labels' other columns are not kept.
@@ -429,7 +400,7 @@ struct BlockCtx<'a> {
 
 /// Evaluate one block of (sim index, sim record, prediction); a model's
 /// predictions are made here.
-fn evaluate_block(ctx: &BlockCtx, mut block: Vec<(u64, Dem, Dem)>, reals: &mut Reals, emit: &mut Emit, acc: &mut Acc) -> anyhow::Result<()> {
+fn evaluate_block(ctx: &BlockCtx, mut block: Vec<(u64, Dem, Dem)>, reals: &mut ByIndex, emit: &mut Emit, acc: &mut Acc) -> anyhow::Result<()> {
     if let (Some(model), Method::Model(path)) = (ctx.model, &ctx.q.method) {
         let keys: Vec<u64> = block.iter().map(|b| b.0).collect();
         let inputs: Vec<Dem> = block.iter().map(|b| b.1).collect();

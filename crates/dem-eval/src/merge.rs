@@ -13,7 +13,8 @@ use dem_core::table::Split;
 use dem_core::{cli, DemError, Terrain};
 
 use crate::evaluate::TableOut;
-use crate::inputs::{row_gaps, Evaluation, GapSample, Pairs, Reals};
+use crate::inputs::{row_gaps, Evaluation, GapSample, Pairs};
+use dem_core::npy::ByIndex;
 
 /// The arguments of `dem-eval merge`.
 #[derive(ClapArgs)]
@@ -98,7 +99,8 @@ fn gaps(a: &MergeArgs, recs: &[RecordResult]) -> anyhow::Result<HashMap<Option<T
         .into());
     }
     let needed: BTreeSet<u64> = if real == "-" { pairs.pairs.iter().map(|p| p.1).collect() } else { BTreeSet::new() };
-    let (mut reals, n_real) = Reals::open(real, &needed)?;
+    let mut reals = ByIndex::open(real, |i| needed.contains(&i))?;
+    let n_real = reals.len();
     real_max.check(pairs_path, n_real, real, "real_index")?;
     // Pairs per row, for the samples' rates (as one run counts them).
     let mut row_pairs: HashMap<Option<Terrain>, u64> = HashMap::new();

@@ -19,9 +19,9 @@
 
 use std::path::Path;
 
-use dem_core::npy::{self, RecordIndex};
+use dem_core::npy::{self, ByIndex};
 use dem_core::table::{self, Label, Pair, RowWriter, Split};
-use dem_core::{Dem, DemError};
+use dem_core::DemError;
 
 /// What to expand.
 #[derive(Debug, Clone)]
@@ -68,35 +68,6 @@ pub fn pair_label(index: u64, sim: Option<&Label>, real: Option<&Label>) -> Opti
     })
 }
 
-fn records(path: &str) -> anyhow::Result<Source> {
-    if path == "-" {
-        return Ok(Source::Held(npy::read_all(path)?));
-    }
-    Ok(Source::Indexed(RecordIndex::build(path)?))
-}
-
-/// A record file read by index (or held, when it is stdin).
-enum Source {
-    Indexed(RecordIndex),
-    Held(Vec<Dem>),
-}
-
-impl Source {
-    fn len(&self) -> u64 {
-        match self {
-            Source::Indexed(i) => i.len(),
-            Source::Held(v) => v.len() as u64,
-        }
-    }
-
-    fn get(&mut self, i: u64) -> anyhow::Result<Dem> {
-        Ok(match self {
-            Source::Indexed(idx) => idx.get(i)?,
-            Source::Held(v) => v[i as usize],
-        })
-    }
-}
-
 fn check_labels(labels: &Option<Vec<Label>>, path: &Option<String>, n: u64, file: &str) -> anyhow::Result<()> {
     if let (Some(l), Some(p)) = (labels, path) {
         if l.len() as u64 != n {
@@ -109,11 +80,9 @@ fn check_labels(labels: &Option<Vec<Label>>, path: &Option<String>, n: u64, file
 /// Expand the pairs of `cfg` into one record per pair (module docs), in
 /// the existing folder `cfg.out`.
 pub fn run(cfg: &ExpandConfig) -> anyhow::Result<Expanded> {
-    let all = table::read_pairs(&cfg.pairs)?;
-    if cfg.split.is_some() && all.iter().all(|p| p.split.is_none()) {
-        return Err(DemError::input(cfg.pairs.as_str(), "has no split column for --split (dem-pair writes one)").into());
-    }
-    let (mut sim, mut real) = (records(&cfg.sim)?, records(&cfg.real)?);
+    let all = table::read_pairs_for(&cfg.pairs, cfg.split)?;
+    // Stdin (one input at most) is held whole: the pairs may name any record.
+    let (mut sim, mut real) = (ByIndex::open(&cfg.sim, |_| true)?, ByIndex::open(&cfg.real, |_| true)?);
     for (n, p) in all.iter().enumerate() {
         for (index, src, file, col) in [(p.sim_index, &sim, &cfg.sim, "sim_index"), (p.real_index, &real, &cfg.real, "real_index")] {
             if index >= src.len() {
@@ -128,8 +97,7 @@ pub fn run(cfg: &ExpandConfig) -> anyhow::Result<Expanded> {
     }
     let kept: Vec<&Pair> = all.iter().filter(|p| cfg.split.is_none() || p.split == cfg.split).collect();
     if kept.is_empty() {
-        let which = cfg.split.map_or(String::new(), |s| format!(" of split {s}"));
-        return Err(DemError::input(cfg.pairs.as_str(), format!("holds no pairs{which} to expand")).into());
+        return Err(table::no_pairs(&cfg.pairs, cfg.split, "expand").into());
     }
     let sim_labels = cfg.sim_labels.as_deref().map(table::read_labels).transpose()?;
     let real_labels = cfg.real_labels.as_deref().map(table::read_labels).transpose()?;

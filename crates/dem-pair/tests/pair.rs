@@ -153,3 +153,19 @@ fn expand_refuses_a_pair_past_the_end_and_leaves_nothing() {
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("--match"), "{}", stderr(&o));
 }
+
+/// A record stream on stdin expands as the file does.
+#[test]
+fn expand_reads_the_real_stream_from_stdin() {
+    let dir = tempdir();
+    let (pairs, sim, real) = (td("pairs.csv"), td("sim.npy"), td("real.npy"));
+    let (a, b) = (arg(dir.path(), "a"), arg(dir.path(), "b"));
+    let expand = |real: &str, out: &str, stdin: Option<Vec<u8>>| {
+        ok(&run("dem-pair", &["expand", "--pairs", &pairs, "--sim", &sim, "--real", real, "--out", out], stdin));
+    };
+    expand(&real, &a, None);
+    expand("-", &b, Some(std::fs::read(&real).unwrap()));
+    for f in ["sim.npy", "real.npy", "pairs.csv"] {
+        assert_eq!(std::fs::read(format!("{a}/{f}")).unwrap(), std::fs::read(format!("{b}/{f}")).unwrap(), "{f}");
+    }
+}

@@ -3,6 +3,7 @@
 //! one read. What a tool that needs scattered records (the real records the
 //! pairs name) uses instead of holding the file in memory.
 
+use std::collections::{BTreeSet, HashMap};
 use std::fs::File;
 use std::io::{Read, Seek, SeekFrom};
 
@@ -65,6 +66,55 @@ impl RecordIndex {
         }
         canonicalize(&mut d).map_err(|reason| DemError::Npy { path: self.path.clone(), record: i, offset, reason })?;
         Ok(d)
+    }
+}
+
+/// The records of an NPY stream by index: a file through its
+/// [`RecordIndex`]; stdin, which cannot seek, read once with only the
+/// records `keep` names held.
+pub enum ByIndex {
+    /// A file, read by seeking.
+    Indexed(RecordIndex),
+    /// Stdin's kept records, and how many the stream held.
+    Held(HashMap<u64, Dem>, u64),
+}
+
+impl ByIndex {
+    /// Open `path` (`-` for stdin, holding the records `keep` names).
+    pub fn open(path: &str, keep: impl Fn(u64) -> bool) -> Result<Self> {
+        if path == "-" {
+            let (n, held) = super::read_selected(path, keep)?;
+            return Ok(ByIndex::Held(held, n));
+        }
+        Ok(ByIndex::Indexed(RecordIndex::build(path)?))
+    }
+
+    /// Records in the stream.
+    pub fn len(&self) -> u64 {
+        match self {
+            ByIndex::Indexed(idx) => idx.len(),
+            ByIndex::Held(_, n) => *n,
+        }
+    }
+
+    /// True when the stream holds no records.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Record `i` (of stdin: one `keep` named).
+    pub fn get(&mut self, i: u64) -> Result<Dem> {
+        match self {
+            ByIndex::Indexed(idx) => idx.get(i),
+            ByIndex::Held(m, n) => m.get(&i).copied().ok_or_else(|| {
+                DemError::input("-", format!("record {i} asked for, but stdin held {n} records and it was not kept"))
+            }),
+        }
+    }
+
+    /// The records `wanted` names, by index.
+    pub fn fetch(&mut self, wanted: &BTreeSet<u64>) -> Result<HashMap<u64, Dem>> {
+        wanted.iter().map(|&j| self.get(j).map(|d| (j, d))).collect()
     }
 }
 

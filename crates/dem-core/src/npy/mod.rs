@@ -11,7 +11,7 @@ pub mod transform;
 pub mod writer;
 
 pub use array::F32ArrayWriter;
-pub use index::RecordIndex;
+pub use index::{ByIndex, RecordIndex};
 pub use reader::{open, estimate_records, read_all, read_selected, ArrayExtent, NpyReader, CHUNK_RECORDS};
 pub use transform::{transform, transform_checked};
 pub use writer::{create, write_all, NpyWriter};
