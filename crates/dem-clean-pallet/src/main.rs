@@ -78,9 +78,7 @@ fn main() -> ExitCode {
             }
             Ok(())
         }, |read| match (&labels, &a.labels) {
-            (Some(l), Some(path)) if l.len() as u64 != read => {
-                Err(DemError::input(path.as_str(), format!("has {} rows but {} has {read} records", l.len(), a.input)))
-            }
+            (Some(l), Some(path)) => Ok(dem_core::table::check_labels_cover(path, l.len(), &a.input, read)?),
             _ => Ok(()),
         })?;
         let how = if labels.is_some() { "labelled" } else { "found by shape" };

@@ -207,6 +207,15 @@ pub fn read_pairs(path: &str) -> Result<Vec<Pair>> {
     read_rows(path, &["sim_index", "real_index"])
 }
 
+/// Check that a labels file of `rows` rows covers the `records` records of
+/// `npy_path` exactly, one row each; else an error naming the labels file.
+pub fn check_labels_cover(labels_path: &str, rows: usize, npy_path: &str, records: u64) -> Result<()> {
+    if rows as u64 != records {
+        return Err(DemError::input(labels_path, format!("has {rows} rows but {npy_path} has {records} records")));
+    }
+    Ok(())
+}
+
 /// Read a pairs CSV that is to give the pairs of `split` (all with None):
 /// a `split` asked of a file without the column is an error naming it.
 /// Every row is returned (a caller range-checks them all).

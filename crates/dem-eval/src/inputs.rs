@@ -369,9 +369,7 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
         }
     }
     if let (Some(t), Some(path)) = (&terrains, &q.labels_sim) {
-        if t.len() as u64 != n_sim {
-            return Err(DemError::input(path.as_str(), format!("has {} rows but {} has {n_sim} records", t.len(), q.sim)).into());
-        }
+        table::check_labels_cover(path, t.len(), &q.sim, n_sim)?;
     }
     if let Method::Model(path) = &q.method {
         if let Some(w) = acc.attitude.warning(path, &q.sim) {

@@ -179,12 +179,7 @@ impl Filter {
             }
         }
         if let Some((path, labels)) = &self.rules.labels {
-            if labels.len() as u64 != self.counts.read {
-                return Err(DemError::input(
-                    path.as_str(),
-                    format!("has {} rows but {input} has {} records", labels.len(), self.counts.read),
-                ));
-            }
+            dem_core::table::check_labels_cover(path, labels.len(), input, self.counts.read)?;
         }
         Ok(())
     }

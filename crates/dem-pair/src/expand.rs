@@ -68,15 +68,6 @@ pub fn pair_label(index: u64, sim: Option<&Label>, real: Option<&Label>) -> Opti
     })
 }
 
-fn check_labels(labels: &Option<Vec<Label>>, path: &Option<String>, n: u64, file: &str) -> anyhow::Result<()> {
-    if let (Some(l), Some(p)) = (labels, path) {
-        if l.len() as u64 != n {
-            return Err(DemError::input(p.as_str(), format!("has {} rows but {file} has {n} records", l.len())).into());
-        }
-    }
-    Ok(())
-}
-
 /// Expand the pairs of `cfg` into one record per pair (module docs), in
 /// the existing folder `cfg.out`.
 pub fn run(cfg: &ExpandConfig) -> anyhow::Result<Expanded> {
@@ -101,8 +92,11 @@ pub fn run(cfg: &ExpandConfig) -> anyhow::Result<Expanded> {
     }
     let sim_labels = cfg.sim_labels.as_deref().map(table::read_labels).transpose()?;
     let real_labels = cfg.real_labels.as_deref().map(table::read_labels).transpose()?;
-    check_labels(&sim_labels, &cfg.sim_labels, sim.len(), &cfg.sim)?;
-    check_labels(&real_labels, &cfg.real_labels, real.len(), &cfg.real)?;
+    for (labels, path, records, file) in [(&sim_labels, &cfg.sim_labels, sim.len(), &cfg.sim), (&real_labels, &cfg.real_labels, real.len(), &cfg.real)] {
+        if let (Some(l), Some(p)) = (labels, path) {
+            table::check_labels_cover(p, l.len(), file, records)?;
+        }
+    }
 
     let path = |name: &str| Path::new(&cfg.out).join(name).to_string_lossy().into_owned();
     let (mut sim_out, mut real_out) = (npy::create(&path("sim.npy"))?, npy::create(&path("real.npy"))?);

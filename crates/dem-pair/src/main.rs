@@ -159,12 +159,8 @@ fn main() -> ExitCode {
         let sim = a.sim.as_deref().map(npy::read_all).transpose()?;
         let sim_labels = a.sim_labels.as_deref().map(table::read_labels).transpose()?;
         let real_labels = a.real_labels.as_deref().map(table::read_labels).transpose()?;
-        for (records, labels, file, lfile) in [(&sim, &sim_labels, &a.sim, &a.sim_labels)] {
-            if let (Some(r), Some(l), Some(f), Some(lf)) = (records, labels, file, lfile) {
-                if r.len() != l.len() {
-                    return Err(DemError::input(lf.as_str(), format!("has {} rows but {f} has {} records", l.len(), r.len())).into());
-                }
-            }
+        if let (Some(r), Some(l), Some(f), Some(lf)) = (&sim, &sim_labels, &a.sim, &a.sim_labels) {
+            table::check_labels_cover(lf, l.len(), f, r.len() as u64)?;
         }
         let keys = sim.as_deref().map(first_occurrence);
         let found = match by {

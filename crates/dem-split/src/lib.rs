@@ -136,9 +136,7 @@ fn split_into(cfg: &SplitConfig, written: &mut Vec<Shard>) -> Result<(), DemErro
         k += 1;
     }
     if let (Some(all), Some(path)) = (&labels, &cfg.labels) {
-        if all.len() as u64 != rdr.records_read() {
-            return Err(DemError::input(path.as_str(), format!("has {} rows but {} has {} records", all.len(), cfg.input, rdr.records_read())));
-        }
+        table::check_labels_cover(path, all.len(), &cfg.input, rdr.records_read())?;
     }
     Ok(())
 }

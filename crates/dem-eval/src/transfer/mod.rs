@@ -81,9 +81,7 @@ struct Set {
 fn load(name: &str, npy_path: &str, labels_path: &str) -> anyhow::Result<Set> {
     let dems: Vec<Dem> = npy::read_all(npy_path)?;
     let labels: Vec<Label> = table::read_labels(labels_path)?;
-    if labels.len() != dems.len() {
-        return Err(DemError::input(labels_path, format!("has {} rows but {npy_path} has {} records", labels.len(), dems.len())).into());
-    }
+    table::check_labels_cover(labels_path, labels.len(), npy_path, dems.len() as u64)?;
     if dems.is_empty() {
         return Err(DemError::input(npy_path, "holds no records").into());
     }
