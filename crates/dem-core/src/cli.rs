@@ -79,6 +79,15 @@ pub fn usage(msg: impl Into<String>) -> anyhow::Error {
     DemError::Usage(msg.into()).into()
 }
 
+/// A usage error when more than one of a tool's inputs is `-`: stdin can
+/// be read once.
+pub fn one_stdin<'a>(inputs: impl IntoIterator<Item = &'a str>) -> anyhow::Result<()> {
+    if inputs.into_iter().filter(|p| *p == "-").count() > 1 {
+        return Err(usage("only one input can be `-` (stdin)"));
+    }
+    Ok(())
+}
+
 /// Parse the command line; a usage error is one line naming the tool
 /// (`dem-pair: error: invalid value 'nan' for '--max-error <M>': ...`),
 /// exit 2. `--help` and `--version` print as clap does, exit 0.

@@ -263,17 +263,11 @@ struct Acc {
 
 /// Run the evaluation.
 pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
-    let stdin_users = [Some(&q.sim), Some(&q.real), Some(&q.pairs), q.labels_sim.as_ref()]
-        .into_iter()
-        .chain([match &q.method {
-            Method::Pred(p) => Some(p),
-            _ => None,
-        }])
-        .filter(|p| p.is_some_and(|p| p == "-"))
-        .count();
-    if stdin_users > 1 {
-        return Err(cli::usage("only one input can be `-` (stdin)"));
-    }
+    let pred = match &q.method {
+        Method::Pred(p) => Some(p),
+        _ => None,
+    };
+    cli::one_stdin([Some(&q.sim), Some(&q.real), Some(&q.pairs), q.labels_sim.as_ref(), pred].into_iter().flatten().map(String::as_str))?;
     let (pairs, sim_max, real_max) = Pairs::read(&q.pairs, q.split)?;
     if pairs.pairs.is_empty() {
         return Err(table::no_pairs(&q.pairs, q.split, "evaluate").into());

@@ -137,9 +137,7 @@ fn gaps(a: &MergeArgs, recs: &[RecordResult]) -> anyhow::Result<HashMap<Option<T
 /// Merge as `a` asks and write the table.
 pub fn run(a: MergeArgs) -> anyhow::Result<()> {
     let inputs: Vec<&str> = a.records.iter().chain([&a.emitted_pred, &a.real, &a.pairs].into_iter().flatten()).map(String::as_str).collect();
-    if inputs.iter().filter(|p| **p == "-").count() > 1 {
-        return Err(cli::usage("only one input can be `-` (stdin)"));
-    }
+    cli::one_stdin(inputs.iter().copied())?;
     dem_core::output::check_outputs(&inputs, &[a.table.output.as_str()])?;
     let recs = read_all(&a.records)?;
     if recs.is_empty() {

@@ -120,9 +120,7 @@ fn expand(cfg: dem_pair::expand::ExpandConfig) -> anyhow::Result<()> {
         .flatten()
         .map(String::as_str)
         .collect();
-    if inputs.iter().filter(|p| **p == "-").count() > 1 {
-        return Err(cli::usage("only one input can be `-` (stdin)"));
-    }
+    cli::one_stdin(inputs.iter().copied())?;
     // The folder first: the output check tries a file in it. A folder made
     // here is taken away again when the run fails (it is empty then).
     let made = !std::path::Path::new(&cfg.out).exists();
