@@ -11,11 +11,16 @@
 //! [`run`] applies it after the network, with each record's time from its
 //! labels. The result equals `dem-apply --network-only | dem-sensor apply`
 //! with the same seed, byte for byte.
+//!
+//! A generator exported with `--heights input` keeps the input's heights
+//! under its holes ([`Heights::Input`]): the network decides which cells are
+//! missing, the sim's heights stay, and its residual model (fitted on that
+//! output) draws the measured heights' effects.
 
 use dem_core::format::Dem;
 use dem_core::{table, DemError};
 use dem_onnx::apply::{apply, ApplyStats, MaskSampling};
-use dem_onnx::OnnxModel;
+use dem_onnx::{Heights, OnnxModel, HEIGHTS_KEY};
 use dem_sensor::SensorModel;
 
 pub use dem_onnx::export::RESIDUAL_KEY;
@@ -37,6 +42,9 @@ pub struct Config {
     pub sample_masks: bool,
     /// Run the network only, without the residual sensor model it carries.
     pub network_only: bool,
+    /// Where valid cells take their heights from; `None`: what the model
+    /// says (`dem-train export --heights`), else the network's.
+    pub heights: Option<Heights>,
     /// Labels of the input's records (their `time` drives `startup`).
     pub labels: Option<String>,
     /// Seed of every draw (holes, the residual model).
@@ -52,6 +60,8 @@ pub struct Report {
     pub stats: ApplyStats,
     /// The residual sensor model applied, if any (its one-line summary).
     pub residual: Option<String>,
+    /// Where the valid cells' heights came from.
+    pub heights: Heights,
     /// Said once after the run (e.g. no times for a time effect).
     pub notes: Vec<String>,
 }
@@ -65,11 +75,27 @@ pub fn residual_of(path: &str) -> Result<Option<SensorModel>, DemError> {
         .map_err(|e| DemError::input(path, format!("its residual sensor model ({RESIDUAL_KEY}) is not valid: {e}")))
 }
 
+/// Where the ONNX file at `path` says its valid cells take their heights
+/// from (`dem-train export --heights`; a model without the key: the
+/// network's).
+pub fn heights_of(path: &str) -> Result<Heights, DemError> {
+    let info = dem_onnx::read_info(path)?;
+    match info.metadata.iter().find(|(k, _)| k == HEIGHTS_KEY) {
+        None => Ok(Heights::Network),
+        Some((_, v)) => v.parse().map_err(|e| DemError::input(path, format!("its {HEIGHTS_KEY} is not valid: {e}"))),
+    }
+}
+
 /// Run `model` (loaded from `c.model`) over `c.input` into `c.output`: the
-/// network, then holes drawn (`sample_masks`), then the residual sensor
-/// model unless `network_only`. `progress` gets the records done so far.
+/// network, then holes drawn (`sample_masks`), then the input's heights
+/// under the holes (`heights`), then the residual sensor model unless
+/// `network_only`. `progress` gets the records done so far.
 pub fn run(c: &Config, model: &OnnxModel, progress: impl FnMut(u64)) -> Result<Report, DemError> {
     let residual = if c.network_only { None } else { residual_of(&c.model)? };
+    let heights = match c.heights {
+        Some(h) => h,
+        None => heights_of(&c.model)?,
+    };
     let times = match &c.labels {
         Some(p) => Some((p.as_str(), table::times(&table::read_labels(p)?))),
         None => None,
@@ -89,12 +115,15 @@ pub fn run(c: &Config, model: &OnnxModel, progress: impl FnMut(u64)) -> Result<R
         if let Some(s) = &sample {
             s.draw(inp, out, first);
         }
+        if heights == Heights::Input {
+            inp.iter().zip(out.iter_mut()).for_each(|(x, y)| heights.apply(x, y));
+        }
         if let Some(r) = &residual {
             r.apply_chunk(out, c.seed, c.first_index, first, times.as_ref().map(|(p, t)| (*p, t.as_slice())))?;
         }
         Ok(())
     };
-    let any = sample.is_some() || residual.is_some();
+    let any = sample.is_some() || residual.is_some() || heights == Heights::Input;
     let stats = apply(model, &c.input, &c.output, c.batch, c.strict, any.then_some(&finish as _), progress)?;
-    Ok(Report { stats, residual: residual.map(|r| r.summary()), notes })
+    Ok(Report { stats, residual: residual.map(|r| r.summary()), heights, notes })
 }

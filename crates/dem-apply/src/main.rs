@@ -31,6 +31,7 @@ use dem_onnx::OnnxModel;
   dem-apply --model g_y.onnx --sample-masks --seed 1 sim.npy -o realistic.npy   # holes drawn at the model's rate
   dem-apply --model g_y.onnx --labels sim_labels.csv --seed 1 sim.npy -o realistic.npy  # with its residual model, startup by time
   dem-apply --model g_y.onnx --network-only sim.npy -o expected.npy    # the network alone
+  dem-apply --model g_y.onnx --network-only --heights input sim.npy -o holes.npy   # its holes, the sim's heights
   dem-synth --out w --runs 20 --seed 3 && dem-apply --model g_y.onnx w/sim.npy | dem-render - -o fake.png
   dem-filter --labels l.csv --terrain pallet sim.npy | dem-apply --model g_y.onnx --threads 2 > pallets_real.npy
   dem-render --compare sim.npy <(dem-apply --model g_y.onnx sim.npy) real.npy --row-labels 'sim,G(sim),real' -o cmp.png")]
@@ -60,6 +61,14 @@ struct Args {
     /// model carries (`dem-train export --residual`).
     #[arg(long)]
     network_only: bool,
+    /// Where valid cells take their heights from: `network` (its height
+    /// head) or `input` (the input's height on every cell the network keeps
+    /// valid and the input has; masks come out +-1). Default: what the
+    /// model was exported with (`dem-train export --heights`), else
+    /// `network`. --network-only keeps it: it leaves out the residual model
+    /// alone.
+    #[arg(long, value_parser = clap::value_parser!(dem_onnx::Heights))]
+    heights: Option<dem_onnx::Heights>,
     /// Labels CSV of the input's records: their `time` in the run places
     /// the residual model's startup rows (without it, startup frames are
     /// drawn at the model's rate).
@@ -108,6 +117,7 @@ fn main() -> ExitCode {
             strict: a.strict,
             sample_masks: a.sample_masks,
             network_only: a.network_only,
+            heights: a.heights,
             labels: a.labels.clone(),
             seed: a.seed,
             first_index: a.first_index,
@@ -125,12 +135,13 @@ fn main() -> ExitCode {
         }
         let secs = start.elapsed().as_secs_f64();
         cli::log(format_args!(
-            "{} records in {secs:.2} s ({:.0} records/s), {} threads, batch {}, {}{}",
+            "{} records in {secs:.2} s ({:.0} records/s), {} threads, batch {}, {}{}{}",
             stats.records,
             stats.records as f64 / secs.max(1e-9),
             pool.current_num_threads(),
             a.batch,
             model.engine_name(),
+            if report.heights == dem_onnx::Heights::Input { ", the input's heights under its holes" } else { "" },
             report.residual.map_or(String::new(), |r| format!(", then its residual sensor model: {r}"))
         ));
         // After the run: a refused input still gets exactly one line.

@@ -315,6 +315,11 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
         Method::Model(path) if !q.network_only => dem_apply::residual_of(path)?,
         _ => None,
     };
+    // And where its valid cells take their heights from (`--heights input`).
+    let heights = match &q.method {
+        Method::Model(path) => dem_apply::heights_of(path)?,
+        _ => dem_onnx::Heights::Network,
+    };
     if residual.as_ref().is_some_and(|r| r.uses_time()) && times.is_none() {
         cli::log("note: the model's residual has `startup` but no --sim-labels gave the records' times: startup frames are drawn at its rate p instead of by time");
     }
@@ -325,7 +330,7 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
         Method::Pred(path) => Some((path, npy::open(path)?)),
         _ => None,
     };
-    let ctx = BlockCtx { q, pairs: &pairs, model: model.as_ref(), residual: residual.as_ref(), terrain_of: &terrain_of, time_of: &time_of, row_sizes: &row_sizes };
+    let ctx = BlockCtx { q, pairs: &pairs, model: model.as_ref(), residual: residual.as_ref(), heights, terrain_of: &terrain_of, time_of: &time_of, row_sizes: &row_sizes };
     let (mut chunk, mut pchunk) = (Vec::with_capacity(CHUNK_RECORDS), Vec::with_capacity(CHUNK_RECORDS));
     let mut block: Vec<(u64, Dem, Dem)> = Vec::with_capacity(BLOCK);
     loop {
@@ -385,6 +390,7 @@ struct BlockCtx<'a> {
     pairs: &'a Pairs,
     model: Option<&'a dem_onnx::OnnxModel>,
     residual: Option<&'a dem_sensor::SensorModel>,
+    heights: dem_onnx::Heights,
     terrain_of: &'a dyn Fn(u64) -> Option<Terrain>,
     time_of: &'a (dyn Fn(u64) -> Option<f64> + Sync),
     row_sizes: &'a HashMap<Option<Terrain>, u64>,
@@ -398,6 +404,7 @@ fn evaluate_block(ctx: &BlockCtx, mut block: Vec<(u64, Dem, Dem)>, reals: &mut B
         let inputs: Vec<Dem> = block.iter().map(|b| b.1).collect();
         let preds = crate::model::predict(model, path, &keys, &inputs, &ctx.q.sim, ctx.q.batch, ctx.q.strict, &mut acc.attitude)?;
         block.iter_mut().zip(preds).for_each(|(b, p)| b.2 = p);
+        block.iter_mut().for_each(|b| ctx.heights.apply(&b.1, &mut b.2));
         if let Some(r) = ctx.residual {
             // Keyed by the record's index in the whole sim set, as dem-apply
             // keys it: the same draws as `dem-apply | dem-eval --pred`.

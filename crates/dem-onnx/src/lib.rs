@@ -13,6 +13,8 @@
 //!   against tract at load; any other model runs on tract).
 //! - [`apply`]: stream an NPY stream through a model in parallel batches,
 //!   order preserved (the body of `dem-apply`).
+//! - [`masks`] and [`heights`]: what dem-apply can do to a generator's
+//!   output: holes drawn from its masks, the input's heights under its holes.
 //!
 //! Both sides of a model use the file layout of `spec/dem-format.md`: input
 //! `dem`, output `dem_out`, so a saved NPY goes straight in.
@@ -20,10 +22,12 @@
 
 pub mod apply;
 pub mod export;
+pub mod heights;
 pub mod masks;
 pub mod native;
 pub mod run;
 
+pub use heights::{Heights, HEIGHTS_KEY};
 pub use export::{export_checked, export_checked_with, generator_model, read_info, ExportReport, ModelInfo, TOLERANCE};
 pub use run::{Engine, OnnxModel};
 

@@ -21,6 +21,7 @@ use std::path::Path;
 use anyhow::Result;
 use dem_core::{cli, npy, output, table, DemError};
 use dem_onnx::export::RESIDUAL_KEY;
+use dem_onnx::{Heights, HEIGHTS_KEY};
 use dem_nn::train::checkpoint;
 use dem_nn::train::{CycleGan, Sampler, TrainData};
 use dem_sensor::SensorModel;
@@ -158,14 +159,18 @@ fn train_in_folder(cfg: &TrainConfig) -> Result<()> {
 
 /// Export generator `y` (G_Y, sim -> real) or G_X of the run in `run` to
 /// the ONNX file `out`, after tract reproduces the trainer on the run's
-/// check records; the model records its provenance.
-pub fn export(run: &str, out: &str, y: bool, residual: Option<&str>) -> Result<()> {
+/// check records; the model records its provenance, and where its valid
+/// cells take their heights from when not the network's (`heights`).
+pub fn export(run: &str, out: &str, y: bool, residual: Option<&str>, heights: Heights) -> Result<()> {
     let mut inputs = vec![run_file(run, "checkpoint.bin"), run_file(run, "check_sim.npy"), run_file(run, "check_real.npy")];
     inputs.extend(residual.map(String::from));
     output::check_outputs(&inputs.iter().map(String::as_str).collect::<Vec<_>>(), &[out])?;
     let residual = residual.map(|p| Ok::<_, anyhow::Error>((p, SensorModel::read(p)?))).transpose()?;
     if residual.is_some() && !y {
         return Err(DemError::Usage("--residual is a sensor model of G_Y's output: it needs --generator y".into()).into());
+    }
+    if heights == Heights::Input && !y {
+        return Err(DemError::Usage("--heights input keeps the sim's heights under G_Y's holes: it needs --generator y".into()).into());
     }
     let (meta, gan) = checkpoint::load(&run_file(run, "checkpoint.bin"))?;
     let which = if y { "y" } else { "x" };
@@ -176,15 +181,19 @@ pub fn export(run: &str, out: &str, y: bool, residual: Option<&str>) -> Result<(
         metadata.push((RESIDUAL_KEY.into(), serde_json::to_string(model)?));
         metadata.push((format!("{RESIDUAL_KEY}.source"), format!("{path}, sha256 {}", provenance::sha256_file(path)?)));
     }
+    if heights != Heights::Network {
+        metadata.push((HEIGHTS_KEY.into(), heights.to_string()));
+    }
     let report = dem_onnx::export::export_checked_with(&gan.generator_weights(y), &check, &expected, out, &metadata)?;
     cli::log(format!(
-        "wrote {} ({} bytes): G_{} of {run}, tract reproduces the trainer on {} check records (max |diff| {:.2e}){}",
+        "wrote {} ({} bytes): G_{} of {run}, tract reproduces the trainer on {} check records (max |diff| {:.2e}){}{}",
         report.path,
         report.bytes,
         which.to_uppercase(),
         report.records,
         report.max_abs_diff,
-        residual.map_or(String::new(), |(_, m)| format!(", with the residual sensor model {}", m.summary()))
+        residual.map_or(String::new(), |(_, m)| format!(", with the residual sensor model {}", m.summary())),
+        if heights == Heights::Input { ", heights from the input under its holes" } else { "" }
     ));
     Ok(())
 }

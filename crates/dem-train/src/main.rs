@@ -26,6 +26,7 @@ use dem_train::{RunOptions, Settings, TrainConfig};
   dem-apply --model gy.onnx sim.npy -o gy_sim.npy        # what the network leaves, named by dem-gap (1 min):
   dem-gap --sim gy_sim.npy --real real.npy --sim-labels sim_labels.csv --real-labels real_labels.csv -o gap/
   dem-train export run/ -o gy.onnx --residual gap/sensor.json   # the generator with what its network leaves
+  dem-train export run/ -o gy.onnx --heights input --residual gap/sensor.json   # its holes, the sim's heights, then the residual
   dem-train curves run/ -o curves.png                   # losses and val error per epoch
   dem-apply --model gy.onnx < sim.npy > realistic.npy")]
 struct Cli {
@@ -156,13 +157,19 @@ struct ExportArgs {
     /// model (`dem.residual`), and dem-apply applies it after the network.
     #[arg(long)]
     residual: Option<String>,
+    /// Where the model's valid cells take their heights from when dem-apply
+    /// runs it: `network` (its height head) or `input` (the input's heights
+    /// under the network's holes; fit --residual on `dem-apply --heights
+    /// input --network-only`'s output). Stored as `dem.heights`.
+    #[arg(long, default_value = "network", value_parser = clap::value_parser!(dem_onnx::Heights))]
+    heights: dem_onnx::Heights,
 }
 
 fn main() -> ExitCode {
     cli::run(|| {
         let c: Cli = cli::parse();
         match c.command {
-            Some(Command::Export(e)) => dem_train::export(&e.run, &e.output, e.generator == "y", e.residual.as_deref()),
+            Some(Command::Export(e)) => dem_train::export(&e.run, &e.output, e.generator == "y", e.residual.as_deref(), e.heights),
             Some(Command::Curves { run, output }) => dem_train::draw_curves(&run, &output),
             None => {
                 if let Some(t) = c.train.threads {

@@ -3,6 +3,7 @@
 
 use std::path::Path;
 
+use dem_core::format::DemCells;
 use dem_core::npy;
 use dem_nn::train::checkpoint;
 use dem_testkit::{arg, ok, py, run, stderr, tempdir, testdata};
@@ -227,6 +228,86 @@ fn a_residual_sensor_model_travels_with_the_generator() {
     let out = run("dem-train", &["export", &r, "-o", &arg(d.path(), "g2.onnx"), "--residual", &bad], None);
     assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
     assert!(stderr(&out).contains("bad.json") && !d.path().join("g2.onnx").exists(), "{}", stderr(&out));
+}
+
+/// `export --heights input`: the model keeps the input's heights under its
+/// network's holes, in dem-apply (by default, with --network-only too) and
+/// dem-eval --model; `dem-apply --heights` says the same of any model.
+#[test]
+fn a_generator_exported_with_input_heights_keeps_the_sims_heights() {
+    let d = tempdir();
+    let r = arg(d.path(), "run");
+    ok(&train(d.path(), &r, &["--max-steps", "8"]));
+    let sensor = arg(d.path(), "residual.json");
+    std::fs::write(&sensor, r#"{"effects": [{"effect": "noise", "params": {"sigma0": 0.003, "k": 0.01}}]}"#).unwrap();
+    let (plain, held) = (arg(d.path(), "plain.onnx"), arg(d.path(), "held.onnx"));
+    ok(&run("dem-train", &["export", &r, "-o", &plain], None));
+    let out = run("dem-train", &["export", &r, "-o", &held, "--heights", "input", "--residual", &sensor], None);
+    ok(&out);
+    assert!(stderr(&out).contains("heights from the input under its holes"), "{}", stderr(&out));
+    let info = String::from_utf8_lossy(&run("dem-apply", &["--model", &held, "--info"], None).stdout).into_owned();
+    assert!(info.contains("dem.heights: input"), "{info}");
+    let sim = arg(d.path(), "sim.npy");
+    let input = npy::read_all(&td("sim.npy")).unwrap()[..150].to_vec();
+    npy::write_all(&sim, &input).unwrap();
+    let net = arg(d.path(), "net.npy");
+    ok(&run("dem-apply", &["--model", &plain, &sim, "-o", &net], None));
+    // The stored mode, --network-only: the network's holes, the sim's heights.
+    let kept = arg(d.path(), "kept.npy");
+    let out = run("dem-apply", &["--model", &held, "--network-only", &sim, "-o", &kept], None);
+    ok(&out);
+    assert!(stderr(&out).contains("the input's heights under its holes"), "{}", stderr(&out));
+    let (net_recs, kept_recs) = (npy::read_all(&net).unwrap(), npy::read_all(&kept).unwrap());
+    let mut from_sim = 0;
+    for ((x, n), k) in input.iter().zip(&net_recs).zip(&kept_recs) {
+        assert_eq!(k.attitude(), x.attitude());
+        for (row, col) in (0..20).flat_map(|row| (0..5).map(move |col| (row, col))) {
+            assert_eq!(k.is_valid(row, col), n.is_valid(row, col), "the network's holes");
+            assert_eq!(k.mask(row, col).abs(), 1.0);
+            match (k.is_valid(row, col), x.is_valid(row, col)) {
+                (true, true) => {
+                    assert_eq!(k.height(row, col), x.height(row, col));
+                    from_sim += 1;
+                }
+                (true, false) => assert_eq!(k.height(row, col), n.height(row, col)),
+                (false, _) => assert_eq!(k.height(row, col), 0.0),
+            }
+        }
+    }
+    assert!(from_sim > 1000, "{from_sim} cells from the sim");
+    // --heights overrides the stored mode, either way.
+    let over = arg(d.path(), "over.npy");
+    ok(&run("dem-apply", &["--model", &plain, "--heights", "input", &sim, "-o", &over], None));
+    assert_eq!(std::fs::read(&over).unwrap(), std::fs::read(&kept).unwrap());
+    ok(&run("dem-apply", &["--model", &held, "--network-only", "--heights", "network", &sim, "-o", &over], None));
+    assert_eq!(std::fs::read(&over).unwrap(), std::fs::read(&net).unwrap());
+    // With its residual: the same bytes as the held heights through dem-sensor apply.
+    let whole = arg(d.path(), "whole.npy");
+    ok(&run("dem-apply", &["--model", &held, "--seed", "3", &sim, "-o", &whole], None));
+    let piped = arg(d.path(), "piped.npy");
+    ok(&run("dem-sensor", &["apply", "--sensor", &sensor, "--seed", "3", &kept, "-o", &piped], None));
+    assert_eq!(std::fs::read(&whole).unwrap(), std::fs::read(&piped).unwrap());
+    // dem-eval --model scores what dem-apply writes.
+    let pairs = arg(d.path(), "pairs150.csv");
+    std::fs::write(&pairs, std::iter::once("sim_index,real_index\n".to_string()).chain((0..150).map(|i| format!("{i},{i}\n"))).collect::<String>()).unwrap();
+    let real = td("real.npy");
+    let eval = |extra: &[&str]| {
+        let mut a = vec!["--sim", &sim, "--real", &real, "--pairs", &pairs, "--name", "g", "--format", "csv"];
+        a.extend_from_slice(extra);
+        let out = run("dem-eval", &a, None);
+        ok(&out);
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    assert_eq!(eval(&["--model", &held, "--seed", "3"]), eval(&["--pred", &whole]));
+    assert_eq!(eval(&["--model", &held, "--network-only"]), eval(&["--pred", &kept]));
+    // A bad value and G_X are refused before anything is written.
+    let out = run("dem-apply", &["--model", &held, "--heights", "sim", &sim, "-o", &over], None);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("network or input"), "{}", stderr(&out));
+    let gx = arg(d.path(), "gx.onnx");
+    let out = run("dem-train", &["export", &r, "-o", &gx, "--generator", "x", "--heights", "input"], None);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(!Path::new(&gx).exists());
 }
 
 #[test]
