@@ -16,7 +16,9 @@
 #   4. The held-out runs' sims against their measured DEMs, paired 1:1
 #      (TD's pairs.csv: sim record i is the pose of measured record i):
 #      identity, G_Y's network, G_Y with its residual model (one ONNX file,
-#      `dem-train export --residual`), dem-gap's sensor model: OUT/heldout.md.
+#      `dem-train export --residual`), G_Y's holes with the sim's heights and
+#      their residual model (`--heights input`), dem-gap's sensor model:
+#      OUT/heldout.md.
 #
 # Environment (all optional):
 #   BIN=target/release  TD=testdata  OUT=out/transfer
@@ -84,7 +86,9 @@ if [[ -z "$model" ]]; then
     model=$OUT/gy.onnx
 fi
 # The network alone (a MODEL exported with --residual carries more).
-"$BIN/dem-apply" --model "$model" --network-only "$SIM" -o "$OUT/gy_sim.npy"
+"$BIN/dem-apply" --model "$model" --network-only --heights network "$SIM" -o "$OUT/gy_sim.npy"
+# Its holes with the sim's heights.
+"$BIN/dem-apply" --model "$model" --network-only --heights input "$SIM" -o "$OUT/gy_holes_sim.npy"
 # The same with the holes drawn at the rate G_Y's raw masks predict.
 "$BIN/dem-apply" --model "$model" --network-only --sample-masks --seed "$SEED" "$SIM" -o "$OUT/gy_sampled_sim.npy"
 
@@ -114,6 +118,9 @@ done
 # bytes as `dem-train export --residual gap_gy/sensor.json` then dem-apply
 # --labels --seed (tested), the generator as one file.
 fit_and_apply "$OUT/gy_sim.npy" gap_gy "$OUT/gy_residual_sim.npy"
+# The same on G_Y's holes with the sim's heights: dem-gap then models the
+# heights' effects (`dem-train export --heights input --residual`).
+fit_and_apply "$OUT/gy_holes_sim.npy" gap_gy_holes "$OUT/gy_holes_residual_sim.npy"
 
 # 3. The transfer table.
 for fmt in text csv md; do
@@ -125,6 +132,7 @@ for fmt in text csv md; do
         --train gy+startup "$OUT/gy_startup_sim.npy" "$OUT/sim_labels.csv" \
         --train gy-sampled+startup "$OUT/gy_sampled_startup_sim.npy" "$OUT/sim_labels.csv" \
         --train gy+residual "$OUT/gy_residual_sim.npy" "$OUT/sim_labels.csv" \
+        --train gy-holes+residual "$OUT/gy_holes_residual_sim.npy" "$OUT/sim_labels.csv" \
         --train sensor "$OUT/sensor_sim.npy" "$OUT/sim_labels.csv" \
         --train measured "$OUT/real.npy" "$OUT/real_labels.csv" \
         --by-terrain --seed "$SEED" --format "$fmt" -o "$OUT/transfer.$ext"
@@ -142,13 +150,21 @@ ev=("$BIN/dem-eval" --sim "$TD_SIM" --real "$TD/real.npy" --pairs "$OUT/test_pai
 if [[ -z "${MODEL:-}" ]]; then
     "$BIN/dem-train" export "$OUT/train" -o "$OUT/gy_residual.onnx" --residual "$OUT/gap_gy/sensor.json"
     "${ev[@]}" --model "$OUT/gy_residual.onnx" --seed "$SEED" --name gy+residual -o "$OUT/heldout_residual.csv"
+    "$BIN/dem-train" export "$OUT/train" -o "$OUT/gy_holes_residual.onnx" --heights input --residual "$OUT/gap_gy_holes/sensor.json"
+    "${ev[@]}" --model "$OUT/gy_holes_residual.onnx" --seed "$SEED" --name gy-holes+residual -o "$OUT/heldout_holes_residual.csv"
 else
-    "$BIN/dem-apply" --model "$model" --network-only "$TD_SIM" \
-        | "$BIN/dem-sensor" apply --sensor "$OUT/gap_gy/sensor.json" --labels "$TD/sim_labels.csv" --seed "$SEED" -o "$OUT/td_gy_residual.npy"
-    "${ev[@]}" --pred "$OUT/td_gy_residual.npy" --name gy+residual -o "$OUT/heldout_residual.csv"
+    for h in network input; do
+        name=$([[ $h == network ]] && echo gy+residual || echo gy-holes+residual)
+        fit=$([[ $h == network ]] && echo gap_gy || echo gap_gy_holes)
+        csv=$([[ $h == network ]] && echo heldout_residual || echo heldout_holes_residual)
+        "$BIN/dem-apply" --model "$model" --network-only --heights "$h" "$TD_SIM" \
+            | "$BIN/dem-sensor" apply --sensor "$OUT/$fit/sensor.json" --labels "$TD/sim_labels.csv" --seed "$SEED" -o "$OUT/td_$name.npy"
+        "${ev[@]}" --pred "$OUT/td_$name.npy" --name "$name" -o "$OUT/$csv.csv"
+    done
 fi
 "$BIN/dem-sensor" apply --sensor "$OUT/gap/sensor.json" --labels "$TD/sim_labels.csv" --seed "$SEED" "$TD_SIM" -o "$OUT/td_sensor.npy"
 "${ev[@]}" --pred "$OUT/td_sensor.npy" --name sensor -o "$OUT/heldout_sensor.csv"
-"$BIN/dem-eval" join "$OUT/heldout_identity.csv" "$OUT/heldout_network.csv" "$OUT/heldout_residual.csv" "$OUT/heldout_sensor.csv" \
+"$BIN/dem-eval" join "$OUT/heldout_identity.csv" "$OUT/heldout_network.csv" "$OUT/heldout_residual.csv" \
+    "$OUT/heldout_holes_residual.csv" "$OUT/heldout_sensor.csv" \
     --format md -o "$OUT/heldout.md"
 cat "$OUT/heldout.md"

@@ -11,6 +11,8 @@
 #   gy         G_Y's network alone (deterministic: the same as per key)
 #   gy+residual  G_Y, then dem-gap's model of what is left (fitted on the
 #              train pairs' G_Y output against their measured partners)
+#   gy-holes   G_Y's holes with the sim's heights (dem-apply --heights input)
+#   gy-holes+residual  the same, then dem-gap's model of what is left
 #   sensor     dem-gap's sensor model of sim -> measured (fitted the same way)
 # and writes OUT/table.md (and .csv), per terrain.
 #
@@ -30,7 +32,8 @@ mkdir -p "$OUT"
 for split in train val; do
     "$BIN/dem-pair" expand --pairs "$P/pairs.csv" --sim "$SIM" --real "$P/real.npy" \
         --sim-labels "$P/sim_labels.csv" --real-labels "$P/real_labels.csv" --split "$split" --out "$OUT/$split"
-    "$BIN/dem-apply" --model "$MODEL" --network-only "$OUT/$split/sim.npy" -o "$OUT/$split/gy.npy"
+    "$BIN/dem-apply" --model "$MODEL" --network-only --heights network "$OUT/$split/sim.npy" -o "$OUT/$split/gy.npy"
+    "$BIN/dem-apply" --model "$MODEL" --network-only --heights input "$OUT/$split/sim.npy" -o "$OUT/$split/gy-holes.npy"
 done
 
 # fit NAME SIM_NPY SEED: dem-gap of the train pairs' SIM_NPY against their
@@ -47,15 +50,19 @@ v=$OUT/val
 ev=("$BIN/dem-eval" --sim "$v/sim.npy" --real "$v/real.npy" --pairs "$v/pairs.csv" --sim-labels "$v/sim_labels.csv" --by terrain --format csv)
 "${ev[@]}" --identity -o "$OUT/identity.csv"
 "${ev[@]}" --pred "$v/gy.npy" --name gy -o "$OUT/gy.csv"
-tables=("$OUT/identity.csv" "$OUT/gy.csv")
+"${ev[@]}" --pred "$v/gy-holes.npy" --name gy-holes -o "$OUT/gy-holes.csv"
+tables=("$OUT/identity.csv" "$OUT/gy.csv" "$OUT/gy-holes.csv")
 for s in $SEEDS; do
     fit "sensor-s$s" "$OUT/train/sim.npy" "$s"
     fit "residual-s$s" "$OUT/train/gy.npy" "$s"
+    fit "holes-residual-s$s" "$OUT/train/gy-holes.npy" "$s"
     "$BIN/dem-sensor" apply --sensor "$OUT/sensor-s$s/sensor.json" --labels "$v/sim_labels.csv" --seed "$s" "$v/sim.npy" -o "$v/sensor-s$s.npy"
     "$BIN/dem-sensor" apply --sensor "$OUT/residual-s$s/sensor.json" --labels "$v/sim_labels.csv" --seed "$s" "$v/gy.npy" -o "$v/gy+residual-s$s.npy"
+    "$BIN/dem-sensor" apply --sensor "$OUT/holes-residual-s$s/sensor.json" --labels "$v/sim_labels.csv" --seed "$s" "$v/gy-holes.npy" -o "$v/gy-holes+residual-s$s.npy"
     "${ev[@]}" --pred "$v/gy+residual-s$s.npy" --name "gy+residual-s$s" -o "$OUT/gy+residual-s$s.csv"
+    "${ev[@]}" --pred "$v/gy-holes+residual-s$s.npy" --name "gy-holes+residual-s$s" -o "$OUT/gy-holes+residual-s$s.csv"
     "${ev[@]}" --pred "$v/sensor-s$s.npy" --name "sensor-s$s" -o "$OUT/sensor-s$s.csv"
-    tables+=("$OUT/gy+residual-s$s.csv" "$OUT/sensor-s$s.csv")
+    tables+=("$OUT/gy+residual-s$s.csv" "$OUT/gy-holes+residual-s$s.csv" "$OUT/sensor-s$s.csv")
 done
 "$BIN/dem-eval" join "${tables[@]}" -o "$OUT/table.csv"
 "$BIN/dem-eval" join "$OUT/table.csv" --format md -o "$OUT/table.md"

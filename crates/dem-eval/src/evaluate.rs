@@ -59,7 +59,9 @@ pub struct EvalArgs {
     #[arg(long, requires = "model")]
     strict: bool,
     /// With --model: score the network alone, without the residual sensor
-    /// model the generator carries (`dem-train export --residual`).
+    /// model the generator carries (`dem-train export --residual`); a
+    /// generator exported with `--heights input` keeps the sim's heights
+    /// under its holes either way, as dem-apply does.
     #[arg(long, requires = "model")]
     network_only: bool,
     /// With --model: seed of the residual sensor model's draws (as
