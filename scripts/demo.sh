@@ -94,8 +94,20 @@ transfer() {
 }
 
 sensor() {
-  say "4c. the virtual sensor on the val split: G_Y + residual and dem-gap's sensor model, fitted on the train pairs, drawn once per pair at its time (dem-pair expand)"
+  say "4c. the virtual sensor on the val split: G_Y + residual, G_Y's holes with the sim's heights + residual, and dem-gap's sensor model, fitted on the train pairs, drawn once per pair at its time (dem-pair expand)"
   BIN=$BIN P=$P MODEL=$OUT/gy.onnx OUT=$OUT/val_sensor bash scripts/val_sensor.sh
+  # The best-measured virtual sensor as one file: G_Y's holes, the sim's
+  # heights, then the residual fitted on the train pairs.
+  "$BIN/dem-train" export "$T" -o "$OUT/virtual_sensor.onnx" --heights input --residual "$OUT/val_sensor/holes-residual-s1/sensor.json"
+  local v=$OUT/val_sensor/val
+  "$BIN/dem-apply" --model "$OUT/virtual_sensor.onnx" --labels "$v/sim_labels.csv" --seed 1 "$v/sim.npy" -o "$v/virtual_sensor.npy"
+  # Three val pairs of each terrain: its 1st, 41st and 81st.
+  local picks
+  picks=$(awk -F, 'NR > 1 && c[$2]++ % 40 == 0 && n[$2]++ < 3 { printf "%s%s", s, $1; s = "," }' "$v/sim_labels.csv")
+  "$BIN/dem-render" --compare "$v/sim.npy" "$v/virtual_sensor.npy" "$v/real.npy" --indices "$picks" \
+      --row-labels "sim,virtual sensor,measured" \
+      --title "out/virtual_sensor.onnx on val pairs (G_Y's holes, the sim's heights, its residual drawn at each pair's time)" \
+      -o "$OUT/virtual_sensor.png"
 }
 
 ci() {
@@ -118,6 +130,7 @@ written() {
 
 Pictures:
   $OUT/generated.png         G_Y: sim input, closest real, generated, pair error under each
+  $OUT/virtual_sensor.png    the virtual sensor (G_Y's holes, the sim's heights, its residual) on val pairs, against their measured DEMs
   $OUT/curves.png            G_Y's training curves: losses per epoch, val pair error
   $OUT/sim_vs_measured.png   sim and measured DEMs side by side (holes, shadows, smoothing, startup rows)
   $OUT/effects.png           the same poses with each emulator stage switched off
@@ -127,9 +140,10 @@ Pictures:
 Table: $OUT/effects.md (missing cells, residuals and Identity error per emulator stage)
 Data: $OUT/prep/ (sim keys, real, pairs.csv, cleaned and filled streams)
 Model: $OUT/gy.onnx (dem-apply --model $OUT/gy.onnx < sim.npy > realistic.npy); run: $OUT/train/
+Virtual sensor: $OUT/virtual_sensor.onnx (dem-apply --model $OUT/virtual_sensor.onnx --labels sim_labels.csv --seed 1 sim.npy -o realistic.npy)
 Tables: $OUT/train/table.md (Identity vs G_Y: pair error, height error, roughness, gap), $OUT/eval_ci/compare.txt (CI guard)
 Transfer: $OUT/transfer/transfer.txt (flipper and terrain models trained on sim, G_Y(sim) (holes thresholded and drawn, then startup by time), sensor(sim), measured)
-Virtual sensor on the val split (a draw per pair): $OUT/val_sensor/table.md (identity, G_Y, G_Y + residual, sensor model, per terrain)
+Virtual sensor on the val split (a draw per pair): $OUT/val_sensor/table.md (identity, G_Y, G_Y + residual, G_Y's holes + residual, sensor model, per terrain)
 Gap: $OUT/gap/summary.md (effects named per emulator stage left out), $OUT/gap/exact-paired/report.md (report with pictures)
 EOF
 }
