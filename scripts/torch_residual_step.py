@@ -12,17 +12,25 @@ dem-train's default differs in the generator's head and the paired losses
 
 e71 the equation 7.1 error (height error where yp is valid, mask error
 everywhere), H the mean absolute height error in cm on yp's valid cells.
-Everything else is the reference's, line for line (its structure too: the
-paired G_Y term runs G_Y(x) again, as the reference does), so
+The generator is torch_export.py's (the reference's with that head,
+channels last in and out as the toolkit's files are: one permute each way,
+and the discriminators permute their input); the rest is the reference's,
+line for line (its structure too: the paired G_Y term runs G_Y(x) again,
+as the reference does), so
 scripts/bench_train.sh can set this against `step_speed ... residual` as it
 sets the reference against the thesis network.
 """
+import os
 import sys
 import time
 
 import torch
 import torch.nn as nn
 import torch.nn.functional as F
+
+# torch_export.py's generator: the reference's, with the residual head.
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from torch_export import Gen  # noqa: E402
 
 W = int(sys.argv[1]) if len(sys.argv) > 1 else 32
 B = int(sys.argv[2]) if len(sys.argv) > 2 else 64
@@ -45,7 +53,8 @@ class Disc(nn.Module):
         s.fa = nn.Linear(10, 64)
         s.fo = nn.Linear(128 * 10 + 64, 10)
 
-    def forward(s, x):
+    def forward(s, dem):
+        x = dem.permute(0, 3, 1, 2)
         img, ang = x[:, :, :20], x[:, :, 20].flatten(1)
         h = F.leaky_relu(s.c1(same_pad(img, 4, 2)), 0.2)
         h = F.leaky_relu(s.n2(s.c2(same_pad(h, 4, 2))), 0.2)
@@ -54,56 +63,16 @@ class Disc(nn.Module):
         return torch.sigmoid(s.fo(torch.cat([h.flatten(1), a], 1)))
 
 
-class Res(nn.Module):
-    def __init__(s, c):
-        super().__init__()
-        s.a, s.b = nn.Conv2d(c, c, 3, 1, 1), nn.Conv2d(c, c, 3, 1, 1)
-        s.na, s.nb = nn.InstanceNorm2d(c, affine=True), nn.InstanceNorm2d(c, affine=True)
-
-    def forward(s, x):
-        return x + s.nb(s.b(F.relu(s.na(s.a(x)))))
-
-
-class Gen(nn.Module):
-    """The reference's generator with the residual head."""
-
-    def __init__(s, w):
-        super().__init__()
-        ch = [2, w, 2 * w, 2 * w]
-        s.enc = nn.ModuleList([nn.Conv2d(ch[i], ch[i + 1], 3, 1, 1) for i in range(3)])
-        s.en = nn.ModuleList([nn.InstanceNorm2d(ch[i + 1], affine=True) for i in range(3)])
-        s.res = nn.Sequential(*[Res(2 * w) for _ in range(3)])
-        dch = [2 * w, 2 * w, w, 2]
-        s.dec = nn.ModuleList([nn.Conv2d(dch[i], dch[i + 1], 3, 1, 1) for i in range(3)])
-        s.dn = nn.ModuleList([nn.InstanceNorm2d(dch[i + 1], affine=True) for i in range(2)])
-        s.fc = nn.Linear(200 + 10, 200)
-
-    def forward(s, x):
-        img, ang = x[:, :, :20], x[:, :, 20]
-        h = img
-        for c, n in zip(s.enc, s.en):
-            h = F.leaky_relu(n(c(h)), 0.2)
-        h = s.res(h)
-        for i, c in enumerate(s.dec):
-            h = c(h)
-            if i < 2:
-                h = F.leaky_relu(s.dn[i](h), 0.2)
-        o = s.fc(torch.cat([h.flatten(1), ang.flatten(1)], 1)).view(-1, 2, 20, 5)
-        heights = (img[:, 0] + 0.1 * o[:, 0]) * torch.sigmoid(20 * o[:, 1])
-        o = torch.stack([heights, torch.tanh(o[:, 1])], 1)
-        return torch.cat([o, torch.zeros_like(ang).unsqueeze(2)], 2)
-
-
-GX, GY, DX, DY = Gen(W), Gen(W), Disc(), Disc()
+GX, GY, DX, DY = Gen(W, residual=True), Gen(W, residual=True), Disc(), Disc()
 og = torch.optim.Adam(list(GX.parameters()) + list(GY.parameters()), 2e-4, betas=(0.5, 0.999))
 od = torch.optim.Adam(list(DX.parameters()) + list(DY.parameters()), 2e-4, betas=(0.5, 0.999))
 bce = lambda d, t: F.binary_cross_entropy(d, torch.full_like(d, t))
 
 
 def paired(p, y):
-    """30 e71(y, p) + 3 H(y, p), means over the batch."""
-    valid = (y[:, 1, :20] > 0).float()
-    dh, dm = p[:, 0, :20] - y[:, 0, :20], p[:, 1, :20] - y[:, 1, :20]
+    """30 e71(y, p) + 3 H(y, p), means over the batch (channels last)."""
+    valid = (y[:, :20, :, 1] > 0).float()
+    dh, dm = p[:, :20, :, 0] - y[:, :20, :, 0], p[:, :20, :, 1] - y[:, :20, :, 1]
     e71 = ((valid * dh) ** 2 + dm ** 2).sum((1, 2)) / 100
     h = (valid * dh.abs()).sum((1, 2)) / (valid.sum((1, 2)).clamp(min=1) * 0.01)
     return 30 * e71.mean() + 3 * h.mean()
@@ -124,7 +93,7 @@ def step(x, y, yp):
     od.step()
 
 
-x, y, yp = torch.randn(B, 2, 21, 5), torch.randn(B, 2, 21, 5), torch.randn(B, 2, 21, 5)
+x, y, yp = torch.randn(B, 21, 5, 2), torch.randn(B, 21, 5, 2), torch.randn(B, 21, 5, 2)
 for _ in range(3):
     step(x, y, yp)
 t = time.perf_counter()
