@@ -65,8 +65,8 @@ struct Args {
     /// head) or `input` (the input's height on every cell the network keeps
     /// valid and the input has; masks come out +-1). Default: what the
     /// model was exported with (`dem-train export --heights`), else
-    /// `network`. --network-only keeps it: it leaves out the residual model
-    /// alone.
+    /// `network`. --network-only does not change it: it leaves out only the
+    /// residual model.
     #[arg(long, value_parser = clap::value_parser!(dem_onnx::Heights))]
     heights: Option<dem_onnx::Heights>,
     /// Labels CSV of the input's records: their `time` in the run places
