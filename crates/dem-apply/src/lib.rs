@@ -66,24 +66,29 @@ pub struct Report {
     pub notes: Vec<String>,
 }
 
-/// The residual sensor model stored in the ONNX file at `path`, if any.
-pub fn residual_of(path: &str) -> Result<Option<SensorModel>, DemError> {
-    let info = dem_onnx::read_info(path)?;
-    let Some((_, json)) = info.metadata.iter().find(|(k, _)| k == RESIDUAL_KEY) else { return Ok(None) };
-    SensorModel::from_json(json)
-        .map(Some)
-        .map_err(|e| DemError::input(path, format!("its residual sensor model ({RESIDUAL_KEY}) is not valid: {e}")))
+/// What an exported generator says dem-apply runs around its network.
+#[derive(Clone, Debug)]
+pub struct Stored {
+    /// The residual sensor model (`dem-train export --residual`), if any.
+    pub residual: Option<SensorModel>,
+    /// Where its valid cells take their heights from (`dem-train export
+    /// --heights`; a model without the key: the network's).
+    pub heights: Heights,
 }
 
-/// Where the ONNX file at `path` says its valid cells take their heights
-/// from (`dem-train export --heights`; a model without the key: the
-/// network's).
-pub fn heights_of(path: &str) -> Result<Heights, DemError> {
+/// The residual model and heights source stored in the ONNX file at
+/// `path`, from one read of its metadata.
+pub fn stored(path: &str) -> Result<Stored, DemError> {
     let info = dem_onnx::read_info(path)?;
-    match info.metadata.iter().find(|(k, _)| k == HEIGHTS_KEY) {
-        None => Ok(Heights::Network),
-        Some((_, v)) => v.parse().map_err(|e| DemError::input(path, format!("its {HEIGHTS_KEY} is not valid: {e}"))),
-    }
+    let value = |key: &str| info.metadata.iter().find(|(k, _)| k == key).map(|(_, v)| v);
+    let residual = value(RESIDUAL_KEY)
+        .map(|json| SensorModel::from_json(json).map_err(|e| DemError::input(path, format!("its residual sensor model ({RESIDUAL_KEY}) is not valid: {e}"))))
+        .transpose()?;
+    let heights = match value(HEIGHTS_KEY) {
+        None => Heights::Network,
+        Some(v) => v.parse().map_err(|e| DemError::input(path, format!("its {HEIGHTS_KEY} is not valid: {e}")))?,
+    };
+    Ok(Stored { residual, heights })
 }
 
 /// Run `model` (loaded from `c.model`) over `c.input` into `c.output`: the
@@ -91,11 +96,9 @@ pub fn heights_of(path: &str) -> Result<Heights, DemError> {
 /// under the holes (`heights`), then the residual sensor model unless
 /// `network_only`. `progress` gets the records done so far.
 pub fn run(c: &Config, model: &OnnxModel, progress: impl FnMut(u64)) -> Result<Report, DemError> {
-    let residual = if c.network_only { None } else { residual_of(&c.model)? };
-    let heights = match c.heights {
-        Some(h) => h,
-        None => heights_of(&c.model)?,
-    };
+    let stored = stored(&c.model)?;
+    let residual = if c.network_only { None } else { stored.residual };
+    let heights = c.heights.unwrap_or(stored.heights);
     let times = match &c.labels {
         Some(p) => Some((p.as_str(), table::times(&table::read_labels(p)?))),
         None => None,
@@ -115,9 +118,7 @@ pub fn run(c: &Config, model: &OnnxModel, progress: impl FnMut(u64)) -> Result<R
         if let Some(s) = &sample {
             s.draw(inp, out, first);
         }
-        if heights == Heights::Input {
-            inp.iter().zip(out.iter_mut()).for_each(|(x, y)| heights.apply(x, y));
-        }
+        inp.iter().zip(out.iter_mut()).for_each(|(x, y)| heights.apply(x, y));
         if let Some(r) = &residual {
             r.apply_chunk(out, c.seed, c.first_index, first, times.as_ref().map(|(p, t)| (*p, t.as_slice())))?;
         }

@@ -310,15 +310,14 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
         Method::Model(path) => Some(dem_onnx::OnnxModel::load(path)?),
         _ => None,
     };
-    // What dem-apply runs after the network: the generator's residual model.
-    let residual = match &q.method {
-        Method::Model(path) if !q.network_only => dem_apply::residual_of(path)?,
-        _ => None,
-    };
-    // And where its valid cells take their heights from (`--heights input`).
-    let heights = match &q.method {
-        Method::Model(path) => dem_apply::heights_of(path)?,
-        _ => dem_onnx::Heights::Network,
+    // What dem-apply runs around the network: where its valid cells take
+    // their heights from (`--heights input`), then its residual model.
+    let (residual, heights) = match &q.method {
+        Method::Model(path) => {
+            let stored = dem_apply::stored(path)?;
+            (stored.residual.filter(|_| !q.network_only), stored.heights)
+        }
+        _ => (None, dem_onnx::Heights::Network),
     };
     if residual.as_ref().is_some_and(|r| r.uses_time()) && times.is_none() {
         cli::log("note: the model's residual has `startup` but no --sim-labels gave the records' times: startup frames are drawn at its rate p instead of by time");

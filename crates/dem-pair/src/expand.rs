@@ -15,7 +15,9 @@
 //!
 //! Outputs (in `--out`): `sim.npy`, `real.npy`, `pairs.csv` (`i,i,split[,distance]`),
 //! and with labels `sim_labels.csv` and `real_labels.csv`. Nothing is
-//! written unless every input checks out.
+//! written unless every input checks out. Without labels, label files an
+//! earlier expansion left in `--out` are removed: they describe other
+//! records, and a fit that read them would pair times with the wrong DEMs.
 
 use std::path::Path;
 
@@ -43,12 +45,14 @@ pub struct ExpandConfig {
 }
 
 /// What was written.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Expanded {
     /// Pairs written (records in each NPY).
     pub pairs: u64,
     /// Distinct sim records among them.
     pub sim_keys: u64,
+    /// Label files of an earlier expansion removed (run without labels).
+    pub stale_removed: Vec<String>,
 }
 
 /// The labels row of an expanded pair's sim record: the sim's terrain, the
@@ -125,11 +129,20 @@ pub fn run(cfg: &ExpandConfig) -> anyhow::Result<Expanded> {
     sim_out.finish()?;
     real_out.finish()?;
     pairs_out.commit()?;
+    let mut stale_removed = Vec::new();
     if let Some((s, r)) = labels_out {
         s.commit()?;
         r.commit()?;
+    } else {
+        for name in ["sim_labels.csv", "real_labels.csv"] {
+            let p = path(name);
+            if Path::new(&p).exists() {
+                std::fs::remove_file(&p).map_err(|source| DemError::Io { path: p.clone(), source })?;
+                stale_removed.push(p);
+            }
+        }
     }
-    Ok(Expanded { pairs: kept.len() as u64, sim_keys: keys.len() as u64 })
+    Ok(Expanded { pairs: kept.len() as u64, sim_keys: keys.len() as u64, stale_removed })
 }
 
 #[cfg(test)]

@@ -138,6 +138,9 @@ fn checked_expand(cfg: &dem_pair::expand::ExpandConfig, inputs: &[&str]) -> anyh
     output::check_outputs(inputs, &outputs.iter().map(String::as_str).collect::<Vec<_>>())?;
     let done = dem_pair::expand::run(cfg)?;
     cli::log(format_args!("{} pairs of {} sim keys expanded into {}", done.pairs, done.sim_keys, cfg.out));
+    if !done.stale_removed.is_empty() {
+        cli::log(format_args!("removed {}: an earlier expansion's labels, which these records do not have", done.stale_removed.join(", ")));
+    }
     Ok(())
 }
 

@@ -1,6 +1,7 @@
 //! dem-pair on dem-synth data: true pairs come back, splits are by key.
 
 use std::collections::{BTreeSet, HashMap};
+use std::path::Path;
 
 use dem_core::metric::dem_error;
 use dem_core::table::{self, Split};
@@ -132,6 +133,13 @@ fn expanded_pairs_are_one_record_per_pair_at_the_partner_s_time() {
     let whole = gap(&["--sim", &td("sim.npy"), "--real", &td("real.npy"), "--pairs", &pairs, "--split", "val"]);
     let expanded = gap(&["--sim", &f("sim.npy"), "--real", &f("real.npy"), "--pairs", &f("pairs.csv")]);
     assert!((whole - expanded).abs() < 1e-9, "{whole} vs {expanded}");
+
+    // Expanded again into the same folder without labels: the earlier
+    // expansion's label files go, as they describe other records.
+    let o = run("dem-pair", &["expand", "--pairs", &pairs, "--sim", &td("sim.npy"), "--real", &td("real.npy"), "--split", "train", "--out", &out], None);
+    ok(&o);
+    assert!(!Path::new(&f("sim_labels.csv")).exists() && !Path::new(&f("real_labels.csv")).exists(), "stale labels left in {out}");
+    assert!(stderr(&o).contains("removed") && stderr(&o).contains("sim_labels.csv"), "{}", stderr(&o));
 }
 
 #[test]

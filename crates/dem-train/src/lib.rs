@@ -137,8 +137,9 @@ fn train_in_folder(cfg: &TrainConfig) -> Result<()> {
         }
     };
     let sampler = Sampler { seed: meta.seed, batch: meta.batch, paired_fraction: meta.paired_fraction };
+    let epochs = session::epochs_of(&cfg.run, meta.steps_per_epoch);
     cli::log(format!(
-        "{} sims, {} reals, {} train keys, {} val keys; {} head, width {}, batch {} ({} paired rows), {} steps per epoch, {} threads",
+        "{} sims, {} reals, {} train keys, {} val keys; {} head, width {}, batch {} ({} paired rows), {} steps per epoch, {epochs} epochs{}, {} threads",
         data.sim.len(),
         data.real.len(),
         data.train.len(),
@@ -148,6 +149,11 @@ fn train_in_folder(cfg: &TrainConfig) -> Result<()> {
         meta.batch,
         sampler.paired_rows(&data),
         meta.steps_per_epoch,
+        match cfg.run.epochs {
+            Some(_) => String::new(),
+            None if epochs < session::DEFAULT_EPOCHS => format!(" (the default {}, cut to about {} steps)", session::DEFAULT_EPOCHS, session::STEP_BUDGET),
+            None => " (the default)".into(),
+        },
         rayon::current_num_threads()
     ));
     if data.val.is_empty() {

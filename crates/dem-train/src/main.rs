@@ -69,9 +69,11 @@ struct TrainArgs {
     /// Run directory.
     #[arg(short, long)]
     out: Option<String>,
-    /// Epochs in all (one epoch = ceil(sims / batch) steps).
-    #[arg(long, default_value_t = 30, value_parser = value::at_least_one::<u64>)]
-    epochs: u64,
+    /// Epochs in all (one epoch = ceil(sims / batch) steps) [default: 30,
+    /// or fewer when an epoch is long: as many whole epochs as reach 1,500
+    /// steps].
+    #[arg(long, value_parser = value::at_least_one::<u64>)]
+    epochs: Option<u64>,
     /// Stop after this many steps in all (e.g. tiny CI runs).
     #[arg(long, value_parser = value::at_least_one::<u64>)]
     max_steps: Option<u64>,

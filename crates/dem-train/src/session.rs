@@ -27,13 +27,24 @@ pub const FILES: [&str; 5] = ["checkpoint.bin", "losses.csv", "val.csv", "check_
 /// Records an export is checked on when there is no val split.
 pub const CHECK_RECORDS: usize = 256;
 
+/// Epochs of a run when `--epochs` is not given, unless an epoch is so long
+/// that [`STEP_BUDGET`] caps them.
+pub const DEFAULT_EPOCHS: u64 = 30;
+
+/// Steps the default run stays within (rounded up to a whole epoch). The
+/// val measures stop improving long before 30 epochs of a large data set
+/// (docs/training.md: "How long a default run trains"), so a larger world
+/// trains for about as many steps as a small one, not 30 of its epochs.
+pub const STEP_BUDGET: u64 = 1_500;
+
 /// Where and how long to train.
 #[derive(Clone, Debug)]
 pub struct RunOptions {
     /// The run directory.
     pub dir: String,
-    /// Epochs in all (a resumed run goes on up to this).
-    pub epochs: u64,
+    /// Epochs in all (a resumed run goes on up to this); `None`: the
+    /// default, [`default_epochs`] of the data.
+    pub epochs: Option<u64>,
     /// Stop after this many steps in all, whatever the epochs.
     pub max_steps: Option<u64>,
     /// Also checkpoint every this many steps (always at each epoch's end).
@@ -41,6 +52,18 @@ pub struct RunOptions {
     /// When stderr is not a terminal (CI, a log file), log a progress line
     /// this often instead of the hidden bar.
     pub log_every: std::time::Duration,
+}
+
+/// The default length of a run with `steps_per_epoch` steps an epoch:
+/// [`DEFAULT_EPOCHS`], or, if fewer, as many whole epochs as reach
+/// [`STEP_BUDGET`] steps.
+pub fn default_epochs(steps_per_epoch: u64) -> u64 {
+    DEFAULT_EPOCHS.min(STEP_BUDGET.div_ceil(steps_per_epoch.max(1))).max(1)
+}
+
+/// The run's epochs: the ones asked for, or the default of the data.
+pub fn epochs_of(opts: &RunOptions, steps_per_epoch: u64) -> u64 {
+    opts.epochs.unwrap_or_else(|| default_epochs(steps_per_epoch))
 }
 
 /// The pair error table of `preds[i]` (G_Y of key i) against `reals[i]`,
@@ -160,7 +183,7 @@ pub fn run(gan: &mut CycleGan, data: &TrainData, sampler: Sampler, mut meta: Met
     let spe = meta.steps_per_epoch;
     // The schedule is planned over the epochs; --max-steps only cuts it short,
     // so a run stopped early and resumed equals one that was not.
-    let planned = opts.epochs * spe;
+    let planned = epochs_of(opts, spe) * spe;
     let total = planned.min(opts.max_steps.unwrap_or(u64::MAX));
     let mut losses = append(&path(&opts.dir, "losses.csv"), "step,epoch,gan,cycle,pair_y,pair_x,generator,disc,height")?;
     let mut val = append(&path(&opts.dir, "val.csv"), "epoch,step,count,lowest,highest,mean,median")?;
@@ -223,4 +246,29 @@ pub fn run(gan: &mut CycleGan, data: &TrainData, sampler: Sampler, mut meta: Met
         cli::log(format!("nothing to do: the run is at step {} of {total}", meta.step));
     }
     Ok(last)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_default_is_30_epochs_until_they_pass_the_step_budget() {
+        // make demo's prepared data: 21 steps an epoch, 630 steps.
+        assert_eq!(default_epochs(21), 30);
+        assert_eq!(default_epochs(STEP_BUDGET / 30), 30);
+        // The larger world of results.md: 127 steps an epoch.
+        assert_eq!(default_epochs(127), 12);
+        assert!(default_epochs(127) * 127 >= STEP_BUDGET && (default_epochs(127) - 1) * 127 < STEP_BUDGET);
+        // An epoch longer than the budget still trains once.
+        assert_eq!(default_epochs(STEP_BUDGET * 3), 1);
+        assert_eq!(default_epochs(0), 30);
+    }
+
+    #[test]
+    fn epochs_given_are_epochs_trained() {
+        let opts = |epochs| RunOptions { dir: "run".into(), epochs, max_steps: None, checkpoint_every: None, log_every: std::time::Duration::from_secs(1) };
+        assert_eq!(epochs_of(&opts(Some(100)), 127), 100);
+        assert_eq!(epochs_of(&opts(None), 127), default_epochs(127));
+    }
 }

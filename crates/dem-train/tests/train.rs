@@ -63,6 +63,30 @@ fn a_short_run_lowers_the_losses_and_writes_the_run_files() {
 }
 
 #[test]
+fn the_default_length_keeps_long_epochs_within_the_step_budget() {
+    // Batch 8 over testdata's 3,025 sims: 379 steps an epoch, so 30 epochs
+    // would be 11,370 steps; the default stops at the first whole epoch
+    // past 1,500 steps (4 epochs), an explicit --epochs is kept, and at
+    // batch 64 (48 steps an epoch) the default is 30 epochs.
+    let d = tempdir();
+    let (sim, real, pairs) = (td("sim.npy"), td("real.npy"), pairs(d.path()));
+    let logged = |name: &str, batch: &str, extra: &[&str]| {
+        let r = arg(d.path(), name);
+        let mut args = vec!["--sim", &sim, "--real", &real, "--pairs", &pairs, "--out", &r, "--width", "4", "--batch", batch, "--max-steps", "1"];
+        args.extend_from_slice(extra);
+        let out = run("dem-train", &args, None);
+        ok(&out);
+        stderr(&out)
+    };
+    let cut = logged("cut", "8", &[]);
+    assert!(cut.contains("379 steps per epoch, 4 epochs (the default 30, cut to about 1500 steps),"), "{cut}");
+    let given = logged("given", "8", &["--epochs", "30"]);
+    assert!(given.contains("379 steps per epoch, 30 epochs,"), "{given}");
+    let short = logged("short", "64", &[]);
+    assert!(short.contains("48 steps per epoch, 30 epochs (the default),"), "{short}");
+}
+
+#[test]
 fn resume_continues_exactly_and_threads_do_not_change_the_model() {
     let d = tempdir();
     let (a, b, c) = (arg(d.path(), "a"), arg(d.path(), "b"), arg(d.path(), "c"));
