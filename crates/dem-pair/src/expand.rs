@@ -136,9 +136,10 @@ pub fn run(cfg: &ExpandConfig) -> anyhow::Result<Expanded> {
     } else {
         for name in ["sim_labels.csv", "real_labels.csv"] {
             let p = path(name);
-            if Path::new(&p).exists() {
-                std::fs::remove_file(&p).map_err(|source| DemError::Io { path: p.clone(), source })?;
-                stale_removed.push(p);
+            match std::fs::remove_file(&p) {
+                Ok(()) => stale_removed.push(p),
+                Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+                Err(source) => return Err(DemError::Io { path: p, source }.into()),
             }
         }
     }

@@ -70,7 +70,7 @@ struct TrainArgs {
     #[arg(short, long)]
     out: Option<String>,
     /// Epochs in all (one epoch = ceil(sims / batch) steps) [default: 30,
-    /// or fewer when an epoch is long: as many whole epochs as reach 1,500
+    /// or fewer when an epoch is long: as many whole epochs as reach 1500
     /// steps].
     #[arg(long, value_parser = value::at_least_one::<u64>)]
     epochs: Option<u64>,

@@ -84,6 +84,12 @@ fn the_default_length_keeps_long_epochs_within_the_step_budget() {
     assert!(given.contains("379 steps per epoch, 30 epochs,"), "{given}");
     let short = logged("short", "64", &[]);
     assert!(short.contains("48 steps per epoch, 30 epochs (the default),"), "{short}");
+    // The help text states the budget the library uses.
+    let help = run("dem-train", &["--help"], None);
+    ok(&help);
+    let words = String::from_utf8_lossy(&help.stdout).split_whitespace().collect::<Vec<_>>().join(" ");
+    let said = format!("[default: {}, or fewer when an epoch is long: as many whole epochs as reach {} steps]", dem_train::session::DEFAULT_EPOCHS, dem_train::session::STEP_BUDGET);
+    assert!(words.contains(&said), "{words}");
 }
 
 #[test]
