@@ -506,3 +506,50 @@ fn pairs_compared_unpaired_give_dem_eval_s_gap_over_the_pairs() {
         assert!(!Path::new(&out).exists(), "nothing written");
     }
 }
+
+/// scripts/riser_shares.py (the measurement behind results.md's riser
+/// numbers) on a case with a known answer: "all stages" is testdata's
+/// measured DEMs with every top cell after a riser moved a fifth of the
+/// step down; the cells before risers and beside drops stay.
+#[test]
+fn riser_shares_reads_back_a_known_move() {
+    let dir = tempdir();
+    dem_testkit::py(
+        dir.path(),
+        &format!(
+            "import numpy as np, os\n\
+             a = np.load({:?})\n\
+             b = a.copy()\n\
+             z, v = a[:, :20, :, 0].astype(float), a[:, :20, :, 1] > 0\n\
+             for r in range(1, 20):\n\
+             \x20   top = v[:, r] & v[:, r - 1] & (z[:, r] - z[:, r - 1] > 0.05)\n\
+             \x20   b[:, r, :, 0] = np.where(top, z[:, r] + 0.2 * (z[:, r - 1] - z[:, r]), a[:, r, :, 0])\n\
+             for d, x in (('data-no-smoothing', a), ('data-all', b)):\n\
+             \x20   os.makedirs('g/' + d)\n\
+             \x20   np.save(f'g/{{d}}/real.npy', x)\n",
+            testdata("real.npy")
+        ),
+    );
+    let o = Command::new(python())
+        .arg(workspace_root().join("scripts/riser_shares.py"))
+        .arg(arg(dir.path(), "g"))
+        .output()
+        .expect("python");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = String::from_utf8_lossy(&o.stdout).into_owned();
+    let row = |kind: &str| -> Vec<String> {
+        let line = out.lines().find(|l| l.contains(&format!("| {kind} |"))).unwrap_or_else(|| panic!("no {kind} in\n{out}"));
+        line.split('|').map(|c| c.trim().to_string()).filter(|c| !c.is_empty()).collect()
+    };
+    // | folder | cell | cells | moved | q90 | mean |
+    let top = row("riser-upper");
+    assert!(top[2].parse::<usize>().unwrap() > 100, "{out}");
+    assert_eq!((top[3].as_str(), top[4].as_str(), top[5].as_str()), ("100 %", "0.20", "0.200"), "{out}");
+    // Beside drops only the few cells that are also the top of a riser (a
+    // platform one cell deep) moved, by a fifth of the riser, not of the drop.
+    for kind in ["drop-upper", "drop-lower"] {
+        let r = row(kind);
+        let (moved, mean) = (r[3].trim_end_matches(" %").parse::<f64>().unwrap(), r[5].parse::<f64>().unwrap());
+        assert!(moved <= 2.0 && mean.abs() <= 0.01, "{kind}: {out}");
+    }
+}
