@@ -45,7 +45,8 @@ def shares(base):
             m = va[:, r] & va[:, rn] & vb[:, r] & is_kind(step)
             us.append((zb[:, r] - za[:, r])[m] / step[m])
         u = np.concatenate(us)
-        out[kind] = (len(u), np.mean(np.abs(u) > 0.1), np.quantile(u, 0.9), np.mean(u))
+        # A folder without cells of a kind (no risers, say) gets n = 0.
+        out[kind] = (len(u), np.mean(np.abs(u) > 0.1), np.quantile(u, 0.9), np.mean(u)) if len(u) else (0, None, None, None)
     return out
 
 
@@ -56,6 +57,9 @@ def main():
     print("|---|---|---|---|---|---|")
     for base in sys.argv[1:]:
         for kind, (n, moved, q90, mean) in shares(base).items():
+            if n == 0:
+                print(f"| {base} | {kind} | 0 | - | - | - |")
+                continue
             print(f"| {base} | {kind} | {n} | {100 * moved:.0f} % | {q90:.2f} | {mean:.3f} |")
 
 

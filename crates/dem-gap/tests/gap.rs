@@ -510,7 +510,8 @@ fn pairs_compared_unpaired_give_dem_eval_s_gap_over_the_pairs() {
 /// scripts/riser_shares.py (the measurement behind results.md's riser
 /// numbers) on a case with a known answer: "all stages" is testdata's
 /// measured DEMs with every top cell after a riser moved a fifth of the
-/// step down; the cells before risers and beside drops stay.
+/// step down (a top cell that is also the foot of the next riser moves
+/// too; nothing is asserted on feet).
 #[test]
 fn riser_shares_reads_back_a_known_move() {
     let dir = tempdir();
@@ -551,5 +552,21 @@ fn riser_shares_reads_back_a_known_move() {
         let r = row(kind);
         let (moved, mean) = (r[3].trim_end_matches(" %").parse::<f64>().unwrap(), r[5].parse::<f64>().unwrap());
         assert!(moved <= 2.0 && mean.abs() <= 0.01, "{kind}: {out}");
+    }
+    // Flat ground has no steps: every kind is there with no cells.
+    dem_testkit::py(
+        dir.path(),
+        "import numpy as np, os\n\
+         a = np.load('g/data-all/real.npy')[:5].copy()\n\
+         a[:, :20, :, 0] = 0.0\n\
+         for d in ('data-no-smoothing', 'data-all'):\n\
+         \x20   os.makedirs('flat/' + d)\n\
+         \x20   np.save(f'flat/{d}/real.npy', a)\n",
+    );
+    let o = Command::new(python()).arg(workspace_root().join("scripts/riser_shares.py")).arg(arg(dir.path(), "flat")).output().expect("python");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let flat = String::from_utf8_lossy(&o.stdout);
+    for kind in ["riser-lower", "riser-upper", "drop-upper", "drop-lower"] {
+        assert!(flat.contains(&format!("| {kind} | 0 | - | - | - |")), "{flat}");
     }
 }
