@@ -21,6 +21,7 @@
 //! | `level-pairs` | fraction of across-robot neighbours with equal heights (within 0.1 mm) | 0.02 |
 //! | `edge-2cm`, `edge-steep`, `edge-10cm` | fraction of steps `abs(h[r+1,c] - h[r,c])` (row pairs 0..18) above 0.02, 0.05, 0.1 m: sharp edges against ramps | 0.01 |
 //! | `steps` | fraction of all neighbour pairs whose difference falls in each bin of [`STEP_BINS`] (0.1-1-3-10-30-100 mm; 5 numbers) | 0.01 |
+//! | `riser-foot`, `riser-top`, `drop-lip`, `drop-floor` (paired only) | 10th, 50th and 90th percentile, over the whole grid, of the residual D toward the other surface (D sign(h_sim[n] - h_sim)) on the cells beside a step of more than [`JUMP`] along x in the sim record: the foot (row r + 1 higher) and top (row r - 1 lower) of a riser, the lip (row r + 1 lower) and floor (row r - 1 higher) of a drop | 0.005 m |
 //!
 //! The gap between sets A (model(sim)) and B (real) is the sum over terms
 //! of the mean over their components of ln(1 + z^2), z = (a - b) / scale;
@@ -54,6 +55,9 @@ pub const SD_TRIM: f64 = 0.005;
 /// The difference, in scales, a component counts for when one side has the
 /// samples and the other has (next to) none.
 pub const UNSUPPORTED_Z: f64 = 10.0;
+
+/// The step-side terms (paired), indexed as `step_sides` returns them.
+pub const STEP_SIDES: [&str; 4] = ["riser-foot", "riser-top", "drop-lip", "drop-floor"];
 
 /// Edges (m) of the bins of non-zero neighbour differences (`steps`).
 pub const STEP_BINS: [f64; 6] = [1e-4, 0.001, 0.003, 0.01, 0.03, 0.1];
@@ -99,6 +103,8 @@ struct Acc {
     spread: Vec<Vec<f32>>,
     edge: Vec<Vec<f32>>,
     steps: Vec<f32>,
+    /// Paired: residuals toward the other surface, per [`STEP_SIDES`].
+    side: [Vec<f32>; 4],
 }
 
 impl Acc {
@@ -133,6 +139,9 @@ impl Acc {
                         let res = h - s.height(r, c);
                         self.loc[r].push(res);
                         self.spread[r].push(res.abs());
+                        for (side, toward) in step_sides(s, r, c) {
+                            self.side[side].push(res * toward);
+                        }
                     }
                     Some(_) => {}
                     None => self.loc[r].push(h),
@@ -181,6 +190,9 @@ impl Acc {
             a.extend(b);
         }
         self.steps.extend(o.steps);
+        for (a, b) in self.side.iter_mut().zip(o.side) {
+            a.extend(b);
+        }
         self
     }
 }
@@ -207,6 +219,28 @@ pub fn at_jump(d: &Dem, r: usize, c: usize) -> bool {
         (Some(a), Some(b)) => ((d.height(a, c) - d.height(b, c)) as f64).abs() >= JUMP,
         _ => false,
     }
+}
+
+/// The step sides (index into [`STEP_SIDES`]) cell `(r, c)` of sim record
+/// `s` lies on, each with the sign (+-1) that points toward the other
+/// surface: a cell between two steps lies on both. The riser and drop
+/// cells are told apart because sensor effects move them differently (the
+/// stereo window over a riser's corners, the shadow and mixed range past a
+/// drop's lip); one pooled spread per row lets an effect fit one kind's
+/// cells with the other kind's residuals.
+fn step_sides(s: &Dem, r: usize, c: usize) -> impl Iterator<Item = (usize, f32)> {
+    let h = s.height(r, c);
+    let other = |k: Option<usize>| k.filter(|&k| k < GRID_ROWS && s.is_valid(k, c)).map(|k| s.height(k, c) - h);
+    let (ahead, behind) = (other(Some(r + 1)), other(r.checked_sub(1)));
+    let jump = JUMP as f32;
+    [
+        ahead.filter(|&dz| dz > jump).map(|_| (0, 1.0)),
+        behind.filter(|&dz| dz < -jump).map(|_| (1, -1.0)),
+        ahead.filter(|&dz| dz < -jump).map(|_| (2, -1.0)),
+        behind.filter(|&dz| dz > jump).map(|_| (3, 1.0)),
+    ]
+    .into_iter()
+    .flatten()
 }
 
 /// Quantile `q` (0..1, nearest rank) of `v`, reordering it; None when empty.
@@ -320,6 +354,12 @@ fn summarise(mut a: Acc, paired: bool) -> Stats {
         support: vec![pairs; STEP_BINS.len() - 1],
         scale: 0.01,
     });
+    if paired {
+        for (name, v) in STEP_SIDES.iter().zip(a.side.iter_mut()) {
+            let values = [0.1, 0.5, 0.9].iter().map(|&q| quantile(v, q).unwrap_or(0.0)).collect();
+            terms.push(Term { name, values, support: vec![v.len(); 3], scale: 0.005 });
+        }
+    }
     Stats { records: n, paired, terms }
 }
 
@@ -440,5 +480,32 @@ mod tests {
         d.set_missing(5, 0);
         assert!(in_shadow(&d, 11, 0));
         assert!(!in_shadow(&d, 5, 0));
+    }
+
+    /// A riser at rows 9/10 and a drop at 14/15 (sim); real moves every
+    /// foot cell 2 cm up (toward the top) and every lip cell 1 cm up (away
+    /// from the floor): the two terms read +0.02 and -0.01, the other two
+    /// sides read 0, and a cell's riser move does not show as a drop's.
+    #[test]
+    fn the_step_sides_are_told_apart() {
+        let mut sim = empty_dem();
+        for r in 0..GRID_ROWS {
+            for c in 0..COLS {
+                sim.set_valid(r, c, if (10..15).contains(&r) { 0.1 } else { -0.07 });
+            }
+        }
+        let mut real = sim;
+        for c in 0..COLS {
+            real.set_valid(9, c, -0.05);
+            real.set_valid(14, c, 0.11);
+        }
+        let s = stats(&vec![real; 10], Some(&vec![sim; 10]));
+        let q = |name| s.term(name).unwrap().values.iter().map(|v| (v * 1e4).round() / 1e4).collect::<Vec<_>>();
+        assert_eq!(q("riser-foot"), [0.02; 3]);
+        assert_eq!(q("drop-lip"), [-0.01; 3]);
+        assert_eq!(q("riser-top"), [0.0; 3]);
+        assert_eq!(q("drop-floor"), [0.0; 3]);
+        assert_eq!(s.term("riser-foot").unwrap().support, [50; 3]);
+        assert!(stats(&vec![real; 10], None).term("riser-foot").is_none(), "unpaired has no residuals");
     }
 }
