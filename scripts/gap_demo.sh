@@ -54,7 +54,7 @@ d, stages = sys.argv[1], sys.argv[2:]
 expect = {
     "fov": {"fov", "startup", "view-top"},
     "occlusion": {"occlusion", "pit-fill", "mixed-cells"},
-    "smoothing": {"smoothing", "drop-blend", "hole-growth", "edge-holes", "rim-holes", "mixed-cells"},
+    "smoothing": {"smoothing", "drop-blend", "riser-blend", "hole-growth", "edge-holes", "rim-holes", "mixed-cells"},
     "noise": {"noise"},
     "dropout": {"patch-dropout", "dropout"},
     "holes": {"hole-growth", "edge-holes", "rim-holes", "dropout", "patch-dropout"},

@@ -47,6 +47,11 @@ heights relative to the robot centre; missing = mask -1, height 0):
                more than 5 cm) each of the two cells, with probability p,
                reads h + u a (h_other - h), u uniform; a cell between two
                drops takes the larger (the one ahead on a tie)
+  riser-blend  at a riser along x (valid rows r and r + 1, row r + 1 higher
+               by more than 5 cm) the cell at its foot reads h + u foot
+               (h_other - h), the cell on its top h + u top (h_other - h),
+               u uniform; a cell beside two risers takes the larger step
+               (the one ahead on a tie)
   mixed-cells  a cell is the mean of its back and front halves (centres 2.5
                cm and 7.5 cm from each boundary); at a boundary between
                valid x-neighbours more than 5 cm apart the step lies at s,
@@ -269,11 +274,30 @@ def mixed_cells(d, rng, up, down):
     d[:20, :, 0] = np.where(valid, halves.mean(axis=2), d[:20, :, 0])
 
 
+def riser_blend(d, rng, foot, top):
+    z = d[:20, :, 0].astype(np.float64)
+    valid = d[:20, :, 1] > 0
+    step, share = np.zeros((20, 5)), np.zeros((20, 5))
+    for r in range(20):
+        for c in range(5):
+            if not valid[r, c]:
+                continue
+            cands = []
+            if r + 1 < 20 and valid[r + 1, c] and z[r + 1, c] - z[r, c] > 0.05:
+                cands.append((z[r + 1, c] - z[r, c], foot))
+            if r > 0 and valid[r - 1, c] and z[r, c] - z[r - 1, c] > 0.05:
+                cands.append((z[r - 1, c] - z[r, c], top))
+            if cands:
+                step[r, c], share[r, c] = max(cands, key=lambda t: abs(t[0]))
+    u = rng.random((20, 5))
+    d[:20, :, 0] = np.where(step != 0, z + u * share * step, d[:20, :, 0])
+
+
 EFFECTS = {"noise": noise, "dropout": dropout, "row-dropout": row_dropout, "occlusion": occlusion,
            "fov": fov, "smoothing": smoothing, "bias": bias, "quantization": quantization,
            "startup": startup, "patch-dropout": patch_dropout, "edge-holes": edge_holes,
            "mixed-cells": mixed_cells, "rim-holes": rim_holes, "pit-fill": pit_fill, "view-top": view_top,
-           "hole-growth": hole_growth, "drop-blend": drop_blend}
+           "hole-growth": hole_growth, "drop-blend": drop_blend, "riser-blend": riser_blend}
 
 
 def main():

@@ -47,7 +47,7 @@ pub const MIN_SUPPORT: usize = 30;
 /// x (m) that separates "toward the sensor" from "beyond" for shadows.
 const SHADOW_REF_X: f64 = 0.1;
 /// Height jump (m) around a missing cell that makes it a `jump-missing`
-/// cell; dem-sensor's `mixed-cells` and `drop-blend` act on the same jump,
+/// cell; dem-sensor's `mixed-cells`, `drop-blend` and `riser-blend` act on the same jump,
 /// so the statistic sees those effects' steps and no others.
 pub const JUMP: f64 = 0.05;
 /// Share of the largest spread samples left out of `spread-sd`.

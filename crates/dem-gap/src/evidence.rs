@@ -241,6 +241,27 @@ pub fn evidence(effect: &Effect, before: &Stats, after: &Stats, real: &Stats, ga
                 mm(tail(before)),
             )
         }
+        Effect::RiserBlend { foot, top } => {
+            let spread = if real.paired { "90th percentile of the residual (real - sim)" } else { "90th percentile of the across-robot height difference" };
+            let tail = |s: &Stats| s.mean_over("spread-q90", 0..20);
+            let way = |share: f64, toward: &str, away: &str| if share >= 0.0 { toward.to_string() } else { away.to_string() };
+            let verdict = if mid(real) > mid(before) || tail(real) > tail(before) {
+                format!(
+                    "cells beside risers read part of the way across the step: the foot {}, the top {}",
+                    way(foot, "up", "down"),
+                    way(top, "down", "up")
+                )
+            } else {
+                "no more part-way steps or wide tails in real: blended risers are the closest effect, not a clear one".to_string()
+            };
+            format!(
+                "steps between neighbouring rows of 0.02-0.1 m: real {} vs model {}; {spread}: real {} vs model {}: {verdict}",
+                pct(mid(real)),
+                pct(mid(before)),
+                mm(tail(real)),
+                mm(tail(before)),
+            )
+        }
         Effect::Smoothing { .. } => {
             let (r10, b10) = (real.mean_over("edge-10cm", 0..19), before.mean_over("edge-10cm", 0..19));
             let verdict = if r10 < b10 {

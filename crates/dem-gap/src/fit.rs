@@ -50,6 +50,8 @@ pub fn ranges(name: &str) -> Vec<Range> {
         // Reaches from none (the halves' mean alone) to a whole cell.
         "mixed-cells" => vec![lin(0.0, 0.15), lin(0.0, 0.15)],
         "drop-blend" => vec![lin(0.0, 1.0), lin(0.0, 1.0)],
+        // Either way across the step; 0 (no move) on the grid.
+        "riser-blend" => vec![lin(-0.6, 1.0), lin(-0.6, 1.0)],
         _ => vec![],
     }
 }
@@ -79,6 +81,9 @@ pub fn limits(name: &str) -> Vec<(f64, f64, bool, bool)> {
         "mixed-cells" => vec![(0.0, 0.2, true, true), (0.0, 0.2, true, true)],
         // Every cell beside a drop blended, or moved all the way: natural ends.
         "drop-blend" => vec![(0.0, 1.0, true, true), (0.0, 1.0, true, true)],
+        // Moved all the way to the other surface: a natural end; the other
+        // end (away from it) is not.
+        "riser-blend" => vec![(-1.0, 1.0, false, true), (-1.0, 1.0, false, true)],
         _ => vec![],
     }
 }

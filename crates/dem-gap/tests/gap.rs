@@ -159,6 +159,14 @@ fn hidden_drop_blend() {
     single("drop-blend", "drop-blend:p=0.45,a=0.6", &[("p", 0.45, None), ("a", 0.6, None)]);
 }
 
+#[test]
+fn hidden_riser_blend() {
+    // testdata's risers: stairs up and the near ends of pallets; the foot
+    // moves up, the top moves up too (away from the foot), as the default
+    // camera's stereo window makes them.
+    single("riser-blend", "riser-blend:foot=0.4,top=-0.3", &[("foot", 0.4, None), ("top", -0.3, None)]);
+}
+
 /// An effect at height jumps hidden with probability `p`: named first, p
 /// back, paired and unpaired; g only checked to be below `g_below`, the
 /// smallest jumps of the data (any g below them gives the same cells).
@@ -365,9 +373,14 @@ fn leave_one_stage_out_on_other_camera_mounts() {
     // shadows, pallet gaps never seen to the bottom, the ground past an
     // edge hidden so the cell there reads part of the way up.
     const OCCLUSION: &[&str] = &["occlusion", "pit-fill", "mixed-cells"];
+    // And the smoothing stage's: the stereo window at drops and risers,
+    // ramps, and the pixels its consistency check rejects. On this mount
+    // the top cell after a riser reads part of the way down (riser-blend).
+    const SMOOTHING: &[&str] = &["smoothing", "drop-blend", "riser-blend", "hole-growth", "edge-holes", "rim-holes", "mixed-cells"];
     let dir = tempdir();
-    let cases: [Mount; 5] = [
+    let cases: [Mount; 6] = [
         ("0.7", "25", "2", "occlusion", true, OCCLUSION, 0.2),
+        ("0.7", "25", "2", "smoothing", true, SMOOTHING, 0.5),
         ("0.7", "25", "2", "fov", true, &["startup", "fov", "view-top"], 0.3),
         ("0.7", "25", "2", "noise", false, &["noise"], 0.5),
         ("0.32", "42", "3", "noise", true, &["noise"], 0.5),
@@ -394,11 +407,13 @@ fn leave_one_stage_out_on_other_camera_mounts() {
         let r = gap(dir.path(), &f(&hidden, "real.npy"), &f(&all, "real.npy"), paired.then_some(pairs.as_str()), &extra, &name);
         let n = names(&r);
         let what = format!("camera {h} m / {tilt} deg, --no-{stage}, paired {paired}: named {n:?}");
-        // Named first, or second after mixed-cells: the step mixing of the
-        // 10 cm cells changes with whatever changes the rays that reach a
-        // step (the field of view changes the angles a cell was last seen
-        // from), and is the larger part of some stages' gaps.
-        let named = n.iter().take(2).take_while(|e| first.contains(&e.as_str()) || *e == "mixed-cells");
+        // Named first, or second after a step effect (mixed-cells,
+        // riser-blend): what the cells beside a step read changes with
+        // whatever changes the rays that reach it (with the field of view
+        // on, pixel rays hit riser faces, which the one ray per cell of
+        // --no-fov never does), and is the larger part of some stages' gaps.
+        const AT_STEPS: [&str; 2] = ["mixed-cells", "riser-blend"];
+        let named = n.iter().take(2).take_while(|e| first.contains(&e.as_str()) || AT_STEPS.contains(&e.as_str()));
         assert!(named.clone().any(|e| first.contains(&e.as_str())), "{what}; {r:#}");
         let (g0, g1) = (r["gap_initial"].as_f64().unwrap(), r["gap_final"].as_f64().unwrap());
         assert!(g1 <= (1.0 - removed) * g0, "{what}: gap {g0} -> {g1}");

@@ -24,6 +24,7 @@
 //! | `hole-growth` | a valid cell with k missing 4-neighbours (inside the grid) is missing with probability 1 - (1 - p)^k (the edge of a hole, where a 10 cm cell holds fewer seen map cells than the two of four the map needs) |
 //! | `pit-fill` | a valid cell lower by more than g than both valid neighbours of a line through it (rows r +- 1, or columns c +- 1) reads the lower of the two with probability p |
 //! | `drop-blend` | at a drop along x (valid cells of rows r and r + 1, row r + 1 lower by more than [`MIXED_JUMP`]), each of the two cells reads, with probability p, h + u a (h_n - h), u uniform, h_n the other cell (a cell between two drops takes the larger): the stereo window straddles the jump in range at a drop edge and its mean range puts the cell's points part of the way to the other surface |
+//! | `riser-blend` | at a riser along x (valid cells of rows r and r + 1, row r + 1 higher by more than [`MIXED_JUMP`]), the cell at its foot reads h + u `foot` (h_n - h) and the cell on its top h + u `top` (h_n - h), u uniform per cell, h_n the other cell (a cell beside two risers takes the larger step); `foot`, `top` in [-1, 1], negative: away from the other surface: the stereo window over a riser's corners moves the points there along their rays, up or down the step as the view angle gives |
 //! | `mixed-cells` | a cell is the mean of its two half cells along x; at a jump of more than [`MIXED_JUMP`] between valid x-neighbours the step lies at s, uniform over the 10 cm between their centres (one draw per row boundary), and the higher surface reaches e = u r past it into the lower cell (u uniform per cell; r = `up` when the higher cell lies ahead, `down` when it lies behind, i.e. beyond a drop): a half of the lower cell whose centre the higher surface reaches reads the higher height, a half of the higher cell the lower surface reaches (the step lies in it, deeper than e) reads the lower height |
 
 use rand::Rng;
@@ -175,6 +176,17 @@ pub enum Effect {
         /// Largest share of the drop it moves across.
         a: f64,
     },
+    /// Cells beside a riser read part of the way up or down the step: the
+    /// stereo window over the riser's corners moves their points along the
+    /// rays, by a share and in a direction that depend on the view angle.
+    RiserBlend {
+        /// Largest share of the step the cell at the riser's foot moves
+        /// toward the top (negative: down, away from it).
+        foot: f64,
+        /// Largest share of the step the cell on the riser's top moves
+        /// toward the foot (negative: up, away from it).
+        top: f64,
+    },
     /// Cells that straddle a step read part of the way up or down: a DEM
     /// cell is the mean of finer map cells, and a map cell holding a step
     /// keeps the higher surface (lower points hide under tops; the ground
@@ -190,7 +202,7 @@ pub enum Effect {
 }
 
 /// Every effect name, in the vocabulary's order.
-pub const NAMES: [&str; 17] = [
+pub const NAMES: [&str; 18] = [
     "noise",
     "dropout",
     "row-dropout",
@@ -208,6 +220,7 @@ pub const NAMES: [&str; 17] = [
     "view-top",
     "hole-growth",
     "drop-blend",
+    "riser-blend",
 ];
 
 impl Effect {
@@ -231,6 +244,7 @@ impl Effect {
             Effect::ViewTop { .. } => "view-top",
             Effect::HoleGrowth { .. } => "hole-growth",
             Effect::DropBlend { .. } => "drop-blend",
+            Effect::RiserBlend { .. } => "riser-blend",
         }
     }
 
@@ -250,6 +264,7 @@ impl Effect {
             Effect::EdgeHoles { g, p } | Effect::RimHoles { g, p } | Effect::PitFill { g, p } => vec![("g", g), ("p", p)],
             Effect::MixedCells { up, down } => vec![("up", up), ("down", down)],
             Effect::DropBlend { p, a } => vec![("p", p), ("a", a)],
+            Effect::RiserBlend { foot, top } => vec![("foot", foot), ("top", top)],
         }
     }
 
@@ -274,6 +289,7 @@ impl Effect {
             "view-top" => Effect::ViewTop { h: g(0)?, t: g(1)? },
             "hole-growth" => Effect::HoleGrowth { p: g(0)? },
             "drop-blend" => Effect::DropBlend { p: g(0)?, a: g(1)? },
+            "riser-blend" => Effect::RiserBlend { foot: g(0)?, top: g(1)? },
             _ => return None,
         })
     }
@@ -292,14 +308,15 @@ impl Effect {
             Effect::PitFill { .. } => 4,
             Effect::MixedCells { .. } => 5,
             Effect::DropBlend { .. } => 6,
-            Effect::Smoothing { .. } => 7,
-            Effect::Bias { .. } => 8,
-            Effect::Noise { .. } => 9,
-            Effect::Quantization { .. } => 10,
-            Effect::Dropout { .. } => 11,
-            Effect::PatchDropout { .. } => 12,
-            Effect::HoleGrowth { .. } => 13,
-            Effect::RowDropout { .. } => 14,
+            Effect::RiserBlend { .. } => 7,
+            Effect::Smoothing { .. } => 8,
+            Effect::Bias { .. } => 9,
+            Effect::Noise { .. } => 10,
+            Effect::Quantization { .. } => 11,
+            Effect::Dropout { .. } => 12,
+            Effect::PatchDropout { .. } => 13,
+            Effect::HoleGrowth { .. } => 14,
+            Effect::RowDropout { .. } => 15,
         }
     }
 
@@ -334,6 +351,9 @@ impl Effect {
                 Err(format!("g = {g} must be > 0"))
             }
             Effect::DropBlend { a, .. } if !(0.0..=1.0).contains(&a) => Err(format!("a = {a} must be in [0, 1]")),
+            Effect::RiserBlend { foot, top } if !(-1.0..=1.0).contains(&foot) || !(-1.0..=1.0).contains(&top) => {
+                Err(format!("foot = {foot} and top = {top} must be in [-1, 1]"))
+            }
             Effect::MixedCells { up, down } if up < 0.0 || down < 0.0 => Err(format!("up = {up} and down = {down} must be >= 0")),
             Effect::Occlusion { h, .. } if h <= 0.0 => Err(format!("sensor height h = {h} must be > 0")),
             Effect::Fov { x_min, x_max } if x_min >= x_max => Err(format!("x_min = {x_min} must be < x_max = {x_max}")),
@@ -346,7 +366,7 @@ impl Effect {
     /// Apply to one DEM with this effect's random stream for the record.
     /// Draws a fixed number of values whatever the parameters: 100 normals
     /// (noise), 100 uniforms (dropout, edge-holes, rim-holes, pit-fill,
-    /// hole-growth), 200 uniforms (drop-blend), 20 uniforms
+    /// hole-growth, riser-blend), 200 uniforms (drop-blend), 20 uniforms
     /// (row-dropout), 2 (startup), 3 per slot (patch-dropout), 19 + 95
     /// (mixed-cells: a step position per row boundary, a reach per cell pair).
     pub fn apply(&self, d: &mut Dem, rng: &mut ChaCha8Rng) {
@@ -466,6 +486,7 @@ impl Effect {
             Effect::MixedCells { up, down } => mix_cells(d, rng, up, down),
             Effect::HoleGrowth { p } => grow_holes(d, rng, p),
             Effect::DropBlend { p, a } => blend_drops(d, rng, p, a),
+            Effect::RiserBlend { foot, top } => blend_risers(d, rng, foot, top),
             Effect::EdgeHoles { g, p } => jump_holes(d, rng, g, p, 1.0),
             Effect::RimHoles { g, p } => jump_holes(d, rng, g, p, -1.0),
             Effect::PitFill { g, p } => {
@@ -610,6 +631,33 @@ fn blend_drops(d: &mut Dem, rng: &mut ChaCha8Rng, p: f64, a: f64) {
     }
 }
 
+/// `riser-blend`: heights are read on the DEM as it comes in; a cell beside
+/// two risers (a one-cell tread) moves across the larger step only.
+fn blend_risers(d: &mut Dem, rng: &mut ChaCha8Rng, foot: f64, top: f64) {
+    let z = heights(d);
+    for r in 0..GRID_ROWS {
+        for c in 0..COLS {
+            let u: f64 = rng.gen();
+            let Some(zc) = z[r][c] else { continue };
+            // (step to the other cell, share): the riser ahead (this cell
+            // at its foot) or behind (this cell on its top).
+            let across = |rr: usize, share: f64| {
+                let zn = z.get(rr).and_then(|row| row[c])?;
+                let step = zn - zc;
+                let riser = if rr > r { step > MIXED_JUMP } else { -step > MIXED_JUMP };
+                riser.then_some((step, share))
+            };
+            let moved = match (across(r + 1, foot), across(r.wrapping_sub(1), top)) {
+                (Some(f), Some(b)) => Some(if b.0.abs() > f.0.abs() { b } else { f }),
+                (f, b) => f.or(b),
+            };
+            if let Some((step, share)) = moved {
+                d.set_valid(r, c, (zc + u * share * step) as f32);
+            }
+        }
+    }
+}
+
 /// The 4-neighbours of cell (r, c) inside the grid.
 fn neighbours4(r: usize, c: usize) -> impl Iterator<Item = (usize, usize)> {
     [(r.wrapping_sub(1), c), (r + 1, c), (r, c.wrapping_sub(1)), (r, c + 1)]
@@ -749,6 +797,48 @@ mod tests {
         Effect::Smoothing { w: 0.5 }.apply(&mut d, &mut rng());
         assert!((d.height(10, 2) - (0.5 * 0.73 + 0.5 * -0.07)).abs() < 1e-6);
         assert!((d.height(9, 1) - (-0.07 + 0.8 / 16.0 / (0.5 + 0.5))).abs() < 1e-6);
+    }
+
+    /// riser-blend on the same terrain (a drop at 9/10, a riser at 14/15):
+    /// only the two cells beside the riser move, the foot cell by u foot of
+    /// the step toward the top (foot > 0: up), the top cell by u top toward
+    /// the foot (top < 0: up, away from it), u uniform: mean share foot / 2
+    /// and top / 2.
+    #[test]
+    fn riser_blend_moves_cells_beside_risers_only() {
+        let (foot, top) = (0.5, -0.3);
+        let mut r = rng();
+        let (mut share, n) = ([0.0f64; 2], 4000);
+        for _ in 0..n {
+            let mut d = flat();
+            for row in (0..10).chain(15..GRID_ROWS) {
+                (0..COLS).for_each(|c| d.set_valid(row, c, 0.1));
+            }
+            let before = d;
+            Effect::RiserBlend { foot, top }.apply(&mut d, &mut r);
+            for row in 0..GRID_ROWS {
+                for c in 0..COLS {
+                    let (h0, h1) = (before.height(row, c) as f64, d.height(row, c) as f64);
+                    match row {
+                        14 => {
+                            let toward = (h1 - h0) / 0.17;
+                            assert!((-1e-6..=foot + 1e-6).contains(&toward), "foot: {h0} -> {h1}");
+                            share[0] += toward;
+                        }
+                        15 => {
+                            let toward = (h0 - h1) / 0.17;
+                            assert!((top - 1e-6..=1e-6).contains(&toward), "top: {h0} -> {h1}");
+                            share[1] += toward;
+                        }
+                        _ => assert_eq!(h0, h1, "row {row} is beside no riser (a drop at 9/10)"),
+                    }
+                }
+            }
+        }
+        let cells = (n * COLS) as f64;
+        assert!((share[0] / cells - foot / 2.0).abs() < 0.01, "{share:?}");
+        assert!((share[1] / cells - top / 2.0).abs() < 0.01, "{share:?}");
+        assert!(Effect::RiserBlend { foot: 1.2, top: 0.0 }.check().is_err());
     }
 
     /// drop-blend on a drop (rows 0..10 at 0.1 m, rows 10.. at -0.07 m) and

@@ -42,6 +42,7 @@ proptest! {
             "edge-holes" | "rim-holes" | "pit-fill" => format!(r#"{{"g":{a},"p":{c}}}"#),
             "mixed-cells" => format!(r#"{{"up":{a},"down":{b}}}"#),
             "drop-blend" => format!(r#"{{"p":{c},"a":{}}}"#, b / 10.0),
+            "riser-blend" => format!(r#"{{"foot":{},"top":{}}}"#, a / 10.0, b / 10.0),
             "view-top" => format!(r#"{{"h":{a},"t":{b}}}"#),
             other => unreachable!("{other}"),
         };
