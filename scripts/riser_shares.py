@@ -20,6 +20,8 @@ import sys
 
 import numpy as np
 
+# The step size that makes a riser or drop: dem_core::distribution::JUMP
+# (which dem-sensor's MIXED_JUMP and the step-side terms use); keep equal.
 JUMP = 0.05
 
 

@@ -21,7 +21,7 @@
 //! | `level-pairs` | fraction of across-robot neighbours with equal heights (within 0.1 mm) | 0.02 |
 //! | `edge-2cm`, `edge-steep`, `edge-10cm` | fraction of steps `abs(h[r+1,c] - h[r,c])` (row pairs 0..18) above 0.02, 0.05, 0.1 m: sharp edges against ramps | 0.01 |
 //! | `steps` | fraction of all neighbour pairs whose difference falls in each bin of [`STEP_BINS`] (0.1-1-3-10-30-100 mm; 5 numbers) | 0.01 |
-//! | `riser-foot`, `riser-top`, `drop-lip`, `drop-floor` (paired only) | 10th, 50th and 90th percentile, over the whole grid, of the residual D toward the other surface (D sign(h_sim[n] - h_sim)) on the cells beside a step of more than [`JUMP`] along x in the sim record: the foot (row r + 1 higher) and top (row r - 1 lower) of a riser, the lip (row r + 1 lower) and floor (row r - 1 higher) of a drop | 0.005 m |
+//! | `riser-foot`, `riser-top`, `drop-lip`, `drop-floor` (paired only) | over the whole grid, on the cells beside a step of more than [`JUMP`] along x in the sim record (the foot, row r + 1 higher, and top, row r - 1 lower, of a riser; the lip, row r + 1 lower, and floor, row r - 1 higher, of a drop), with T = D sign(h_sim[n] - h_sim) the residual toward the other surface: mean T / 4, mean abs(T) / 4 (so 0.005 m is one scale), and the fractions of cells with T > 2 cm and T < -2 cm | 0.02 |
 //!
 //! The gap between sets A (model(sim)) and B (real) is the sum over terms
 //! of the mean over their components of ln(1 + z^2), z = (a - b) / scale;
@@ -58,6 +58,10 @@ pub const UNSUPPORTED_Z: f64 = 10.0;
 
 /// The step-side terms (paired), indexed as `step_sides` returns them.
 pub const STEP_SIDES: [&str; 4] = ["riser-foot", "riser-top", "drop-lip", "drop-floor"];
+
+/// Residual (m) toward or away from the other surface beyond which a cell
+/// beside a step counts as moved (the step-side rates).
+const SIDE_MOVE: f32 = 0.02;
 
 /// Edges (m) of the bins of non-zero neighbour differences (`steps`).
 pub const STEP_BINS: [f64; 6] = [1e-4, 0.001, 0.003, 0.01, 0.03, 0.1];
@@ -355,9 +359,20 @@ fn summarise(mut a: Acc, paired: bool) -> Stats {
         scale: 0.01,
     });
     if paired {
-        for (name, v) in STEP_SIDES.iter().zip(a.side.iter_mut()) {
-            let values = [0.1, 0.5, 0.9].iter().map(|&q| quantile(v, q).unwrap_or(0.0)).collect();
-            terms.push(Term { name, values, support: vec![v.len(); 3], scale: 0.005 });
+        // Means and rates, not quantiles: at a step a cell either keeps its
+        // surface or reads (part of the way to) the other one, and a
+        // quantile on the border of the two modes jumps by the whole step
+        // from one random draw of a model to the next.
+        for (name, v) in STEP_SIDES.iter().zip(&a.side) {
+            let n = v.len().max(1) as f64;
+            let rate = |f: &dyn Fn(f32) -> bool| v.iter().filter(|&&x| f(x)).count() as f64 / n;
+            let values = vec![
+                v.iter().map(|&x| x as f64).sum::<f64>() / n / 4.0,
+                v.iter().map(|&x| x.abs() as f64).sum::<f64>() / n / 4.0,
+                rate(&|x| x > SIDE_MOVE),
+                rate(&|x| x < -SIDE_MOVE),
+            ];
+            terms.push(Term { name, values, support: vec![v.len(); 4], scale: 0.02 });
         }
     }
     Stats { records: n, paired, terms }
@@ -483,9 +498,11 @@ mod tests {
     }
 
     /// A riser at rows 9/10 and a drop at 14/15 (sim); real moves every
-    /// foot cell 2 cm up (toward the top) and every lip cell 1 cm up (away
-    /// from the floor): the two terms read +0.02 and -0.01, the other two
-    /// sides read 0, and a cell's riser move does not show as a drop's.
+    /// foot cell 3 cm up (toward the top, past the 2 cm of a moved cell)
+    /// and every lip cell 1 cm up (away from the floor): the foot reads a
+    /// mean of +0.03 (/ 4), all moved toward; the lip -0.01, none moved;
+    /// the other two sides read 0, and a riser's move does not show as a
+    /// drop's.
     #[test]
     fn the_step_sides_are_told_apart() {
         let mut sim = empty_dem();
@@ -496,16 +513,16 @@ mod tests {
         }
         let mut real = sim;
         for c in 0..COLS {
-            real.set_valid(9, c, -0.05);
+            real.set_valid(9, c, -0.04);
             real.set_valid(14, c, 0.11);
         }
         let s = stats(&vec![real; 10], Some(&vec![sim; 10]));
         let q = |name| s.term(name).unwrap().values.iter().map(|v| (v * 1e4).round() / 1e4).collect::<Vec<_>>();
-        assert_eq!(q("riser-foot"), [0.02; 3]);
-        assert_eq!(q("drop-lip"), [-0.01; 3]);
-        assert_eq!(q("riser-top"), [0.0; 3]);
-        assert_eq!(q("drop-floor"), [0.0; 3]);
-        assert_eq!(s.term("riser-foot").unwrap().support, [50; 3]);
+        assert_eq!(q("riser-foot"), [0.0075, 0.0075, 1.0, 0.0]);
+        assert_eq!(q("drop-lip"), [-0.0025, 0.0025, 0.0, 0.0]);
+        assert_eq!(q("riser-top"), [0.0; 4]);
+        assert_eq!(q("drop-floor"), [0.0; 4]);
+        assert_eq!(s.term("riser-foot").unwrap().support, [50; 4]);
         assert!(stats(&vec![real; 10], None).term("riser-foot").is_none(), "unpaired has no residuals");
     }
 }

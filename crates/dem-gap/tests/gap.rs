@@ -546,13 +546,12 @@ fn riser_shares_reads_back_a_known_move() {
             testdata("real.npy")
         ),
     );
-    let o = Command::new(python())
-        .arg(workspace_root().join("scripts/riser_shares.py"))
-        .arg(arg(dir.path(), "g"))
-        .output()
-        .expect("python");
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let out = String::from_utf8_lossy(&o.stdout).into_owned();
+    let shares = |folder: &str| {
+        let o = Command::new(python()).arg(workspace_root().join("scripts/riser_shares.py")).arg(arg(dir.path(), folder)).output().expect("python");
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stdout).into_owned()
+    };
+    let out = shares("g");
     let row = |kind: &str| -> Vec<String> {
         let line = out.lines().find(|l| l.contains(&format!("| {kind} |"))).unwrap_or_else(|| panic!("no {kind} in\n{out}"));
         line.split('|').map(|c| c.trim().to_string()).filter(|c| !c.is_empty()).collect()
@@ -578,9 +577,7 @@ fn riser_shares_reads_back_a_known_move() {
          \x20   os.makedirs('flat/' + d)\n\
          \x20   np.save(f'flat/{d}/real.npy', a)\n",
     );
-    let o = Command::new(python()).arg(workspace_root().join("scripts/riser_shares.py")).arg(arg(dir.path(), "flat")).output().expect("python");
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let flat = String::from_utf8_lossy(&o.stdout);
+    let flat = shares("flat");
     for kind in ["riser-lower", "riser-upper", "drop-upper", "drop-lower"] {
         assert!(flat.contains(&format!("| {kind} | 0 | - | - | - |")), "{flat}");
     }
