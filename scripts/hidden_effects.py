@@ -29,8 +29,11 @@ heights relative to the robot centre; missing = mask -1, height 0):
                centre x < x0 - u (x0 + 0.6), u uniform, missing (the
                per-record form, used without times; v is ignored here)
   patch-dropout  each of 8 slots holds a blob with probability n / 8, centre
-               uniform over the grid's rectangle widened by r; cells whose
-               square lies within r of the centre missing
+               uniform over the grid's rectangle widened by r; a cell's
+               quarter-cell centres (x +- 2.5 cm, y +- 2.5 cm) within r of a
+               centre are covered: 3 or 4 covered, the cell is missing; 1 or
+               2, h += a (h_low - h), h_low the lowest of h and its
+               x-neighbours the blobs leave valid (a defaults to 0)
   edge-holes   a valid cell with a valid 4-neighbour more than g higher is
                missing with probability p
   rim-holes    a valid cell with a valid 4-neighbour more than g lower is
@@ -171,16 +174,31 @@ def startup(d, rng, x0, p, v=0.0):
         set_missing(d, np.repeat((X < edge)[:, None], 5, axis=1))
 
 
-def patch_dropout(d, rng, n, r):
+def patch_dropout(d, rng, n, r, a=0.0):
     xlo, xhi, ylo, yhi = X[0] - 0.05, X[-1] + 0.05, Y[-1] - 0.05, Y[0] + 0.05
-    for u, a, b in rng.random((8, 3)):
-        if u >= n / 8:
-            continue
-        px = xlo - r + a * (xhi - xlo + 2 * r)
-        py = ylo - r + b * (yhi - ylo + 2 * r)
-        dx = np.maximum(np.abs(X - px) - 0.05, 0.0)[:, None]
-        dy = np.maximum(np.abs(Y - py) - 0.05, 0.0)[None, :]
-        set_missing(d, dx ** 2 + dy ** 2 <= r * r)
+    blobs = []
+    for u, s, t in rng.random((8, 3)):
+        if u < n / 8:
+            blobs.append((xlo - r + s * (xhi - xlo + 2 * r), ylo - r + t * (yhi - ylo + 2 * r)))
+    if not blobs:
+        return
+    # How many of each cell's four quarter-cell centres no blob covers.
+    seen = np.zeros((20, 5), int)
+    for sx in (-1, 1):
+        for sy in (-1, 1):
+            qx, qy = (X + sx * 0.025)[:, None], (Y + sy * 0.025)[None, :]
+            cov = np.zeros((20, 5), bool)
+            for px, py in blobs:
+                cov |= (qx - px) ** 2 + (qy - py) ** 2 <= r * r
+            seen += ~cov
+    z = d[:20, :, 0].astype(np.float64)
+    left = (d[:20, :, 1] > 0) & (seen >= 2)
+    # The lowest of h and its x-neighbours the blobs leave valid.
+    zn = np.pad(np.where(left, z, np.inf), ((1, 1), (0, 0)), constant_values=np.inf)
+    low = np.minimum(z, np.minimum(zn[:-2], zn[2:]))
+    part = left & (seen < 4)
+    d[:20, :, 0] = np.where(part, z + a * (low - z), d[:20, :, 0])
+    set_missing(d, (d[:20, :, 1] > 0) & ~left)
 
 
 def edge_holes(d, rng, g, p):

@@ -132,8 +132,23 @@ fn hidden_startup() {
 
 #[test]
 fn hidden_patch_dropout() {
-    // n and r trade off (fewer, larger blobs): n within 20 %, r within 3 cm.
-    single("patch-dropout", "patch-dropout:n=1.3,r=0.09", &[("n", 1.3, Some(0.35)), ("r", 0.09, Some(0.03))]);
+    // A blob loses the cells it covers three quarters of, so n and r trade
+    // off (fewer, larger blobs lose about as many cells), most of all
+    // unpaired: the area they cover, n r^2, within 25 %, and r within 4 cm.
+    // a, how far the partly covered cells beside steps move down, is hidden
+    // too but not checked: on these 302 records it moves 2 % of the riser
+    // tops, and past 2 cm whatever a is above 0.15, so the step-side shares,
+    // which weigh most, do not see it (a = 0.25 and 0.8 both match them).
+    let dir = tempdir();
+    let (sim, pairs) = setup(dir.path());
+    let real = hide(dir.path(), &sim, "real.npy", &["patch-dropout:n=2,r=0.1,a=0.8"]);
+    for (pp, out) in [(Some(pairs.as_str()), "paired"), (None, "unpaired")] {
+        let rep = gap(dir.path(), &sim, &real, pp, &[], out);
+        check_single(&rep, "patch-dropout", &[("r", 0.1, Some(0.04))]);
+        let area = param(&rep, 0, "n") * param(&rep, 0, "r").powi(2);
+        let hidden = 2.0 * 0.1f64.powi(2);
+        assert!((area / hidden - 1.0).abs() <= 0.25, "{out}: n r^2 = {area}, hidden {hidden}");
+    }
 }
 
 #[test]
@@ -409,9 +424,8 @@ fn leave_one_stage_out_on_other_camera_mounts() {
         let what = format!("camera {h} m / {tilt} deg, --no-{stage}, paired {paired}: named {n:?}");
         // Named first, or second after a step effect (mixed-cells,
         // riser-blend): what the cells beside a step read changes with
-        // whatever changes the rays that reach it (with the field of view
-        // on, pixel rays hit riser faces, which the one ray per cell of
-        // --no-fov never does), and is the larger part of some stages' gaps.
+        // whatever changes the rays that reach it, and is the larger part
+        // of some stages' gaps.
         const AT_STEPS: [&str; 2] = ["mixed-cells", "riser-blend"];
         let named = n.iter().take(2).take_while(|e| first.contains(&e.as_str()) || AT_STEPS.contains(&e.as_str()));
         assert!(named.clone().any(|e| first.contains(&e.as_str())), "{what}; {r:#}");

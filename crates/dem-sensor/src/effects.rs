@@ -18,7 +18,7 @@
 //! | `bias` | h += b + t x |
 //! | `quantization` | h = q floor(h / q + 1/2) |
 //! | `startup` | rows whose centre x < e missing: e = x0 - v t for a record t seconds into its run (labels' `time`, v > 0); without a time, with probability p the record is a startup frame and e = x0 - u (x0 + 0.6), u uniform |
-//! | `patch-dropout` | blobs: each of [`PATCH_SLOTS`] slots holds a blob with probability n / slots, centred uniformly over the grid; cells whose square lies within r of a blob centre missing |
+//! | `patch-dropout` | blobs: each of [`PATCH_SLOTS`] slots holds a blob with probability n / slots, centred uniformly over the grid widened by r; of each cell's four quarter-cell centres (x +- 2.5 cm, y +- 2.5 cm) those within r of a blob centre are covered; three or four covered: the cell is missing (the map needs two of four); one or two: h += a (h_low - h), h_low the lowest of h and its x-neighbours left valid (the points a patch takes from a cell beside a step are those that lifted it) |
 //! | `edge-holes` | a valid cell whose valid 4-neighbour is higher by more than g is missing with probability p (the foot of a height jump) |
 //! | `rim-holes` | a valid cell whose valid 4-neighbour is lower by more than g is missing with probability p (the rim of a height jump) |
 //! | `hole-growth` | a valid cell with k missing 4-neighbours (inside the grid) is missing with probability 1 - (1 - p)^k (the edge of a hole, where a 10 cm cell holds fewer seen map cells than the two of four the map needs) |
@@ -127,12 +127,18 @@ pub enum Effect {
         /// Share of records that are startup frames (used without times).
         p: f64,
     },
-    /// Missing blobs (dark or reflective patches).
+    /// Missing blobs (dark or reflective patches); a cell the blob only
+    /// partly covers loses the points that lifted it beside a step.
     PatchDropout {
         /// Expected blobs per record (0..PATCH_SLOTS).
         n: f64,
         /// Blob radius (m).
         r: f64,
+        /// Share of the way a partly covered cell moves down toward its
+        /// lower neighbour along x (0: it keeps its height). Absent in
+        /// models written before it existed: 0.
+        #[serde(default)]
+        a: f64,
     },
     /// Holes at the foot of height jumps (stereo consistency check, mixed
     /// heights in one map cell).
@@ -260,7 +266,7 @@ impl Effect {
             Effect::Bias { b, t } => vec![("b", b), ("t", t)],
             Effect::Quantization { q } => vec![("q", q)],
             Effect::Startup { x0, v, p } => vec![("x0", x0), ("v", v), ("p", p)],
-            Effect::PatchDropout { n, r } => vec![("n", n), ("r", r)],
+            Effect::PatchDropout { n, r, a } => vec![("n", n), ("r", r), ("a", a)],
             Effect::EdgeHoles { g, p } | Effect::RimHoles { g, p } | Effect::PitFill { g, p } => vec![("g", g), ("p", p)],
             Effect::MixedCells { up, down } => vec![("up", up), ("down", down)],
             Effect::DropBlend { p, a } => vec![("p", p), ("a", a)],
@@ -281,7 +287,7 @@ impl Effect {
             "bias" => Effect::Bias { b: g(0)?, t: g(1)? },
             "quantization" => Effect::Quantization { q: g(0)? },
             "startup" => Effect::Startup { x0: g(0)?, v: g(1)?, p: g(2)? },
-            "patch-dropout" => Effect::PatchDropout { n: g(0)?, r: g(1)? },
+            "patch-dropout" => Effect::PatchDropout { n: g(0)?, r: g(1)?, a: g(2)? },
             "edge-holes" => Effect::EdgeHoles { g: g(0)?, p: g(1)? },
             "mixed-cells" => Effect::MixedCells { up: g(0)?, down: g(1)? },
             "rim-holes" => Effect::RimHoles { g: g(0)?, p: g(1)? },
@@ -344,8 +350,8 @@ impl Effect {
                 Err(format!("p = {p} is not a probability"))
             }
             Effect::Startup { v, .. } if v < 0.0 => Err(format!("v = {v} must be >= 0")),
-            Effect::PatchDropout { n, r } if !(0.0..=PATCH_SLOTS as f64).contains(&n) || r < 0.0 => {
-                Err(format!("n = {n} must be in [0, {PATCH_SLOTS}] and r = {r} >= 0"))
+            Effect::PatchDropout { n, r, a } if !(0.0..=PATCH_SLOTS as f64).contains(&n) || r < 0.0 || !(0.0..=1.0).contains(&a) => {
+                Err(format!("n = {n} must be in [0, {PATCH_SLOTS}], r = {r} >= 0 and a = {a} in [0, 1]"))
             }
             Effect::EdgeHoles { g, .. } | Effect::RimHoles { g, .. } | Effect::PitFill { g, .. } if g <= 0.0 => {
                 Err(format!("g = {g} must be > 0"))
@@ -461,28 +467,7 @@ impl Effect {
                     }
                 }
             }
-            Effect::PatchDropout { n, r: radius } => {
-                let (ylo, yhi) = (col_center_y(COLS - 1) - HALF, col_center_y(0) + HALF);
-                let (xlo, xhi) = (row_center_x(0) - HALF, row_center_x(GRID_ROWS - 1) + HALF);
-                for _ in 0..PATCH_SLOTS {
-                    let (u, a, b): (f64, f64, f64) = (rng.gen(), rng.gen(), rng.gen());
-                    if u >= n / PATCH_SLOTS as f64 {
-                        continue;
-                    }
-                    // Centres anywhere a blob can touch the grid.
-                    let px = xlo - radius + a * (xhi - xlo + 2.0 * radius);
-                    let py = ylo - radius + b * (yhi - ylo + 2.0 * radius);
-                    for r in 0..GRID_ROWS {
-                        let dx = ((row_center_x(r) - px).abs() - HALF).max(0.0);
-                        for c in 0..COLS {
-                            let dy = ((col_center_y(c) - py).abs() - HALF).max(0.0);
-                            if dx * dx + dy * dy <= radius * radius {
-                                d.set_missing(r, c);
-                            }
-                        }
-                    }
-                }
-            }
+            Effect::PatchDropout { n, r, a } => drop_patches(d, rng, n, r, a),
             Effect::MixedCells { up, down } => mix_cells(d, rng, up, down),
             Effect::HoleGrowth { p } => grow_holes(d, rng, p),
             Effect::DropBlend { p, a } => blend_drops(d, rng, p, a),
@@ -556,6 +541,65 @@ pub fn hidden(z: &[[Option<f64>; COLS]; GRID_ROWS], t: usize, c: usize, h: f64, 
 
 fn heights(d: &Dem) -> [[Option<f64>; COLS]; GRID_ROWS] {
     std::array::from_fn(|r| std::array::from_fn(|c| d.is_valid(r, c).then(|| d.height(r, c) as f64)))
+}
+
+/// `patch-dropout` (see the module table). A DEM cell is the mean of its
+/// four 5 cm map cells and needs two of them seen: a blob that covers three
+/// or four quarter-cell centres loses the cell. One that covers one or two
+/// leaves it fewer points, and beside a step the points it loses are the
+/// ones that lifted it (the map keeps the higher of a frame's points in a
+/// map cell, and a patch darkens the riser face and the edge with the
+/// ground): the cell reads h + a (h_low - h), h_low its lower neighbour
+/// along x that the blobs leave valid. Measured on the emulator (`--no-dropout` against all
+/// stages): such cells move down, never up, and only where that lower
+/// neighbour was seen.
+fn drop_patches(d: &mut Dem, rng: &mut ChaCha8Rng, n: f64, radius: f64, a: f64) {
+    let (ylo, yhi) = (col_center_y(COLS - 1) - HALF, col_center_y(0) + HALF);
+    let (xlo, xhi) = (row_center_x(0) - HALF, row_center_x(GRID_ROWS - 1) + HALF);
+    let mut blobs = Vec::with_capacity(PATCH_SLOTS);
+    for _ in 0..PATCH_SLOTS {
+        let (u, s, t): (f64, f64, f64) = (rng.gen(), rng.gen(), rng.gen());
+        if u < n / PATCH_SLOTS as f64 {
+            // Centres anywhere a blob can touch the grid.
+            blobs.push((xlo - radius + s * (xhi - xlo + 2.0 * radius), ylo - radius + t * (yhi - ylo + 2.0 * radius)));
+        }
+    }
+    if !blobs.is_empty() {
+        darken(d, &blobs, radius, a);
+    }
+}
+
+/// The cells of `d` under dark blobs of `radius` centred at `blobs` (x, y):
+/// see [`drop_patches`].
+fn darken(d: &mut Dem, blobs: &[(f64, f64)], radius: f64, a: f64) {
+    let covered = |x: f64, y: f64| blobs.iter().any(|&(px, py)| (x - px).powi(2) + (y - py).powi(2) <= radius * radius);
+    let seen: [[usize; COLS]; GRID_ROWS] = std::array::from_fn(|r| {
+        std::array::from_fn(|c| {
+            let (x, y) = (row_center_x(r), col_center_y(c));
+            [(-1.0, -1.0), (-1.0, 1.0), (1.0, -1.0), (1.0, 1.0)]
+                .into_iter()
+                .filter(|&(sx, sy)| !covered(x + sx * HALF / 2.0, y + sy * HALF / 2.0))
+                .count()
+        })
+    });
+    // The heights the map still holds once the blobs are dark.
+    let z: [[Option<f64>; COLS]; GRID_ROWS] =
+        std::array::from_fn(|r| std::array::from_fn(|c| (d.is_valid(r, c) && seen[r][c] >= 2).then(|| d.height(r, c) as f64)));
+    for r in 0..GRID_ROWS {
+        for c in 0..COLS {
+            match (z[r][c], seen[r][c]) {
+                (None, _) => d.set_missing(r, c),
+                (Some(_), 4) => {}
+                (Some(h), _) => {
+                    let low = [r.checked_sub(1), Some(r + 1).filter(|&n| n < GRID_ROWS)]
+                        .into_iter()
+                        .filter_map(|n| z[n?][c])
+                        .fold(h, f64::min);
+                    d.set_valid(r, c, (h + a * (low - h)) as f32);
+                }
+            }
+        }
+    }
 }
 
 fn occlude(d: &mut Dem, h: f64, x0: f64) {
@@ -804,6 +848,48 @@ mod tests {
     /// the step toward the top (foot > 0: up), the top cell by u top toward
     /// the foot (top < 0: up, away from it), u uniform: mean share foot / 2
     /// and top / 2.
+    #[test]
+    fn a_patch_loses_the_cells_it_covers_and_lowers_the_ones_it_partly_covers_beside_a_step() {
+        // A riser between rows 9 (0.0 m) and 10 (0.15 m); rows 10.. are its top.
+        let stair = || {
+            let mut d = flat();
+            for r in 10..GRID_ROWS {
+                (0..COLS).for_each(|c| d.set_valid(r, c, FLAT_GROUND + 0.15));
+            }
+            d
+        };
+        let (x11, y2) = (row_center_x(11), col_center_y(2));
+        // Centred on cell (11, 2), radius 9 cm: its four quarters covered
+        // (3.5 cm away), and the near two quarters (7.9 cm) of the four
+        // cells around it, none of the diagonal cells' (10.6 cm).
+        let mut d = stair();
+        darken(&mut d, &[(x11, y2)], 0.09, 0.5);
+        assert!(!d.is_valid(11, 2));
+        // Row 10 (the riser's top) keeps half its quarters: it reads half
+        // way down to its lower neighbour, row 9.
+        assert!((d.height(10, 2) - (FLAT_GROUND + 0.075)).abs() < 1e-6, "{}", d.height(10, 2));
+        // Row 12 and the cells beside along y have no lower x-neighbour
+        // left: they keep their heights.
+        for (r, c) in [(12, 2), (11, 1), (11, 3)] {
+            assert!((d.height(r, c) - (FLAT_GROUND + 0.15)).abs() < 1e-6, "({r}, {c})");
+        }
+        assert_eq!(d.valid_cells(), 99);
+        // Centred on the riser's foot (row 9): the foot is lost, so the top
+        // beside it has no lower neighbour left and keeps its height.
+        let mut d = stair();
+        darken(&mut d, &[(row_center_x(9), y2)], 0.09, 1.0);
+        assert!(!d.is_valid(9, 2));
+        assert!((d.height(10, 2) - (FLAT_GROUND + 0.15)).abs() < 1e-6);
+        // a = 0: the partly covered cells keep their heights.
+        let mut d = stair();
+        darken(&mut d, &[(x11, y2)], 0.09, 0.0);
+        assert!((d.height(10, 2) - (FLAT_GROUND + 0.15)).abs() < 1e-6);
+        // Too small to cover three quarters of any cell: nothing is lost.
+        let mut d = stair();
+        darken(&mut d, &[(x11, y2)], 0.03, 0.0);
+        assert_eq!(d.valid_cells(), 100);
+    }
+
     #[test]
     fn riser_blend_moves_cells_beside_risers_only() {
         let (foot, top) = (0.5, -0.3);

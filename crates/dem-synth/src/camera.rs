@@ -6,8 +6,10 @@
 //! [`Stages`] switch the physical effects on and off one by one:
 //!
 //! - `fov`: only pixel rays within the field of view and the depth cutoffs
-//!   (0.35 to 3.0 m) measure; off, the camera sees every cell of the DEM
-//!   footprint from where it is, at any range.
+//!   (0.35 to 3.0 m) measure; off, the camera casts the same rays without
+//!   the cutoffs and also looks, from where it is and at any range, at every
+//!   5 cm cell of the DEM footprint outside their cone, so the cells in view
+//!   get the same points with the stage on or off.
 //! - `occlusion`: a ray stops at the first surface it meets; off, it passes
 //!   through and measures every surface it crosses downward, so terrain
 //!   behind a pallet or below a stair edge is seen too.
@@ -183,6 +185,16 @@ impl Frame {
         let (sy, cy) = self.yaw.sin_cos();
         ([x1 * cy - y * sy, x1 * sy + y * cy, z1], 1.0 / n)
     }
+
+    /// True when the unit world direction `d` lies in the pixel rays' cone:
+    /// |ty| <= hx and |tz| <= hy in the camera frame ([`Frame::ray`] undone).
+    fn in_view(&self, d: [f64; 3], hx: f64, hy: f64) -> bool {
+        let (sy, cy) = self.yaw.sin_cos();
+        let (x1, y) = (cy * d[0] + sy * d[1], -sy * d[0] + cy * d[1]);
+        let (sp, cp) = self.pitch.sin_cos();
+        let (x, z) = (x1 * cp + d[2] * sp, -x1 * sp + d[2] * cp);
+        x > 0.0 && (y / x).abs() <= hx && (z / x).abs() <= hy
+    }
 }
 
 /// One frame of the camera at `pose`: the points it measured; hits that
@@ -204,8 +216,9 @@ pub fn observe(world: &World, pose: &Pose, cfg: &CameraConfig, stages: Stages, r
 /// check would reject, a dark patch) draws its noise from `aux`. So
 /// switching one stage off changes only what that stage does: the other
 /// pixels and their noise stay the same, and a paired comparison against
-/// the full emulator shows that stage alone. (With the field of view off,
-/// the camera samples other points, so this holds for the other stages.)
+/// the full emulator shows that stage alone. With the field of view off the
+/// pixel rays are cast all the same and the looks at the cells outside
+/// their cone draw from `aux`, so this holds for it too.
 pub fn observe_with(
     world: &World,
     pose: &Pose,
@@ -219,53 +232,63 @@ pub fn observe_with(
     let mut ts = Vec::new();
     let mut sub = Vec::new();
     let half_window = cfg.window_deg.to_radians() / 2.0;
-    if stages.fov {
-        let (hx, hy) = ((cfg.hfov_deg.to_radians() / 2.0).tan(), (cfg.vfov_deg.to_radians() / 2.0).tan());
-        for j in 0..cfg.pixels_y {
-            for i in 0..cfg.pixels_x {
-                let ty = hx * (1.0 - 2.0 * (i as f64 + rng.gen::<f64>()) / cfg.pixels_x as f64);
-                let tz = hy * (1.0 - 2.0 * (j as f64 + rng.gen::<f64>()) / cfg.pixels_y as f64);
-                let (d, depth_per_t) = frame.ray(ty, tz);
-                let t_max = cfg.range_max / depth_per_t;
-                crossings(world, frame.origin, d, t_max, stages.occlusion, &mut ts);
-                for (k, &t) in ts.iter().enumerate() {
-                    let mut t = t;
-                    // What the full emulator makes of this crossing: the
-                    // first surface, after the stereo window, in range and
-                    // not dark; only then it draws from `rng`.
-                    let window = (k == 0).then(|| stereo_window(world, &frame, ty, tz, half_window, t, t_max, &mut sub)).flatten();
-                    let full = window.is_some_and(|tm| {
-                        let depth = tm * depth_per_t;
-                        let p = [frame.origin[0] + tm * d[0], frame.origin[1] + tm * d[1]];
-                        (cfg.range_min..=cfg.range_max).contains(&depth) && !world.is_dark(p[0], p[1])
-                    });
-                    if stages.smoothing && k == 0 {
-                        match window {
-                            Some(mean) => t = mean,
-                            None => continue,
-                        }
+    // The pixel rays of the field of view, within the depth cutoffs. With
+    // the stage off they are cast all the same (without the cutoffs), so the
+    // cells in view get the points (and the random draws) they get with it
+    // on.
+    let (hx, hy) = ((cfg.hfov_deg.to_radians() / 2.0).tan(), (cfg.vfov_deg.to_radians() / 2.0).tan());
+    for j in 0..cfg.pixels_y {
+        for i in 0..cfg.pixels_x {
+            let ty = hx * (1.0 - 2.0 * (i as f64 + rng.gen::<f64>()) / cfg.pixels_x as f64);
+            let tz = hy * (1.0 - 2.0 * (j as f64 + rng.gen::<f64>()) / cfg.pixels_y as f64);
+            let (d, depth_per_t) = frame.ray(ty, tz);
+            let t_max = cfg.range_max / depth_per_t;
+            crossings(world, frame.origin, d, t_max, stages.occlusion, &mut ts);
+            for (k, &t) in ts.iter().enumerate() {
+                let mut t = t;
+                // What the full emulator makes of this crossing: the
+                // first surface, after the stereo window, in range and
+                // not dark; only then it draws from `rng`.
+                let window = (k == 0).then(|| stereo_window(world, &frame, ty, tz, half_window, t, t_max, &mut sub)).flatten();
+                let full = window.is_some_and(|tm| {
+                    let depth = tm * depth_per_t;
+                    let p = [frame.origin[0] + tm * d[0], frame.origin[1] + tm * d[1]];
+                    (cfg.range_min..=cfg.range_max).contains(&depth) && !world.is_dark(p[0], p[1])
+                });
+                if stages.smoothing && k == 0 {
+                    match window {
+                        Some(mean) => t = mean,
+                        None => continue,
                     }
-                    let depth = t * depth_per_t;
-                    if depth < cfg.range_min || depth > cfg.range_max {
-                        continue;
-                    }
-                    let r = if full { &mut *rng } else { &mut *aux };
-                    push_hit(world, frame.origin, d, t, depth, cfg, stages, full, r, &mut hits);
                 }
+                let depth = t * depth_per_t;
+                if stages.fov && (depth < cfg.range_min || depth > cfg.range_max) {
+                    continue;
+                }
+                let r = if full { &mut *rng } else { &mut *aux };
+                push_hit(world, frame.origin, d, t, depth, cfg, stages, full, r, &mut hits);
             }
         }
-    } else {
-        // No field of view: look at every map cell of the DEM footprint
-        // (5 cm, jittered) from the camera, at any range.
+    }
+    if !stages.fov {
+        // No field of view: look from the camera, at any range, at every map
+        // cell of the DEM footprint (5 cm, jittered) outside the pixel rays'
+        // cone. Its draws come from `aux`, so the next frame's pixel rays
+        // are those of the full emulator too.
+        let (x_back, y_left) = (row_center_x(0) - 0.075, col_center_y(0) + 0.075);
         for r in 0..GRID_ROWS * 2 + 2 {
             for c in 0..COLS * 2 + 2 {
-                let fx = row_center_x(0) - 0.075 + 0.05 * (r as f64 + rng.gen::<f64>());
-                let fy = col_center_y(0) + 0.075 - 0.05 * (c as f64 + rng.gen::<f64>());
+                let (u, v): (f64, f64) = (aux.gen(), aux.gen());
+                let fx = x_back + 0.05 * (r as f64 + u);
+                let fy = y_left - 0.05 * (c as f64 + v);
                 let (px, py) = pose.to_world(fx, fy);
                 let p = [px, py, world.height(px, py)];
                 let v = [p[0] - frame.origin[0], p[1] - frame.origin[1], p[2] - frame.origin[2]];
                 let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
                 let d = [v[0] / len, v[1] / len, v[2] / len];
+                if frame.in_view(d, hx, hy) {
+                    continue;
+                }
                 crossings(world, frame.origin, d, len + 0.02, stages.occlusion, &mut ts);
                 for (k, &t) in ts.iter().enumerate() {
                     let mut t = t;
@@ -279,7 +302,7 @@ pub fn observe_with(
                             None => continue,
                         }
                     }
-                    push_hit(world, frame.origin, d, t, t, cfg, stages, false, rng, &mut hits);
+                    push_hit(world, frame.origin, d, t, t, cfg, stages, false, aux, &mut hits);
                 }
             }
         }
@@ -409,6 +432,18 @@ mod tests {
         assert_eq!(all.len(), 2);
         let x_far = o[0] + all[1] * d[0];
         assert!(x_far > 1.3, "{x_far}");
+    }
+
+    #[test]
+    fn in_view_undoes_the_pixel_ray() {
+        let pose = Pose { x: 1.0, y: -0.5, z: 0.07, yaw: 0.4, pitch: 0.1, flippers: [0.0; 4] };
+        let f = Frame::new(&pose, &CameraConfig::default());
+        let (hx, hy) = (0.5, 0.4);
+        for (ty, tz, inside) in [(0.0, 0.0, true), (0.49, -0.39, true), (-0.49, 0.39, true), (0.51, 0.0, false), (0.0, -0.41, false)] {
+            assert_eq!(f.in_view(f.ray(ty, tz).0, hx, hy), inside, "({ty}, {tz})");
+        }
+        let (d, _) = f.ray(0.0, 0.0);
+        assert!(!f.in_view([-d[0], -d[1], -d[2]], hx, hy), "behind the camera");
     }
 
     #[test]
