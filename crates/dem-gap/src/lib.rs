@@ -419,6 +419,9 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
         let mut threshold = 0.0;
         let mut added = None;
         let mut refused = Vec::new();
+        // The model's own gap with other draws, measured once for both
+        // candidates that may need it.
+        let mut model_redrawn: Option<f64> = None;
         // The best candidate on the subsample, confirmed on all data; the
         // runner-up gets a chance when the best does not hold up.
         for (e, _, _) in ranking.iter().take(2) {
@@ -439,9 +442,9 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
             // residual tails, which jump between draws however right the
             // model, and it kept out effects whose gain repeats.)
             let redrawn = if gain > threshold {
-                let other = dem_core::seeded::mix(cfg.seed ^ 0xf100_f100);
-                let again = gap(&measure(&model, &sets.sim, paired, other).1, &real_stats)
-                    - gap(&measure(&trial, &sets.sim, paired, other).1, &real_stats);
+                let other = other_draws(cfg.seed);
+                let before = *model_redrawn.get_or_insert_with(|| gap(&measure(&model, &sets.sim, paired, other).1, &real_stats));
+                let again = before - gap(&measure(&trial, &sets.sim, paired, other).1, &real_stats);
                 if again <= threshold {
                     log(format!(
                         "step {}: {e} not added: it removes {gain:.3} of the gap, but {again:.3} with other random draws (the draws' luck, not an effect)",
@@ -562,8 +565,14 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
 /// model(sim) with the run's seed against model(sim) with another seed.
 pub fn draw_floor(model: &SensorModel, sim: &[Dem], times: Option<&[f64]>, paired: bool, seed: u64) -> f64 {
     let (_, a) = measure_at(model, sim, times, paired, seed);
-    let (_, b) = measure_at(model, sim, times, paired, dem_core::seeded::mix(seed ^ 0xf100_f100));
+    let (_, b) = measure_at(model, sim, times, paired, other_draws(seed));
     gap(&a, &b)
+}
+
+/// The seed of a model's second set of random draws: the draw floor and
+/// the check that an effect's gain repeats both use it.
+fn other_draws(seed: u64) -> u64 {
+    dem_core::seeded::mix(seed ^ 0xf100_f100)
 }
 
 /// Records per block of [`real_halves`]: neighbouring frames of a run
