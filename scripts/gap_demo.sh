@@ -52,7 +52,7 @@ import json, sys
 d, stages = sys.argv[1], sys.argv[2:]
 # The effects that model each emulator stage (docs/dem-sensor.md).
 expect = {
-    "fov": {"fov", "startup", "view-top"},
+    "fov": {"fov", "startup", "view-top", "riser-blend"},
     "occlusion": {"occlusion", "pit-fill", "mixed-cells"},
     "smoothing": {"smoothing", "drop-blend", "riser-blend", "hole-growth", "edge-holes", "rim-holes", "mixed-cells"},
     "noise": {"noise"},
