@@ -46,7 +46,7 @@ pub fn ranges(name: &str) -> Vec<Range> {
         // A blob loses a cell when it covers three of its quarter-cell
         // centres: r from 4 cm (up to four cells around a corner, by the
         // quarters it covers); smaller is `dropout`'s business. a from none
-        // to the whole way to the seen side's neighbour.
+        // to the whole way down to the lower x-neighbour.
         "patch-dropout" => vec![lin(0.0, 4.0), lin(0.04, 0.25), lin(0.0, 1.0)],
         "edge-holes" | "rim-holes" | "pit-fill" => vec![lin(0.02, 0.3), lin(0.0, 1.0)],
         // Reaches from none (the halves' mean alone) to a whole cell.
@@ -75,7 +75,7 @@ pub fn limits(name: &str) -> Vec<(f64, f64, bool, bool)> {
         "quantization" => vec![(0.0005, 0.2, false, false)],
         "startup" => vec![(-0.6, 1.45, true, true), (0.005, 3.0, false, false), (0.0, 1.0, true, false)],
         // a = 0 (a partly covered cell keeps its height) and a = 1 (it reads
-        // its neighbour's) are natural ends.
+        // its lower neighbour's) are natural ends.
         "patch-dropout" => vec![(0.0, 8.0, true, false), (0.02, 0.5, true, false), (0.0, 1.0, true, true)],
         "edge-holes" | "rim-holes" => vec![(0.005, 1.0, false, true), (0.0, 1.0, true, false)],
         // Every pit filled (p = 1) is a natural end: no gap is ever seen.

@@ -550,9 +550,9 @@ fn heights(d: &Dem) -> [[Option<f64>; COLS]; GRID_ROWS] {
 /// ones that lifted it (the map keeps the higher of a frame's points in a
 /// map cell, and a patch darkens the riser face and the edge with the
 /// ground): the cell reads h + a (h_low - h), h_low its lower neighbour
-/// along x that the blobs leave valid. Measured on the emulator (`--no-dropout` against all
-/// stages): such cells move down, never up, and only where that lower
-/// neighbour was seen.
+/// along x that the blobs leave valid. Measured on the emulator
+/// (`--no-dropout` against all stages): such cells move down, never up,
+/// and only where that lower neighbour was seen.
 fn drop_patches(d: &mut Dem, rng: &mut ChaCha8Rng, n: f64, radius: f64, a: f64) {
     let (ylo, yhi) = (col_center_y(COLS - 1) - HALF, col_center_y(0) + HALF);
     let (xlo, xhi) = (row_center_x(0) - HALF, row_center_x(GRID_ROWS - 1) + HALF);
@@ -849,6 +849,43 @@ mod tests {
     /// the foot (top < 0: up, away from it), u uniform: mean share foot / 2
     /// and top / 2.
     #[test]
+    fn riser_blend_moves_cells_beside_risers_only() {
+        let (foot, top) = (0.5, -0.3);
+        let mut r = rng();
+        let (mut share, n) = ([0.0f64; 2], 4000);
+        for _ in 0..n {
+            let mut d = flat();
+            for row in (0..10).chain(15..GRID_ROWS) {
+                (0..COLS).for_each(|c| d.set_valid(row, c, 0.1));
+            }
+            let before = d;
+            Effect::RiserBlend { foot, top }.apply(&mut d, &mut r);
+            for row in 0..GRID_ROWS {
+                for c in 0..COLS {
+                    let (h0, h1) = (before.height(row, c) as f64, d.height(row, c) as f64);
+                    match row {
+                        14 => {
+                            let toward = (h1 - h0) / 0.17;
+                            assert!((-1e-6..=foot + 1e-6).contains(&toward), "foot: {h0} -> {h1}");
+                            share[0] += toward;
+                        }
+                        15 => {
+                            let toward = (h0 - h1) / 0.17;
+                            assert!((top - 1e-6..=1e-6).contains(&toward), "top: {h0} -> {h1}");
+                            share[1] += toward;
+                        }
+                        _ => assert_eq!(h0, h1, "row {row} is beside no riser (a drop at 9/10)"),
+                    }
+                }
+            }
+        }
+        let cells = (n * COLS) as f64;
+        assert!((share[0] / cells - foot / 2.0).abs() < 0.01, "{share:?}");
+        assert!((share[1] / cells - top / 2.0).abs() < 0.01, "{share:?}");
+        assert!(Effect::RiserBlend { foot: 1.2, top: 0.0 }.check().is_err());
+    }
+
+    #[test]
     fn a_patch_loses_the_cells_it_covers_and_lowers_the_ones_it_partly_covers_beside_a_step() {
         // A riser between rows 9 (0.0 m) and 10 (0.15 m); rows 10.. are its top.
         let stair = || {
@@ -888,43 +925,6 @@ mod tests {
         let mut d = stair();
         darken(&mut d, &[(x11, y2)], 0.03, 0.0);
         assert_eq!(d.valid_cells(), 100);
-    }
-
-    #[test]
-    fn riser_blend_moves_cells_beside_risers_only() {
-        let (foot, top) = (0.5, -0.3);
-        let mut r = rng();
-        let (mut share, n) = ([0.0f64; 2], 4000);
-        for _ in 0..n {
-            let mut d = flat();
-            for row in (0..10).chain(15..GRID_ROWS) {
-                (0..COLS).for_each(|c| d.set_valid(row, c, 0.1));
-            }
-            let before = d;
-            Effect::RiserBlend { foot, top }.apply(&mut d, &mut r);
-            for row in 0..GRID_ROWS {
-                for c in 0..COLS {
-                    let (h0, h1) = (before.height(row, c) as f64, d.height(row, c) as f64);
-                    match row {
-                        14 => {
-                            let toward = (h1 - h0) / 0.17;
-                            assert!((-1e-6..=foot + 1e-6).contains(&toward), "foot: {h0} -> {h1}");
-                            share[0] += toward;
-                        }
-                        15 => {
-                            let toward = (h0 - h1) / 0.17;
-                            assert!((top - 1e-6..=1e-6).contains(&toward), "top: {h0} -> {h1}");
-                            share[1] += toward;
-                        }
-                        _ => assert_eq!(h0, h1, "row {row} is beside no riser (a drop at 9/10)"),
-                    }
-                }
-            }
-        }
-        let cells = (n * COLS) as f64;
-        assert!((share[0] / cells - foot / 2.0).abs() < 0.01, "{share:?}");
-        assert!((share[1] / cells - top / 2.0).abs() < 0.01, "{share:?}");
-        assert!(Effect::RiserBlend { foot: 1.2, top: 0.0 }.check().is_err());
     }
 
     /// drop-blend on a drop (rows 0..10 at 0.1 m, rows 10.. at -0.07 m) and
