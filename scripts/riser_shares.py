@@ -1,8 +1,8 @@
-"""How far the emulator's smoothing stage moves the cells beside a step.
+"""How far one of the emulator's stages moves the cells beside a step.
 
 For each gap_demo.sh output folder given (OUT/gap), the measured DEMs of
-`--no-smoothing` (data-no-smoothing/real.npy) against all stages
-(data-all/real.npy), the same poses record by record. For every cell valid
+`--no-STAGE` (data-no-STAGE/real.npy, smoothing unless --stage says) against
+all stages (data-all/real.npy), the same poses record by record. For every cell valid
 in both whose x-neighbour (valid in --no-smoothing) differs by more than
 5 cm, u = (h_all - h_no) / (h_neighbour - h_no): the share of the step the
 cell moves toward its neighbour (negative: away from it). Prints, per kind
@@ -15,50 +15,93 @@ of u and its mean:
 - drop-lower: the cell beyond a drop (the higher neighbour behind).
 
     python scripts/riser_shares.py out/gap out-high/gap
+
+With --per-row, per kind of cell and per row (x of the row's centre, m),
+the cells there and the shares that read more than 2 cm higher and more
+than 2 cm lower with the stage on (the tables of docs/results.md on the
+field of view and the dark patches):
+
+    python scripts/riser_shares.py --stage fov --per-row out-high/gap
 """
-import sys
+import argparse
 
 import numpy as np
 
 # The step size that makes a riser or drop: dem_core::distribution::JUMP
 # (which dem-sensor's MIXED_JUMP and the step-side terms use); keep equal.
 JUMP = 0.05
+# A height change this large counts as a move in the per-row table (m).
+MOVE = 0.02
+# Row r's centre lies X0 + r * CELL ahead of the robot's centre (m).
+X0, CELL = -0.55, 0.1
+# Per kind of cell: the row of the neighbour (+1 ahead, -1 behind) and
+# the test on the step to it (neighbour minus cell).
+KINDS = {
+    "riser-lower": (1, lambda s: s > JUMP),
+    "riser-upper": (-1, lambda s: s < -JUMP),
+    "drop-upper": (1, lambda s: s < -JUMP),
+    "drop-lower": (-1, lambda s: s > JUMP),
+}
 
 
-def shares(base):
-    a = np.load(f"{base}/data-no-smoothing/real.npy")
+def cells(base, stage):
+    """Per kind, per row: (step to the neighbour, h_all - h_no) of the cells
+    valid in both whose neighbour (valid without the stage) makes the step."""
+    a = np.load(f"{base}/data-no-{stage}/real.npy")
     b = np.load(f"{base}/data-all/real.npy")
     za, va = a[:, :20, :, 0].astype(float), a[:, :20, :, 1] > 0
     zb, vb = b[:, :20, :, 0].astype(float), b[:, :20, :, 1] > 0
-    kinds = {
-        "riser-lower": (1, lambda s: s > JUMP),
-        "riser-upper": (-1, lambda s: s < -JUMP),
-        "drop-upper": (1, lambda s: s < -JUMP),
-        "drop-lower": (-1, lambda s: s > JUMP),
-    }
     out = {}
-    for kind, (dr, is_kind) in kinds.items():
-        us = []
+    for kind, (dr, is_kind) in KINDS.items():
+        rows = {}
         for r in range(20):
             rn = r + dr
             if not 0 <= rn < 20:
                 continue
             step = za[:, rn] - za[:, r]
             m = va[:, r] & va[:, rn] & vb[:, r] & is_kind(step)
-            us.append((zb[:, r] - za[:, r])[m] / step[m])
-        u = np.concatenate(us)
+            rows[r] = (step[m], (zb[:, r] - za[:, r])[m])
+        out[kind] = rows
+    return out
+
+
+def shares(base, stage="smoothing"):
+    out = {}
+    for kind, rows in cells(base, stage).items():
+        u = np.concatenate([d / s for s, d in rows.values()])
         # A folder without cells of a kind (no risers, say) gets n = 0.
         out[kind] = (len(u), np.mean(np.abs(u) > 0.1), np.quantile(u, 0.9), np.mean(u)) if len(u) else (0, None, None, None)
     return out
 
 
+def per_row(base, stage, least):
+    """Per kind, the rows with at least `least` cells: (x, cells, share
+    higher by more than MOVE, share lower by more than MOVE)."""
+    return {
+        kind: [(X0 + CELL * r, len(d), np.mean(d > MOVE), np.mean(d < -MOVE)) for r, (_, d) in rows.items() if len(d) >= least]
+        for kind, rows in cells(base, stage).items()
+    }
+
+
 def main():
-    if len(sys.argv) < 2:
-        sys.exit("usage: riser_shares.py OUT/gap [OUT/gap ...]")
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("folders", nargs="+", metavar="OUT/gap")
+    ap.add_argument("--stage", default="smoothing", help="the stage left out (data-no-STAGE): smoothing, fov, dropout, ...")
+    ap.add_argument("--per-row", action="store_true", help="per row: the shares of cells that read higher and lower with the stage on")
+    ap.add_argument("--least", type=int, default=10, help="per row: leave out rows with fewer cells of a kind (default 10)")
+    a = ap.parse_args()
+    if a.per_row:
+        print(f"| folder | cell | x (m) | cells | > {100 * MOVE:.0f} cm higher | > {100 * MOVE:.0f} cm lower |")
+        print("|---|---|---|---|---|---|")
+        for base in a.folders:
+            for kind, rows in per_row(base, a.stage, a.least).items():
+                for x, n, up, down in rows:
+                    print(f"| {base} | {kind} | {x:+.2f} | {n} | {100 * up:.0f} % | {100 * down:.0f} % |")
+        return
     print("| folder | cell | cells | moved > 0.1 of the step | u, 90th percentile | u, mean |")
     print("|---|---|---|---|---|---|")
-    for base in sys.argv[1:]:
-        for kind, (n, moved, q90, mean) in shares(base).items():
+    for base in a.folders:
+        for kind, (n, moved, q90, mean) in shares(base, a.stage).items():
             if n == 0:
                 print(f"| {base} | {kind} | 0 | - | - | - |")
                 continue

@@ -187,6 +187,8 @@ pub struct Sets {
     /// Run (labels' `sequence`) of each real record, when every real label
     /// has one (unpaired only: the sampling halves deal whole runs).
     pub real_runs: Option<Vec<u64>>,
+    /// Run of each sim record, likewise (unpaired only).
+    pub sim_runs: Option<Vec<u64>>,
     /// Sim records compared after drawing them to the real set's terrain
     /// mix, and sim records read, when the draw changed anything.
     pub terrain_mix: Option<(usize, usize)>,
@@ -219,9 +221,9 @@ pub fn load(cfg: &GapConfig) -> Result<Sets> {
             return Err(DemError::input(p.as_str(), "no records"));
         }
     }
-    let (ts, times) = match terrains(&cfg.labels_sim, sim.len())? {
-        Some((t, time, _)) => (Some(t), time),
-        None => (None, None),
+    let (ts, times, sim_runs) = match terrains(&cfg.labels_sim, sim.len())? {
+        Some((t, time, runs)) => (Some(t), time, runs),
+        None => (None, None, None),
     };
     let (tr, real_runs) = match terrains(&cfg.labels_real, real.len())? {
         Some((t, _, runs)) => (Some(t), runs),
@@ -229,17 +231,18 @@ pub fn load(cfg: &GapConfig) -> Result<Sets> {
     };
     let over_pairs = cfg.over_pairs && cfg.pairs.is_some();
     let Some(pp) = &cfg.pairs else {
-        let (mut sim, mut ts, mut times, mut mix) = (sim, ts, times, None);
+        let (mut sim, mut ts, mut times, mut sim_runs, mut mix) = (sim, ts, times, sim_runs, None);
         if let (true, Some(s), Some(r)) = (cfg.match_terrain, &ts, &tr) {
             let keep = terrain_mix(s, r, cfg.seed);
             if !keep.iter().copied().eq(0..sim.len()) {
                 mix = Some((keep.len(), sim.len()));
                 sim = pick(&sim, &keep);
                 times = times.map(|t| pick(&t, &keep));
+                sim_runs = sim_runs.map(|r| pick(&r, &keep));
                 ts = Some(pick(s, &keep));
             }
         }
-        return Ok(Sets { sim, real, paired: false, sim_terrain: ts, real_terrain: tr, sim_time: times, real_runs, terrain_mix: mix, over_pairs });
+        return Ok(Sets { sim, real, paired: false, sim_terrain: ts, real_terrain: tr, sim_time: times, real_runs, sim_runs, terrain_mix: mix, over_pairs });
     };
     let mut pairs = table::read_pairs(pp)?;
     if let Some(split) = cfg.split {
@@ -285,13 +288,16 @@ pub fn load(cfg: &GapConfig) -> Result<Sets> {
             real_terrain: tr.map(|_| rt),
             sim_time: times.map(|_| tt),
             real_runs: real_runs.map(|_| runs),
+            // Over pairs the i-th sim record is the i-th real record's
+            // pair: the halves split both sides alike by the real runs.
+            sim_runs: None,
             terrain_mix: None,
             over_pairs,
         });
     }
     // Paired: both sides share the pair's terrain; prefer the real label.
     let t = if tr.is_some() { Some(rt) } else if ts.is_some() { Some(st) } else { None };
-    Ok(Sets { sim: s, real: r, paired: true, sim_terrain: t.clone(), real_terrain: t, sim_time: times.map(|_| tt), real_runs: None, terrain_mix: None, over_pairs: false })
+    Ok(Sets { sim: s, real: r, paired: true, sim_terrain: t.clone(), real_terrain: t, sim_time: times.map(|_| tt), real_runs: None, sim_runs: None, terrain_mix: None, over_pairs: false })
 }
 
 /// The sim records (indices, ascending, a record may repeat) to compare
@@ -361,8 +367,19 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
     let split_floor = if paired { 0.0 } else { noise_floor(sets) };
     let times = sets.sim_time.as_deref();
     let floor_of = |m: &SensorModel| split_floor.max(draw_floor(m, &sets.sim, times, paired, cfg.seed));
-    let halves: Option<Vec<Stats>> = (!paired && sets.real.len() >= 100)
-        .then(|| real_halves(sets).iter().map(|h| distribution::stats(&pick(&sets.real, h), None)).collect());
+    // Unpaired, a gain must also hold on two replicates of the comparison
+    // at half the size, sim half k against real half k (whole sim when it
+    // is too small to split).
+    let halves: Vec<(Vec<usize>, Stats)> = if !paired && sets.real.len() >= 100 {
+        let mut sh = sim_halves(sets);
+        if sh.iter().any(Vec::is_empty) {
+            sh = [(0..sets.sim.len()).collect(), (0..sets.sim.len()).collect()];
+        }
+        sh.into_iter().zip(real_halves(sets)).map(|(s, r)| (s, distribution::stats(&pick(&sets.real, &r), None))).collect()
+    } else {
+        Vec::new()
+    };
+    let half_stats = |out: &[Dem]| -> Vec<Stats> { halves.iter().map(|(s, _)| distribution::stats(&pick(out, s), None)).collect() };
     let measure = |m: &SensorModel, sim: &[Dem], paired: bool, seed: u64| measure_at(m, sim, times, paired, seed);
     // The fitting subsample (all records when few).
     let mut rng = ChaCha8Rng::seed_from_u64(dem_core::seeded::mix(cfg.seed ^ 0x5eed));
@@ -376,7 +393,9 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
     let target = fit::Target { sim: &fit_sim, times: fit_times.as_deref(), paired, real: &fit_real, seed: cfg.seed };
 
     let mut model = cfg.start.clone();
-    let (_, start_stats) = measure(&model, &sets.sim, paired, cfg.seed);
+    let (start_out, start_stats) = measure(&model, &sets.sim, paired, cfg.seed);
+    let mut current_halves = half_stats(&start_out);
+    drop(start_out);
     let gap_initial = gap(&start_stats, &real_stats);
     let mut floor = floor_of(&model);
     log(format!(
@@ -426,7 +445,7 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
         // runner-up gets a chance when the best does not hold up.
         for (e, _, _) in ranking.iter().take(2) {
             let trial = model.with(*e);
-            let (_, s) = measure(&trial, &sets.sim, paired, cfg.seed);
+            let (out, s) = measure(&trial, &sets.sim, paired, cfg.seed);
             if let Some(why) = distribution::hides_too_much(&s, &real_stats) {
                 log(format!("step {}: {e} refused: {why}", step + 1));
                 refused.push((*e, why));
@@ -455,21 +474,26 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
             } else {
                 false
             };
-            let on_halves: Vec<f64> =
-                halves.iter().flatten().map(|h| gap(&before_stats, h) - gap(&s, h)).collect();
-            if redrawn && on_halves.iter().all(|&x| x > 0.0) {
-                added = Some((*e, trial, g, s));
+            if !redrawn {
+                continue;
+            }
+            let after_halves = half_stats(&out);
+            let on_halves: Vec<f64> = halves
+                .iter()
+                .zip(current_halves.iter().zip(&after_halves))
+                .map(|((_, r), (before, after))| gap(before, r) - gap(after, r))
+                .collect();
+            if on_halves.iter().all(|&x| x > 0.0) {
+                added = Some((*e, trial, g, s, after_halves));
                 break;
             }
-            if redrawn {
-                let why = format!(
-                    "it removes {gain:.3} of the gap, but {} on the two halves of real: not on both (sampling, not an effect)",
-                    on_halves.iter().map(|x| format!("{x:.3}")).collect::<Vec<_>>().join(" and ")
-                );
-                log(format!("step {}: {e} not added: {why}", step + 1));
-            }
+            let why = format!(
+                "it removes {gain:.3} of the gap, but {} on the two halves (sim half against real half): not on both (sampling, not an effect)",
+                on_halves.iter().map(|x| format!("{x:.3}")).collect::<Vec<_>>().join(" and ")
+            );
+            log(format!("step {}: {e} not added: {why}", step + 1));
         }
-        let Some((effect, trial, gap_after, after_stats)) = added else {
+        let Some((effect, trial, gap_after, after_stats, after_halves)) = added else {
             stop = match ranking.first() {
                 Some((e, r, _)) => format!(
                     "nothing explains the rest: the best candidate, {e}, removes {:.1}% of the gap {gap_before:.3} on the fitting subsample (needed on all data: more than {:.3}, {:.0}% of the gap, with the model's random draws and with others{})",
@@ -506,6 +530,7 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
         });
         model = trial;
         current = (gap_after, after_stats);
+        current_halves = after_halves;
     }
     // Polish: the greedy order can leave an early effect covering for one
     // named later (an occlusion fitted before startup hides rows startup
@@ -583,8 +608,24 @@ const HALF_BLOCK: usize = 50;
 /// less in a half is most of its difference, and blocks are dealt instead.
 const MIN_RUNS_FOR_HALVES: usize = 8;
 
-/// Two halves of the real records, for the sampling checks. The units
-/// dealt are whole runs when the real labels give each record's run
+/// Two halves of the real records, for the sampling checks ([`halves`]).
+pub fn real_halves(sets: &Sets) -> [Vec<usize>; 2] {
+    halves(sets.real.len(), sets.real_runs.as_deref(), sets.real_terrain.as_deref())
+}
+
+/// Two halves of the sim records, dealt as [`real_halves`] deals real's,
+/// so that sim half k against real half k is the comparison again at half
+/// the size. Over pairs, sim record i is real record i's pair, and the
+/// halves are real's.
+pub fn sim_halves(sets: &Sets) -> [Vec<usize>; 2] {
+    if sets.over_pairs {
+        return real_halves(sets);
+    }
+    halves(sets.sim.len(), sets.sim_runs.as_deref(), sets.sim_terrain.as_deref())
+}
+
+/// Two halves of `n` records. The units
+/// dealt are whole runs when the labels give each record's run
 /// (`sequence`) and there are at least `MIN_RUNS_FOR_HALVES` (8) runs, else
 /// blocks of consecutive records, so that neighbouring
 /// frames of a run stay together: a run's first frames (the startup rows)
@@ -594,12 +635,14 @@ const MIN_RUNS_FOR_HALVES: usize = 8;
 /// so both halves have the set's terrain mix: halves of 10 runs each differ
 /// in stairs and pallets by chance, and an effect that only shows at steps
 /// then "gains on one half and loses on the other" for that reason alone.
-pub fn real_halves(sets: &Sets) -> [Vec<usize>; 2] {
-    let n = sets.real.len();
+/// The deal is deterministic, so two sets with the same runs and terrains
+/// in the same order (a sim and a real recording of the same poses) are
+/// split alike.
+pub fn halves(n: usize, runs: Option<&[u64]>, terrain: Option<&[Terrain]>) -> [Vec<usize>; 2] {
     let blocks = |idx: Vec<usize>| idx.chunks(HALF_BLOCK).map(<[usize]>::to_vec).collect::<Vec<_>>();
     // Runs in order of first appearance.
     let mut by_run: Vec<(u64, Vec<usize>)> = Vec::new();
-    for (i, &r) in sets.real_runs.iter().flatten().enumerate() {
+    for (i, &r) in runs.iter().copied().flatten().enumerate() {
         match by_run.iter_mut().find(|(k, _)| *k == r) {
             Some((_, v)) => v.push(i),
             None => by_run.push((r, vec![i])),
@@ -609,13 +652,13 @@ pub fn real_halves(sets: &Sets) -> [Vec<usize>; 2] {
         by_run.into_iter().map(|(_, v)| v).collect()
     } else {
         // Blocks within each terrain's records, so a block has one terrain.
-        match &sets.real_terrain {
+        match terrain {
             Some(t) => Terrain::ALL.iter().flat_map(|&k| blocks((0..n).filter(|&i| t[i] == k).collect())).collect(),
             None => blocks((0..n).collect()),
         }
     };
     let terrain_of = |u: &[usize]| -> usize {
-        let Some(t) = &sets.real_terrain else { return 0 };
+        let Some(t) = terrain else { return 0 };
         let count = |k: Terrain| u.iter().filter(|&&i| t[i] == k).count();
         (0..Terrain::ALL.len()).max_by_key(|&j| (count(Terrain::ALL[j]), usize::MAX - j)).unwrap_or(0)
     };
