@@ -52,8 +52,8 @@ import json, sys
 d, stages = sys.argv[1], sys.argv[2:]
 # The effects that model each emulator stage (docs/dem-sensor.md).
 expect = {
-    "fov": {"fov", "startup", "view-top", "riser-blend"},
-    "occlusion": {"occlusion", "pit-fill", "mixed-cells"},
+    "fov": {"fov", "startup", "view-top", "riser-blend", "floor-lift"},
+    "occlusion": {"occlusion", "pit-fill", "mixed-cells", "floor-lift"},
     "smoothing": {"smoothing", "drop-blend", "riser-blend", "hole-growth", "edge-holes", "rim-holes", "mixed-cells"},
     "noise": {"noise"},
     "dropout": {"patch-dropout", "dropout"},

@@ -55,6 +55,9 @@ heights relative to the robot centre; missing = mask -1, height 0):
                (h_other - h), the cell on its top h + u top (h_other - h),
                u uniform; a cell beside two risers takes the larger step
                (the one ahead on a tie)
+  floor-lift     in rows whose centre x < x, a valid cell whose valid neighbour
+               behind (row r - 1) is higher by more than 5 cm reads, with
+               probability p, h + min(1, u a) (h_behind - h), u uniform
   mixed-cells  a cell is the mean of its back and front halves (centres 2.5
                cm and 7.5 cm from each boundary); at a boundary between
                valid x-neighbours more than 5 cm apart the step lies at s,
@@ -261,6 +264,16 @@ def drop_blend(d, rng, p, a):
     d[:20, :, 0] = np.where(blend, z + v * a * step, d[:20, :, 0])
 
 
+def floor_lift(d, rng, x, p, a):
+    z = d[:20, :, 0].astype(np.float64)
+    valid = d[:20, :, 1] > 0
+    edge = np.zeros((20, 5))
+    edge[1:] = z[:-1] - z[1:]
+    beyond = valid & np.vstack([np.zeros((1, 5), bool), valid[:-1]]) & (edge > 0.05) & (X < x)[:, None]
+    u, v = rng.random((20, 5)), rng.random((20, 5))
+    d[:20, :, 0] = np.where(beyond & (u < p), z + np.minimum(1.0, v * a) * edge, d[:20, :, 0])
+
+
 def view_top(d, rng, h, t):
     valid = d[:20, :, 1] > 0
     set_missing(d, valid & (d[:20, :, 0] > (h - t * X)[:, None]))
@@ -315,7 +328,7 @@ EFFECTS = {"noise": noise, "dropout": dropout, "row-dropout": row_dropout, "occl
            "fov": fov, "smoothing": smoothing, "bias": bias, "quantization": quantization,
            "startup": startup, "patch-dropout": patch_dropout, "edge-holes": edge_holes,
            "mixed-cells": mixed_cells, "rim-holes": rim_holes, "pit-fill": pit_fill, "view-top": view_top,
-           "hole-growth": hole_growth, "drop-blend": drop_blend, "riser-blend": riser_blend}
+           "hole-growth": hole_growth, "drop-blend": drop_blend, "riser-blend": riser_blend, "floor-lift": floor_lift}
 
 
 def main():

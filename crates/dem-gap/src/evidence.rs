@@ -1,6 +1,7 @@
 //! Evidence in words and numbers for a named effect: what in the data
 //! points at it, before (model) against real, and what the fit achieved.
 
+use dem_core::format::{row_center_x, GRID_ROWS};
 use dem_sensor::Effect;
 
 use dem_core::distribution::Stats;
@@ -240,6 +241,19 @@ pub fn evidence(effect: &Effect, before: &Stats, after: &Stats, real: &Stats, ga
                 mm(tail(real)),
                 mm(tail(before)),
             )
+        }
+        Effect::FloorLift { x, .. } => {
+            let rows = if x > row_center_x(GRID_ROWS - 1) { "in every row".to_string() } else { format!("in the rows behind x = {x:.2} m") };
+            let verdict = format!("the ground just beyond a drop edge reads part of the way up ({rows}): the edge hides the floor nearest it");
+            if real.paired {
+                // The drop floors' share moved > 2 cm toward the edge (component 2).
+                let up = |s: &Stats| s.term("drop-floor").map_or(0.0, |t| t.values[2]);
+                let v = if up(real) > up(before) { verdict } else { "real moves no more cells beyond drops than the model: lifted floors are the closest effect, not a clear one".into() };
+                format!("cells beyond a drop read more than 2 cm up toward its edge: real {} vs model {}: {v}", pct(up(real)), pct(up(before)))
+            } else {
+                let v = if mid(real) > mid(before) { verdict } else { "no more part-way steps in real: lifted floors are the closest effect, not a clear one".into() };
+                format!("steps between neighbouring rows of 0.02-0.1 m: real {} vs model {}: {v}", pct(mid(real)), pct(mid(before)))
+            }
         }
         Effect::RiserBlend { foot, top } => {
             let way = |share: f64, toward: &'static str, away: &'static str| if share >= 0.0 { toward } else { away };

@@ -54,6 +54,11 @@ pub fn ranges(name: &str) -> Vec<Range> {
         "drop-blend" => vec![lin(0.0, 1.0), lin(0.0, 1.0)],
         // Either way across the step; 0 (no move) on the grid.
         "riser-blend" => vec![lin(-0.6, 1.0), lin(-0.6, 1.0)],
+        // x from the rows behind the robot (where a camera whose lowest
+        // ray meets the ground ahead keeps its grazing view) to past the
+        // grid (every row: occlusion alone); a up to 3 (two in three moved
+        // cells read the edge's height).
+        "floor-lift" => vec![lin(-0.3, 1.45), lin(0.0, 1.0), lin(0.0, 3.0)],
         _ => vec![],
     }
 }
@@ -88,6 +93,9 @@ pub fn limits(name: &str) -> Vec<(f64, f64, bool, bool)> {
         // Moved all the way to the other surface: a natural end; the other
         // end (away from it) is not.
         "riser-blend" => vec![(-1.0, 1.0, false, true), (-1.0, 1.0, false, true)],
+        // No rows (x behind the grid) or all of them, no cell or every one,
+        // none moved or (a large) all the way: natural ends.
+        "floor-lift" => vec![(-0.6, 1.45, true, true), (0.0, 1.0, true, true), (0.0, 5.0, true, true)],
         _ => vec![],
     }
 }

@@ -758,6 +758,29 @@ mod tests {
         }
     }
 
+    /// The halves deal whole runs, per terrain, each half getting its share
+    /// of every terrain; two sets with the same runs and terrains (a sim
+    /// and a real recording of the same poses) are split alike, and a sim
+    /// side without runs falls back to blocks.
+    #[test]
+    fn halves_deal_whole_runs_per_terrain_and_split_like_sets_alike() {
+        use Terrain::{Flat, StairsUp};
+        // 12 runs of 30 records: runs 0-3 stairs, the rest flat.
+        let runs: Vec<u64> = (0..360).map(|i| i / 30).collect();
+        let terrain: Vec<Terrain> = runs.iter().map(|&r| if r < 4 { StairsUp } else { Flat }).collect();
+        let [a, b] = halves(360, Some(&runs), Some(&terrain));
+        assert_eq!((a.len(), b.len()), (180, 180));
+        for h in [&a, &b] {
+            assert!(h.iter().all(|&i| h.contains(&(i - i % 30))), "whole runs");
+            assert_eq!(h.iter().filter(|&&i| terrain[i] == StairsUp).count(), 60, "half the stairs");
+        }
+        assert_eq!(halves(360, Some(&runs), Some(&terrain)), [a, b]);
+        // Too few runs: blocks of HALF_BLOCK consecutive records.
+        let few: Vec<u64> = (0..360).map(|i| i / 120).collect();
+        let [a, b] = halves(360, Some(&few), None);
+        assert_eq!((a[..HALF_BLOCK].to_vec(), b[..HALF_BLOCK].to_vec()), ((0..50).collect(), (50..100).collect()));
+    }
+
     /// Equal mixes keep every record once; a sim set heavy in stairs is
     /// drawn to real's shares: a terrain real lacks is left out, one with
     /// too few sim records is taken whole and then repeated.

@@ -182,6 +182,16 @@ fn hidden_riser_blend() {
     single("riser-blend", "riser-blend:foot=0.4,top=-0.3", &[("foot", 0.4, None), ("top", -0.3, None)]);
 }
 
+#[test]
+fn hidden_floor_lift() {
+    // The ground beyond testdata's drops (stair edges, the far ends of
+    // pallets) in the rows behind x = 0.45 m reads up toward the edge;
+    // x acts on row centres, so it is resolved to a cell. A reach a > 1
+    // shows only in the share of moved cells that read the edge's height,
+    // 1 - 1/a (0.5 here; 0.59 at a = 2.46, the paired fit): within 0.5.
+    single("floor-lift", "floor-lift:x=0.45,p=0.6,a=2", &[("x", 0.45, Some(0.1)), ("p", 0.6, None), ("a", 2.0, Some(0.5))]);
+}
+
 /// An effect at height jumps hidden with probability `p`: named first, p
 /// back, paired and unpaired; g only checked to be below `g_below`, the
 /// smallest jumps of the data (any g below them gives the same cells).
@@ -386,8 +396,9 @@ type Mount<'a> = (&'a str, &'a str, &'a str, &'a str, bool, &'a [&'a str], f64);
 fn leave_one_stage_out_on_other_camera_mounts() {
     // The effects that model the occlusion stage (docs/dem-sensor.md): its
     // shadows, pallet gaps never seen to the bottom, the ground past an
-    // edge hidden so the cell there reads part of the way up.
-    const OCCLUSION: &[&str] = &["occlusion", "pit-fill", "mixed-cells"];
+    // edge hidden so the cell there reads part of the way up (mixed-cells,
+    // floor-lift).
+    const OCCLUSION: &[&str] = &["occlusion", "pit-fill", "mixed-cells", "floor-lift"];
     // And the smoothing stage's: the stereo window at drops and risers,
     // ramps, and the pixels its consistency check rejects. On this mount
     // the top cell after a riser reads part of the way down (riser-blend).
@@ -396,7 +407,7 @@ fn leave_one_stage_out_on_other_camera_mounts() {
     let cases: [Mount; 6] = [
         ("0.7", "25", "2", "occlusion", true, OCCLUSION, 0.2),
         ("0.7", "25", "2", "smoothing", true, SMOOTHING, 0.5),
-        ("0.7", "25", "2", "fov", true, &["startup", "fov", "view-top"], 0.3),
+        ("0.7", "25", "2", "fov", true, &["startup", "fov", "view-top", "floor-lift"], 0.3),
         ("0.7", "25", "2", "noise", false, &["noise"], 0.5),
         ("0.32", "42", "3", "noise", true, &["noise"], 0.5),
         ("0.32", "42", "3", "occlusion", true, OCCLUSION, 0.15),

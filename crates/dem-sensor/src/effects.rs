@@ -24,6 +24,7 @@
 //! | `hole-growth` | a valid cell with k missing 4-neighbours (inside the grid) is missing with probability 1 - (1 - p)^k (the edge of a hole, where a 10 cm cell holds fewer seen map cells than the two of four the map needs) |
 //! | `pit-fill` | a valid cell lower by more than g than both valid neighbours of a line through it (rows r +- 1, or columns c +- 1) reads the lower of the two with probability p |
 //! | `drop-blend` | at a drop along x (valid cells of rows r and r + 1, row r + 1 lower by more than [`MIXED_JUMP`]), each of the two cells reads, with probability p, h + u a (h_n - h), u uniform, h_n the other cell (a cell between two drops takes the larger): the stereo window straddles the jump in range at a drop edge and its mean range puts the cell's points part of the way to the other surface |
+//! | `floor-lift` | in rows whose centre x < `x`, a valid cell whose valid neighbour behind (row r - 1) is higher by more than [`MIXED_JUMP`] (the ground just beyond a drop edge) reads, with probability p, h + min(1, u a) (h_n - h), u uniform, h_n that neighbour: the edge hides the floor nearest it, and the cell keeps points lifted toward the edge (x past the grid: every row; x at the cone's lowest ray: the rows where the map keeps that grazing view) |
 //! | `riser-blend` | at a riser along x (valid cells of rows r and r + 1, row r + 1 higher by more than [`MIXED_JUMP`]), the cell at its foot reads h + u `foot` (h_n - h) and the cell on its top h + u `top` (h_n - h), u uniform per cell, h_n the other cell (a cell beside two risers takes the larger step); `foot`, `top` in [-1, 1], negative: away from the other surface: the stereo window over a riser's corners moves the points there along their rays, up or down the step as the view angle gives |
 //! | `mixed-cells` | a cell is the mean of its two half cells along x; at a jump of more than [`MIXED_JUMP`] between valid x-neighbours the step lies at s, uniform over the 10 cm between their centres (one draw per row boundary), and the higher surface reaches e = u r past it into the lower cell (u uniform per cell; r = `up` when the higher cell lies ahead, `down` when it lies behind, i.e. beyond a drop): a half of the lower cell whose centre the higher surface reaches reads the higher height, a half of the higher cell the lower surface reaches (the step lies in it, deeper than e) reads the lower height |
 
@@ -182,6 +183,21 @@ pub enum Effect {
         /// Largest share of the drop it moves across.
         a: f64,
     },
+    /// The ground just beyond a drop edge reads part of the way up to it:
+    /// the edge hides the floor nearest it from the camera, and the cell
+    /// keeps the points it got near the edge. Everywhere where occlusion
+    /// acts; in the rows the camera's lowest ray no longer reaches, the map
+    /// keeps that grazing view where a closer, steeper look would see the
+    /// floor (the field of view).
+    FloorLift {
+        /// Only rows whose centre lies behind this x (m) (past the grid: all).
+        x: f64,
+        /// Probability that a cell beyond a drop there reads higher.
+        p: f64,
+        /// Reach: the share moved is min(1, u a), u uniform (a > 1: some
+        /// cells read the edge's height).
+        a: f64,
+    },
     /// Cells beside a riser read part of the way up or down the step: the
     /// stereo window over the riser's corners moves their points along the
     /// rays, by a share and in a direction that depend on the view angle.
@@ -208,7 +224,7 @@ pub enum Effect {
 }
 
 /// Every effect name, in the vocabulary's order.
-pub const NAMES: [&str; 18] = [
+pub const NAMES: [&str; 19] = [
     "noise",
     "dropout",
     "row-dropout",
@@ -227,6 +243,7 @@ pub const NAMES: [&str; 18] = [
     "hole-growth",
     "drop-blend",
     "riser-blend",
+    "floor-lift",
 ];
 
 impl Effect {
@@ -251,6 +268,7 @@ impl Effect {
             Effect::HoleGrowth { .. } => "hole-growth",
             Effect::DropBlend { .. } => "drop-blend",
             Effect::RiserBlend { .. } => "riser-blend",
+            Effect::FloorLift { .. } => "floor-lift",
         }
     }
 
@@ -271,6 +289,7 @@ impl Effect {
             Effect::MixedCells { up, down } => vec![("up", up), ("down", down)],
             Effect::DropBlend { p, a } => vec![("p", p), ("a", a)],
             Effect::RiserBlend { foot, top } => vec![("foot", foot), ("top", top)],
+            Effect::FloorLift { x, p, a } => vec![("x", x), ("p", p), ("a", a)],
         }
     }
 
@@ -296,6 +315,7 @@ impl Effect {
             "hole-growth" => Effect::HoleGrowth { p: g(0)? },
             "drop-blend" => Effect::DropBlend { p: g(0)?, a: g(1)? },
             "riser-blend" => Effect::RiserBlend { foot: g(0)?, top: g(1)? },
+            "floor-lift" => Effect::FloorLift { x: g(0)?, p: g(1)?, a: g(2)? },
             _ => return None,
         })
     }
@@ -313,7 +333,8 @@ impl Effect {
             Effect::EdgeHoles { .. } | Effect::RimHoles { .. } => 3,
             Effect::PitFill { .. } => 4,
             Effect::MixedCells { .. } => 5,
-            Effect::DropBlend { .. } => 6,
+            // After the stereo window's blend: the map keeps what that gave.
+            Effect::DropBlend { .. } | Effect::FloorLift { .. } => 6,
             Effect::RiserBlend { .. } => 7,
             Effect::Smoothing { .. } => 8,
             Effect::Bias { .. } => 9,
@@ -345,6 +366,7 @@ impl Effect {
             | Effect::PitFill { p, .. }
             | Effect::HoleGrowth { p }
             | Effect::DropBlend { p, .. }
+            | Effect::FloorLift { p, .. }
                 if !(0.0..=1.0).contains(&p) =>
             {
                 Err(format!("p = {p} is not a probability"))
@@ -357,6 +379,7 @@ impl Effect {
                 Err(format!("g = {g} must be > 0"))
             }
             Effect::DropBlend { a, .. } if !(0.0..=1.0).contains(&a) => Err(format!("a = {a} must be in [0, 1]")),
+            Effect::FloorLift { a, .. } if a < 0.0 => Err(format!("a = {a} must be >= 0")),
             Effect::RiserBlend { foot, top } if !(-1.0..=1.0).contains(&foot) || !(-1.0..=1.0).contains(&top) => {
                 Err(format!("foot = {foot} and top = {top} must be in [-1, 1]"))
             }
@@ -372,7 +395,7 @@ impl Effect {
     /// Apply to one DEM with this effect's random stream for the record.
     /// Draws a fixed number of values whatever the parameters: 100 normals
     /// (noise), 100 uniforms (dropout, edge-holes, rim-holes, pit-fill,
-    /// hole-growth, riser-blend), 200 uniforms (drop-blend), 20 uniforms
+    /// hole-growth, riser-blend), 200 uniforms (drop-blend, floor-lift), 20 uniforms
     /// (row-dropout), 2 (startup), 3 per slot (patch-dropout), 19 + 95
     /// (mixed-cells: a step position per row boundary, a reach per cell pair).
     pub fn apply(&self, d: &mut Dem, rng: &mut ChaCha8Rng) {
@@ -471,6 +494,7 @@ impl Effect {
             Effect::MixedCells { up, down } => mix_cells(d, rng, up, down),
             Effect::HoleGrowth { p } => grow_holes(d, rng, p),
             Effect::DropBlend { p, a } => blend_drops(d, rng, p, a),
+            Effect::FloorLift { x, p, a } => lift_floors(d, rng, x, p, a),
             Effect::RiserBlend { foot, top } => blend_risers(d, rng, foot, top),
             Effect::EdgeHoles { g, p } => jump_holes(d, rng, g, p, 1.0),
             Effect::RimHoles { g, p } => jump_holes(d, rng, g, p, -1.0),
@@ -670,6 +694,23 @@ fn blend_drops(d: &mut Dem, rng: &mut ChaCha8Rng, p: f64, a: f64) {
             };
             if let (Some(s), true) = (step, u < p) {
                 d.set_valid(r, c, (zc + v * a * s) as f32);
+            }
+        }
+    }
+}
+
+/// `floor-lift` (formula in the module table): heights are read on the DEM
+/// as it comes in, so a cell beyond two drops (a one-cell tread) moves
+/// toward the edge just behind it only.
+fn lift_floors(d: &mut Dem, rng: &mut ChaCha8Rng, x: f64, p: f64, a: f64) {
+    let z = heights(d);
+    for (r, row) in z.iter().enumerate() {
+        for (c, &zc) in row.iter().enumerate() {
+            let (u, v): (f64, f64) = (rng.gen(), rng.gen());
+            let (Some(zc), true) = (zc, r > 0 && row_center_x(r) < x) else { continue };
+            let Some(edge) = z[r - 1][c] else { continue };
+            if edge - zc > MIXED_JUMP && u < p {
+                d.set_valid(r, c, (zc + (v * a).min(1.0) * (edge - zc)) as f32);
             }
         }
     }
@@ -883,6 +924,51 @@ mod tests {
         assert!((share[0] / cells - foot / 2.0).abs() < 0.01, "{share:?}");
         assert!((share[1] / cells - top / 2.0).abs() < 0.01, "{share:?}");
         assert!(Effect::RiserBlend { foot: 1.2, top: 0.0 }.check().is_err());
+    }
+
+    /// floor-lift on the same terrain: only the floor beyond the drop (row
+    /// 10, x = 0.45 m) moves, and only when its row lies behind x; with p
+    /// it reads min(1, u a) of the 0.17 m step up, u uniform: for a = 2 the
+    /// mean share is p (1/4 + 1/2) and half the moved cells read the edge.
+    #[test]
+    fn floor_lift_raises_the_floor_beyond_a_drop_in_the_rows_behind_x_only() {
+        let (p, a) = (0.6, 2.0);
+        let terrain = || {
+            let mut d = flat();
+            for row in (0..10).chain(15..GRID_ROWS) {
+                (0..COLS).for_each(|c| d.set_valid(row, c, 0.1));
+            }
+            d
+        };
+        let mut r = rng();
+        let (mut share, mut whole, n) = (0.0f64, 0usize, 4000);
+        for _ in 0..n {
+            let before = terrain();
+            let mut d = before;
+            Effect::FloorLift { x: 0.5, p, a }.apply(&mut d, &mut r);
+            for row in 0..GRID_ROWS {
+                for c in 0..COLS {
+                    let (h0, h1) = (before.height(row, c) as f64, d.height(row, c) as f64);
+                    if row == 10 {
+                        let up = (h1 - h0) / 0.17;
+                        assert!((-1e-6..=1.0 + 1e-6).contains(&up), "{h0} -> {h1}");
+                        share += up;
+                        whole += usize::from(up > 1.0 - 1e-6);
+                    } else {
+                        assert_eq!(h0, h1, "row {row} lies beyond no drop");
+                    }
+                }
+            }
+            // Row 10's centre (0.45 m) is not behind x = 0.4: nothing moves.
+            let mut d = before;
+            Effect::FloorLift { x: 0.4, p: 1.0, a }.apply(&mut d, &mut r);
+            assert_eq!(d, before);
+        }
+        let cells = (n * COLS) as f64;
+        assert!((share / cells - p * 0.75).abs() < 0.01, "{share}");
+        assert!((whole as f64 / cells - p * 0.5).abs() < 0.015, "{whole}");
+        assert!(Effect::FloorLift { x: 0.5, p: 1.2, a }.check().is_err());
+        assert!(Effect::FloorLift { x: 0.5, p, a: -1.0 }.check().is_err());
     }
 
     #[test]

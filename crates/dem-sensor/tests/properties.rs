@@ -43,6 +43,7 @@ proptest! {
             "mixed-cells" => format!(r#"{{"up":{a},"down":{b}}}"#),
             "drop-blend" => format!(r#"{{"p":{c},"a":{}}}"#, b / 10.0),
             "riser-blend" => format!(r#"{{"foot":{},"top":{}}}"#, a / 10.0, b / 10.0),
+            "floor-lift" => format!(r#"{{"x":{a},"p":{c},"a":{b}}}"#),
             "view-top" => format!(r#"{{"h":{a},"t":{b}}}"#),
             other => unreachable!("{other}"),
         };
