@@ -14,9 +14,10 @@
 //! 3. **add** the best one when it removes more than `min_gain` of the gap,
 //!    with the models' random draws and again with other draws (a gain
 //!    that is a draw's luck does not repeat); unpaired, it
-//!    must also hold on each half of real ([`real_halves`]): the gap to
-//!    each half shrinks, so fitting which records happen to be in the set
-//!    does not pass. Re-measure on all data, repeat. The report
+//!    must also hold on each of two half-size comparisons, sim half k
+//!    against real half k ([`sim_halves`], [`real_halves`]), so fitting
+//!    which records happen to be in the set does not pass. Re-measure on
+//!    all data, repeat. The report
 //!    also gives the unpaired sampling floor, two halves of real scaled to
 //!    the set sizes ([`noise_floor`]), as what to expect of a perfect model.
 //! 4. **show**: [`report`] writes `report.json`, `sensor.json`, `report.md`
