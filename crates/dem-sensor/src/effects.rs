@@ -333,7 +333,8 @@ impl Effect {
             Effect::EdgeHoles { .. } | Effect::RimHoles { .. } => 3,
             Effect::PitFill { .. } => 4,
             Effect::MixedCells { .. } => 5,
-            // After the stereo window's blend: the map keeps what that gave.
+            // Both move cells at drops, after the mixed cells; of the two,
+            // the one added to a model first is applied first.
             Effect::DropBlend { .. } | Effect::FloorLift { .. } => 6,
             Effect::RiserBlend { .. } => 7,
             Effect::Smoothing { .. } => 8,
