@@ -592,6 +592,26 @@ fn riser_shares_reads_back_a_known_move() {
         let (moved, mean) = (r[3].trim_end_matches(" %").parse::<f64>().unwrap(), r[5].parse::<f64>().unwrap());
         assert!(moved <= 2.0 && mean.abs() <= 0.01, "{kind}: {out}");
     }
+    // Per row (--per-row, --stage smoothing named): the top cells only ever
+    // read lower, and in some row most of them by more than 2 cm (the
+    // stairs' risers are 14-20 cm: a fifth is 2.8-4 cm).
+    let o = Command::new(python())
+        .arg(workspace_root().join("scripts/riser_shares.py"))
+        .args(["--stage", "smoothing", "--per-row", &arg(dir.path(), "g")])
+        .output()
+        .expect("python");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let rows = String::from_utf8_lossy(&o.stdout).into_owned();
+    let tops: Vec<Vec<String>> = rows
+        .lines()
+        .filter(|l| l.contains("| riser-upper |"))
+        .map(|l| l.split('|').map(|c| c.trim().to_string()).filter(|c| !c.is_empty()).collect())
+        .collect();
+    assert!(tops.len() >= 5, "{rows}");
+    // | folder | cell | x | cells | higher | lower |
+    let pct = |c: &str| c.trim_end_matches(" %").parse::<f64>().unwrap();
+    assert!(tops.iter().all(|t| pct(&t[4]) == 0.0), "{rows}");
+    assert!(tops.iter().any(|t| pct(&t[5]) > 50.0), "{rows}");
     // Flat ground has no steps: every kind is there with no cells.
     dem_testkit::py(
         dir.path(),
