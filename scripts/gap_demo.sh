@@ -54,10 +54,10 @@ d, stages = sys.argv[1], sys.argv[2:]
 expect = {
     "fov": {"fov", "startup", "view-top", "riser-blend", "floor-lift"},
     "occlusion": {"occlusion", "pit-fill", "mixed-cells", "floor-lift"},
-    "smoothing": {"smoothing", "drop-blend", "riser-blend", "hole-growth", "edge-holes", "rim-holes", "mixed-cells"},
+    "smoothing": {"smoothing", "drop-blend", "riser-blend", "hole-growth", "edge-holes", "rim-holes", "mixed-cells", "drop-holes"},
     "noise": {"noise"},
     "dropout": {"patch-dropout", "dropout"},
-    "holes": {"hole-growth", "edge-holes", "rim-holes", "dropout", "patch-dropout"},
+    "holes": {"hole-growth", "drop-holes", "edge-holes", "rim-holes", "dropout", "patch-dropout"},
 }
 cases = [(f"no-{s}-{m}", f"{s} ({m})", s) for s in stages for m in ("paired", "unpaired")]
 cases += [("exact-paired", "exact sim -> all (paired)", None), ("exact-unpaired", "exact sim -> all (unpaired)", None)]

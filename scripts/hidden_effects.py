@@ -58,6 +58,10 @@ heights relative to the robot centre; missing = mask -1, height 0):
   floor-lift     in rows whose centre x < x, a valid cell whose valid neighbour
                behind (row r - 1) is higher by more than 5 cm reads, with
                probability p, h + min(1, u a) (h_behind - h), u uniform
+  drop-holes   at a drop along x (valid rows r and r + 1, row r + 1 lower by
+               more than 5 cm), with probability p one of the two cells (the
+               lip or the floor, equal chances) is missing; drops are found
+               before any cell is removed
   mixed-cells  a cell is the mean of its back and front halves (centres 2.5
                cm and 7.5 cm from each boundary); at a boundary between
                valid x-neighbours more than 5 cm apart the step lies at s,
@@ -274,6 +278,18 @@ def floor_lift(d, rng, x, p, a):
     d[:20, :, 0] = np.where(beyond & (u < p), z + np.minimum(1.0, v * a) * edge, d[:20, :, 0])
 
 
+def drop_holes(d, rng, p):
+    z = d[:20, :, 0].astype(np.float64)
+    valid = d[:20, :, 1] > 0
+    drop = valid[:-1] & valid[1:] & (z[:-1] - z[1:] > 0.05)
+    lose = drop & (rng.random((19, 5)) < p)
+    lip = rng.random((19, 5)) < 0.5
+    gone = np.zeros((20, 5), bool)
+    gone[:-1] |= lose & lip
+    gone[1:] |= lose & ~lip
+    set_missing(d, gone)
+
+
 def view_top(d, rng, h, t):
     valid = d[:20, :, 1] > 0
     set_missing(d, valid & (d[:20, :, 0] > (h - t * X)[:, None]))
@@ -328,7 +344,8 @@ EFFECTS = {"noise": noise, "dropout": dropout, "row-dropout": row_dropout, "occl
            "fov": fov, "smoothing": smoothing, "bias": bias, "quantization": quantization,
            "startup": startup, "patch-dropout": patch_dropout, "edge-holes": edge_holes,
            "mixed-cells": mixed_cells, "rim-holes": rim_holes, "pit-fill": pit_fill, "view-top": view_top,
-           "hole-growth": hole_growth, "drop-blend": drop_blend, "riser-blend": riser_blend, "floor-lift": floor_lift}
+           "hole-growth": hole_growth, "drop-blend": drop_blend, "riser-blend": riser_blend, "floor-lift": floor_lift,
+           "drop-holes": drop_holes}
 
 
 def main():

@@ -22,6 +22,13 @@ than 2 cm lower with the stage on (the tables of docs/results.md on the
 field of view and the dark patches):
 
     python scripts/riser_shares.py --stage fov --per-row out-high/gap
+
+With --lost, per kind of cell (per row with --per-row), the cells valid without the stage (their
+neighbour too) and the share the stage loses, and of the drops (rows r, r + 1
+valid without the stage, r + 1 lower by more than 5 cm) the shares that lose
+one cell and both (the measurement behind dem-sensor's `drop-holes`):
+
+    python scripts/riser_shares.py --stage holes --lost out-high/gap
 """
 import argparse
 
@@ -65,6 +72,30 @@ def cells(base, stage):
     return out
 
 
+def lost(base, stage):
+    """Per kind: (cells valid without the stage whose neighbour, valid too,
+    makes the step, share of them missing with it, per row: (cells, lost));
+    and of the drops:
+    (drops, share with a cell lost, share with both lost)."""
+    a = np.load(f"{base}/data-no-{stage}/real.npy")
+    b = np.load(f"{base}/data-all/real.npy")
+    za, va = a[:, :20, :, 0].astype(float), a[:, :20, :, 1] > 0
+    gone = va & (b[:, :20, :, 1] <= 0)
+    out = {}
+    for kind, (dr, is_kind) in KINDS.items():
+        rows = {}
+        for r in range(max(0, -dr), min(20, 20 - dr)):
+            m = va[:, r] & va[:, r + dr] & is_kind(za[:, r + dr] - za[:, r])
+            rows[r] = (int(m.sum()), int((m & gone[:, r]).sum()))
+        n, k = sum(v[0] for v in rows.values()), sum(v[1] for v in rows.values())
+        out[kind] = (n, k / n if n else None, rows)
+    drop = va[:, :-1] & va[:, 1:] & (za[:, :-1] - za[:, 1:] > JUMP)
+    n = drop.sum()
+    one = (drop & (gone[:, :-1] | gone[:, 1:])).sum()
+    both = (drop & gone[:, :-1] & gone[:, 1:]).sum()
+    return out, (int(n), one / n if n else None, both / n if n else None)
+
+
 def shares(base, stage="smoothing"):
     out = {}
     for kind, rows in cells(base, stage).items():
@@ -89,7 +120,24 @@ def main():
     ap.add_argument("--stage", default="smoothing", help="the stage left out (data-no-STAGE): smoothing, fov, dropout, ...")
     ap.add_argument("--per-row", action="store_true", help="per row: the shares of cells that read higher and lower with the stage on")
     ap.add_argument("--least", type=int, default=10, help="per row: leave out rows with fewer cells of a kind (default 10)")
+    ap.add_argument("--lost", action="store_true", help="per kind: the share of the cells beside a step that the stage loses, and of the drops")
     a = ap.parse_args()
+    pct = lambda v: "-" if v is None else f"{100 * v:.1f} %"
+    if a.lost:
+        print("| folder | cell | cells | lost |")
+        print("|---|---|---|---|")
+        for base in a.folders:
+            kinds, (n, one, both) = lost(base, a.stage)
+            for kind, (k, share, rows) in kinds.items():
+                if a.per_row:
+                    for r, (kr, lr) in rows.items():
+                        if kr >= a.least:
+                            print(f"| {base} | {kind} at x = {X0 + CELL * r:+.2f} | {kr} | {pct(lr / kr)} |")
+                else:
+                    print(f"| {base} | {kind} | {k} | {pct(share)} |")
+            print(f"| {base} | drops: a cell lost | {n} | {pct(one)} |")
+            print(f"| {base} | drops: both lost | {n} | {pct(both)} |")
+        return
     if a.per_row:
         print(f"| folder | cell | x (m) | cells | > {100 * MOVE:.0f} cm higher | > {100 * MOVE:.0f} cm lower |")
         print("|---|---|---|---|---|---|")

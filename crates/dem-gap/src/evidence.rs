@@ -175,6 +175,22 @@ pub fn evidence(effect: &Effect, before: &Stats, after: &Stats, real: &Stats, ga
                 if r > b { "holes at height jumps" } else { "no more of them in real: the holes are the closest effect, not a clear one" }
             )
         }
+        Effect::DropHoles { .. } => {
+            let (rs, bs) = (real.mean_over("shadow", 0..20), before.mean_over("shadow", 0..20));
+            let (rj, bj) = (real.mean_over("jump-missing", 0..20), before.mean_over("jump-missing", 0..20));
+            format!(
+                "missing cells behind cells at least 0.08 m taller: real {} vs model {}; between valid cells of their column that differ by 5 cm or more: real {} vs model {}: {}",
+                pct(rs),
+                pct(bs),
+                pct(rj),
+                pct(bj),
+                if rs > bs && rj > bj {
+                    "holes where the terrain drops away, one cell at its edge"
+                } else {
+                    "no more holes at drops in real: holes at drop edges are the closest effect, not a clear one"
+                }
+            )
+        }
         Effect::HoleGrowth { .. } => paired_misses(
             real,
             before,

@@ -59,6 +59,7 @@ pub fn ranges(name: &str) -> Vec<Range> {
         // grid (every row: occlusion alone); a up to 3 (two in three moved
         // cells read the edge's height).
         "floor-lift" => vec![lin(-0.3, 1.45), lin(0.0, 1.0), lin(0.0, 3.0)],
+        "drop-holes" => vec![lin(0.0, 1.0)],
         _ => vec![],
     }
 }
@@ -96,6 +97,8 @@ pub fn limits(name: &str) -> Vec<(f64, f64, bool, bool)> {
         // No rows (x behind the grid) or all of them, no cell or every one,
         // none moved or (a large) all the way: natural ends.
         "floor-lift" => vec![(-0.6, 1.45, true, true), (0.0, 1.0, true, true), (0.0, 5.0, true, true)],
+        // No drop edge lost, or every one: natural ends.
+        "drop-holes" => vec![(0.0, 1.0, true, true)],
         _ => vec![],
     }
 }

@@ -13,7 +13,7 @@ use dem_core::{output, DemError};
 /// Measure the gap between model(sim) and real, name the effect that
 /// closes most of it (noise, dropout, row-dropout, occlusion, fov,
 /// view-top, smoothing, bias, quantization, startup, patch-dropout,
-/// edge-holes, rim-holes, pit-fill, mixed-cells, hole-growth, drop-blend, riser-blend, floor-lift), fit
+/// edge-holes, rim-holes, pit-fill, mixed-cells, hole-growth, drop-blend, riser-blend, floor-lift, drop-holes), fit
 /// it, add it, repeat while an effect still helps. A fit at the edge of its
 /// search box is flagged (stderr, report.md, report.json `at_edge`); a
 /// model that hides far more cells than real misses is never accepted. Writes DIR/report.json, DIR/sensor.json (usable by

@@ -192,6 +192,15 @@ fn hidden_floor_lift() {
     single("floor-lift", "floor-lift:x=0.45,p=0.6,a=2", &[("x", 0.45, Some(0.1)), ("p", 0.6, None), ("a", 2.0, Some(0.5))]);
 }
 
+#[test]
+fn hidden_drop_holes() {
+    // testdata's drops (stair edges, the far ends of pallets): about 4 % of
+    // the cells of the 302 records lie beside one; half of the drops lose
+    // the cell that holds the edge. edge-holes and rim-holes lose cells at
+    // risers too, and only one side.
+    single("drop-holes", "drop-holes:p=0.5", &[("p", 0.5, None)]);
+}
+
 /// An effect at height jumps hidden with probability `p`: named first, p
 /// back, paired and unpaired; g only checked to be below `g_below`, the
 /// smallest jumps of the data (any g below them gives the same cells).
@@ -401,8 +410,9 @@ fn leave_one_stage_out_on_other_camera_mounts() {
     const OCCLUSION: &[&str] = &["occlusion", "pit-fill", "mixed-cells", "floor-lift"];
     // And the smoothing stage's: the stereo window at drops and risers,
     // ramps, and the pixels its consistency check rejects. On this mount
-    // the top cell after a riser reads part of the way down (riser-blend).
-    const SMOOTHING: &[&str] = &["smoothing", "drop-blend", "riser-blend", "hole-growth", "edge-holes", "rim-holes", "mixed-cells"];
+    // the top cell after a riser reads part of the way down (riser-blend);
+    // the check loses a cell at a drop's edge (drop-holes).
+    const SMOOTHING: &[&str] = &["smoothing", "drop-blend", "riser-blend", "hole-growth", "edge-holes", "rim-holes", "mixed-cells", "drop-holes"];
     let dir = tempdir();
     let cases: [Mount; 6] = [
         ("0.7", "25", "2", "occlusion", true, OCCLUSION, 0.2),
@@ -545,6 +555,52 @@ fn pairs_compared_unpaired_give_dem_eval_s_gap_over_the_pairs() {
         assert!(stderr(&o).contains(says) && stderr(&o).lines().count() == 1, "{}", stderr(&o));
         assert!(!Path::new(&out).exists(), "nothing written");
     }
+}
+
+/// scripts/riser_shares.py --lost (the measurement behind dem-sensor's
+/// drop-holes) on a known loss: "all stages" is testdata's measured DEMs
+/// with the lip of every drop lost.
+#[test]
+fn riser_shares_lost_counts_a_known_loss() {
+    let dir = tempdir();
+    dem_testkit::py(
+        dir.path(),
+        &format!(
+            "import numpy as np, os\n\
+             a = np.load({:?})\n\
+             b = a.copy()\n\
+             z, v = a[:, :20, :, 0].astype(float), a[:, :20, :, 1] > 0\n\
+             lip = np.zeros(z.shape, bool)\n\
+             lip[:, :-1] = v[:, :-1] & v[:, 1:] & (z[:, :-1] - z[:, 1:] > 0.05)\n\
+             b[:, :20, :, 0][lip] = 0.0\n\
+             b[:, :20, :, 1][lip] = -1.0\n\
+             for d, x in (('data-no-holes', a), ('data-all', b)):\n\
+             \x20   os.makedirs('g/' + d)\n\
+             \x20   np.save(f'g/{{d}}/real.npy', x)\n",
+            testdata("real.npy")
+        ),
+    );
+    let o = Command::new(python())
+        .arg(workspace_root().join("scripts/riser_shares.py"))
+        .args(["--stage", "holes", "--lost", &arg(dir.path(), "g")])
+        .output()
+        .expect("python");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = String::from_utf8_lossy(&o.stdout).into_owned();
+    // | folder | cell | cells | lost |
+    let row = |kind: &str| -> (usize, f64) {
+        let line = out.lines().find(|l| l.contains(&format!("| {kind} |"))).unwrap_or_else(|| panic!("no {kind} in\n{out}"));
+        let c: Vec<&str> = line.split('|').map(str::trim).filter(|c| !c.is_empty()).collect();
+        (c[2].parse().unwrap(), c[3].trim_end_matches(" %").parse().unwrap())
+    };
+    let (drops, lip) = (row("drop-upper"), row("drop-lower"));
+    assert!(drops.0 > 100 && drops.1 == 100.0, "{out}");
+    // A floor cell is lost only when it is the lip of the next drop too.
+    assert!(lip.0 == drops.0 && lip.1 < 50.0, "{out}");
+    assert_eq!(row("drops: a cell lost"), (drops.0, 100.0), "{out}");
+    assert!(row("drops: both lost").1 < 50.0, "{out}");
+    // Risers lose only cells that are also a drop's lip (a platform).
+    assert!(row("riser-lower").1 < 10.0 && row("riser-upper").1 < 10.0, "{out}");
 }
 
 /// scripts/riser_shares.py (the measurement behind results.md's riser

@@ -21,6 +21,7 @@
 //! | `patch-dropout` | blobs: each of [`PATCH_SLOTS`] slots holds a blob with probability n / slots, centred uniformly over the grid widened by r; of each cell's four quarter-cell centres (x +- 2.5 cm, y +- 2.5 cm) those within r of a blob centre are covered; three or four covered: the cell is missing (the map needs two of four); one or two: h += a (h_low - h), h_low the lowest of h and its x-neighbours left valid (the points a patch takes from a cell beside a step are those that lifted it) |
 //! | `edge-holes` | a valid cell whose valid 4-neighbour is higher by more than g is missing with probability p (the foot of a height jump) |
 //! | `rim-holes` | a valid cell whose valid 4-neighbour is lower by more than g is missing with probability p (the rim of a height jump) |
+//! | `drop-holes` | at a drop along x (valid cells of rows r and r + 1, row r + 1 lower by more than [`MIXED_JUMP`]), with probability p the cell that holds the edge is missing: the lip (row r) or the floor (row r + 1), one of the two with equal chance (the edge lies anywhere between their centres): the map cells over a drop edge get points from the lip and, as the view moves, from the floor below it, outliers of the older ones; their variance grows past the map's threshold |
 //! | `hole-growth` | a valid cell with k missing 4-neighbours (inside the grid) is missing with probability 1 - (1 - p)^k (the edge of a hole, where a 10 cm cell holds fewer seen map cells than the two of four the map needs) |
 //! | `pit-fill` | a valid cell lower by more than g than both valid neighbours of a line through it (rows r +- 1, or columns c +- 1) reads the lower of the two with probability p |
 //! | `drop-blend` | at a drop along x (valid cells of rows r and r + 1, row r + 1 lower by more than [`MIXED_JUMP`]), each of the two cells reads, with probability p, h + u a (h_n - h), u uniform, h_n the other cell (a cell between two drops takes the larger): the stereo window straddles the jump in range at a drop edge and its mean range puts the cell's points part of the way to the other surface |
@@ -158,6 +159,14 @@ pub enum Effect {
         /// Probability that such a cell is lost.
         p: f64,
     },
+    /// Holes at drop edges: the map cells that hold a drop edge get points
+    /// from the lip and from the floor below it as the view moves, the
+    /// later ones outliers of the older, and each adds variance until the
+    /// cell passes the map's threshold and becomes a hole.
+    DropHoles {
+        /// Probability that the cell holding a drop's edge is lost.
+        p: f64,
+    },
     /// Holes grow by thin cells at their edges: a 10 cm DEM cell needs two
     /// of its four 5 cm map cells seen, and beside a hole (a shadow, the
     /// blind band of the first frames, a dark patch) some of them were not.
@@ -224,7 +233,7 @@ pub enum Effect {
 }
 
 /// Every effect name, in the vocabulary's order.
-pub const NAMES: [&str; 19] = [
+pub const NAMES: [&str; 20] = [
     "noise",
     "dropout",
     "row-dropout",
@@ -244,6 +253,7 @@ pub const NAMES: [&str; 19] = [
     "drop-blend",
     "riser-blend",
     "floor-lift",
+    "drop-holes",
 ];
 
 impl Effect {
@@ -269,6 +279,7 @@ impl Effect {
             Effect::DropBlend { .. } => "drop-blend",
             Effect::RiserBlend { .. } => "riser-blend",
             Effect::FloorLift { .. } => "floor-lift",
+            Effect::DropHoles { .. } => "drop-holes",
         }
     }
 
@@ -276,7 +287,7 @@ impl Effect {
     pub fn params(&self) -> Vec<(&'static str, f64)> {
         match *self {
             Effect::Noise { sigma0, k } => vec![("sigma0", sigma0), ("k", k)],
-            Effect::Dropout { p } | Effect::RowDropout { p } | Effect::HoleGrowth { p } => vec![("p", p)],
+            Effect::Dropout { p } | Effect::RowDropout { p } | Effect::HoleGrowth { p } | Effect::DropHoles { p } => vec![("p", p)],
             Effect::Occlusion { h, x0 } => vec![("h", h), ("x0", x0)],
             Effect::Fov { x_min, x_max } => vec![("x_min", x_min), ("x_max", x_max)],
             Effect::ViewTop { h, t } => vec![("h", h), ("t", t)],
@@ -316,6 +327,7 @@ impl Effect {
             "drop-blend" => Effect::DropBlend { p: g(0)?, a: g(1)? },
             "riser-blend" => Effect::RiserBlend { foot: g(0)?, top: g(1)? },
             "floor-lift" => Effect::FloorLift { x: g(0)?, p: g(1)?, a: g(2)? },
+            "drop-holes" => Effect::DropHoles { p: g(0)? },
             _ => return None,
         })
     }
@@ -330,7 +342,7 @@ impl Effect {
             Effect::Fov { .. } | Effect::ViewTop { .. } => 0,
             Effect::Startup { .. } => 1,
             Effect::Occlusion { .. } => 2,
-            Effect::EdgeHoles { .. } | Effect::RimHoles { .. } => 3,
+            Effect::EdgeHoles { .. } | Effect::RimHoles { .. } | Effect::DropHoles { .. } => 3,
             Effect::PitFill { .. } => 4,
             Effect::MixedCells { .. } => 5,
             // Both move cells at drops, after the mixed cells; of the two,
@@ -366,6 +378,7 @@ impl Effect {
             | Effect::RimHoles { p, .. }
             | Effect::PitFill { p, .. }
             | Effect::HoleGrowth { p }
+            | Effect::DropHoles { p }
             | Effect::DropBlend { p, .. }
             | Effect::FloorLift { p, .. }
                 if !(0.0..=1.0).contains(&p) =>
@@ -396,7 +409,7 @@ impl Effect {
     /// Apply to one DEM with this effect's random stream for the record.
     /// Draws a fixed number of values whatever the parameters: 100 normals
     /// (noise), 100 uniforms (dropout, edge-holes, rim-holes, pit-fill,
-    /// hole-growth, riser-blend), 200 uniforms (drop-blend, floor-lift), 20 uniforms
+    /// hole-growth, riser-blend), 200 uniforms (drop-blend, floor-lift, drop-holes), 20 uniforms
     /// (row-dropout), 2 (startup), 3 per slot (patch-dropout), 19 + 95
     /// (mixed-cells: a step position per row boundary, a reach per cell pair).
     pub fn apply(&self, d: &mut Dem, rng: &mut ChaCha8Rng) {
@@ -494,6 +507,7 @@ impl Effect {
             Effect::PatchDropout { n, r, a } => drop_patches(d, rng, n, r, a),
             Effect::MixedCells { up, down } => mix_cells(d, rng, up, down),
             Effect::HoleGrowth { p } => grow_holes(d, rng, p),
+            Effect::DropHoles { p } => drop_holes(d, rng, p),
             Effect::DropBlend { p, a } => blend_drops(d, rng, p, a),
             Effect::FloorLift { x, p, a } => lift_floors(d, rng, x, p, a),
             Effect::RiserBlend { foot, top } => blend_risers(d, rng, foot, top),
@@ -650,6 +664,23 @@ fn jump_holes(d: &mut Dem, rng: &mut ChaCha8Rng, g: f64, p: f64, sign: f64) {
             let jump = neighbours4(r, c).any(|(rr, cc)| z[rr][cc].is_some_and(|zn| sign * (zn - zc) > g));
             if jump && u < p {
                 d.set_missing(r, c);
+            }
+        }
+    }
+}
+
+/// `drop-holes` (formula in the module table): drops are read on the DEM
+/// as it comes in, so a lost lip makes no new drop. Two uniforms per row
+/// boundary and column (the last row's pair unused): whether the edge's
+/// cell is lost, and which of the two holds the edge.
+fn drop_holes(d: &mut Dem, rng: &mut ChaCha8Rng, p: f64) {
+    let z = heights(d);
+    for r in 0..GRID_ROWS {
+        for c in 0..COLS {
+            let (u, v): (f64, f64) = (rng.gen(), rng.gen());
+            let (Some(lip), Some(floor)) = (z[r][c], z.get(r + 1).and_then(|row| row[c])) else { continue };
+            if lip - floor > MIXED_JUMP && u < p {
+                d.set_missing(if v < 0.5 { r } else { r + 1 }, c);
             }
         }
     }
@@ -1051,6 +1082,40 @@ mod tests {
             assert!((moved[k] as f64 / cells - p).abs() < 0.02, "{moved:?}");
             assert!((share[k] / cells - p * a / 2.0).abs() < 0.01, "{share:?}");
         }
+    }
+
+    /// drop-holes on the same terrain (a drop between rows 9 and 10, a
+    /// riser between 14 and 15): per column, with probability p one of the
+    /// two cells at the drop is lost, the lip or the floor as often, never
+    /// both; nothing else is touched, heights are kept.
+    #[test]
+    fn drop_holes_lose_one_cell_at_a_drop_and_none_at_a_riser() {
+        let p = 0.3;
+        let mut r = rng();
+        let (mut lost, n) = ([0usize; 2], 4000);
+        for _ in 0..n {
+            let mut d = flat();
+            for row in (0..10).chain(15..GRID_ROWS) {
+                (0..COLS).for_each(|c| d.set_valid(row, c, 0.1));
+            }
+            let before = d;
+            Effect::DropHoles { p }.apply(&mut d, &mut r);
+            for c in 0..COLS {
+                assert!(d.is_valid(9, c) || d.is_valid(10, c), "both cells of the drop lost");
+                for row in 0..GRID_ROWS {
+                    if d.is_valid(row, c) {
+                        assert_eq!(d.height(row, c), before.height(row, c));
+                    } else {
+                        assert!(row == 9 || row == 10, "row {row} is beside no drop (a riser at 14/15)");
+                        lost[row - 9] += 1;
+                    }
+                }
+            }
+        }
+        let cells = (n * COLS) as f64;
+        assert!(((lost[0] + lost[1]) as f64 / cells - p).abs() < 0.02, "{lost:?}");
+        assert!((lost[0] as f64 / cells - p / 2.0).abs() < 0.02, "{lost:?}");
+        assert!(Effect::DropHoles { p: 1.5 }.check().is_err());
     }
 
     /// Without reach, mixed-cells is the mean of two half cells with the

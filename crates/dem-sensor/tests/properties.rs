@@ -31,7 +31,7 @@ proptest! {
     ) {
         let params = match effect {
             "noise" => format!(r#"{{"sigma0":{a},"k":{b}}}"#),
-            "dropout" | "row-dropout" | "hole-growth" => format!(r#"{{"p":{c}}}"#),
+            "dropout" | "row-dropout" | "hole-growth" | "drop-holes" => format!(r#"{{"p":{c}}}"#),
             "occlusion" => format!(r#"{{"h":{a},"x0":{b}}}"#),
             "fov" => format!(r#"{{"x_min":{a},"x_max":{b}}}"#),
             "smoothing" => format!(r#"{{"w":{c}}}"#),
