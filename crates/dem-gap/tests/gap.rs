@@ -557,36 +557,49 @@ fn pairs_compared_unpaired_give_dem_eval_s_gap_over_the_pairs() {
     }
 }
 
+/// A gap_demo.sh folder `g` for scripts/riser_shares.py: data-no-STAGE
+/// holds testdata's measured DEMs, data-all the same after `change`
+/// (python lines over `a`, its copy `b`, and `z`, `v`: the heights and
+/// validity of rows 0-19).
+fn stage_folders(dir: &Path, stage: &str, change: &str) {
+    dem_testkit::py(
+        dir,
+        &format!(
+            "import numpy as np, os\n\
+             a = np.load({:?})\n\
+             b = a.copy()\n\
+             z, v = a[:, :20, :, 0].astype(float), a[:, :20, :, 1] > 0\n\
+             {change}\
+             for d, x in (('data-no-{stage}', a), ('data-all', b)):\n\
+             \x20   os.makedirs('g/' + d)\n\
+             \x20   np.save(f'g/{{d}}/real.npy', x)\n",
+            testdata("real.npy")
+        ),
+    );
+}
+
+/// scripts/riser_shares.py's table for `args`.
+fn riser_shares(args: &[&str]) -> String {
+    let o = Command::new(python()).arg(workspace_root().join("scripts/riser_shares.py")).args(args).output().expect("python");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
 /// scripts/riser_shares.py --lost (the measurement behind dem-sensor's
 /// drop-holes) on a known loss: "all stages" is testdata's measured DEMs
 /// with the lip of every drop lost.
 #[test]
 fn riser_shares_lost_counts_a_known_loss() {
     let dir = tempdir();
-    dem_testkit::py(
+    stage_folders(
         dir.path(),
-        &format!(
-            "import numpy as np, os\n\
-             a = np.load({:?})\n\
-             b = a.copy()\n\
-             z, v = a[:, :20, :, 0].astype(float), a[:, :20, :, 1] > 0\n\
-             lip = np.zeros(z.shape, bool)\n\
-             lip[:, :-1] = v[:, :-1] & v[:, 1:] & (z[:, :-1] - z[:, 1:] > 0.05)\n\
-             b[:, :20, :, 0][lip] = 0.0\n\
-             b[:, :20, :, 1][lip] = -1.0\n\
-             for d, x in (('data-no-holes', a), ('data-all', b)):\n\
-             \x20   os.makedirs('g/' + d)\n\
-             \x20   np.save(f'g/{{d}}/real.npy', x)\n",
-            testdata("real.npy")
-        ),
+        "holes",
+        "lip = np.zeros(z.shape, bool)\n\
+         lip[:, :-1] = v[:, :-1] & v[:, 1:] & (z[:, :-1] - z[:, 1:] > 0.05)\n\
+         b[:, :20, :, 0][lip] = 0.0\n\
+         b[:, :20, :, 1][lip] = -1.0\n",
     );
-    let o = Command::new(python())
-        .arg(workspace_root().join("scripts/riser_shares.py"))
-        .args(["--stage", "holes", "--lost", &arg(dir.path(), "g")])
-        .output()
-        .expect("python");
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let out = String::from_utf8_lossy(&o.stdout).into_owned();
+    let out = riser_shares(&["--stage", "holes", "--lost", &arg(dir.path(), "g")]);
     // | folder | cell | cells | lost |
     let row = |kind: &str| -> (usize, f64) {
         let line = out.lines().find(|l| l.contains(&format!("| {kind} |"))).unwrap_or_else(|| panic!("no {kind} in\n{out}"));
@@ -611,27 +624,14 @@ fn riser_shares_lost_counts_a_known_loss() {
 #[test]
 fn riser_shares_reads_back_a_known_move() {
     let dir = tempdir();
-    dem_testkit::py(
+    stage_folders(
         dir.path(),
-        &format!(
-            "import numpy as np, os\n\
-             a = np.load({:?})\n\
-             b = a.copy()\n\
-             z, v = a[:, :20, :, 0].astype(float), a[:, :20, :, 1] > 0\n\
-             for r in range(1, 20):\n\
-             \x20   top = v[:, r] & v[:, r - 1] & (z[:, r] - z[:, r - 1] > 0.05)\n\
-             \x20   b[:, r, :, 0] = np.where(top, z[:, r] + 0.2 * (z[:, r - 1] - z[:, r]), a[:, r, :, 0])\n\
-             for d, x in (('data-no-smoothing', a), ('data-all', b)):\n\
-             \x20   os.makedirs('g/' + d)\n\
-             \x20   np.save(f'g/{{d}}/real.npy', x)\n",
-            testdata("real.npy")
-        ),
+        "smoothing",
+        "for r in range(1, 20):\n\
+         \x20   top = v[:, r] & v[:, r - 1] & (z[:, r] - z[:, r - 1] > 0.05)\n\
+         \x20   b[:, r, :, 0] = np.where(top, z[:, r] + 0.2 * (z[:, r - 1] - z[:, r]), a[:, r, :, 0])\n",
     );
-    let shares = |folder: &str| {
-        let o = Command::new(python()).arg(workspace_root().join("scripts/riser_shares.py")).arg(arg(dir.path(), folder)).output().expect("python");
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        String::from_utf8_lossy(&o.stdout).into_owned()
-    };
+    let shares = |folder: &str| riser_shares(&[&arg(dir.path(), folder)]);
     let out = shares("g");
     let row = |kind: &str| -> Vec<String> {
         let line = out.lines().find(|l| l.contains(&format!("| {kind} |"))).unwrap_or_else(|| panic!("no {kind} in\n{out}"));
@@ -651,13 +651,7 @@ fn riser_shares_reads_back_a_known_move() {
     // Per row (--per-row, --stage smoothing named): the top cells only ever
     // read lower, and in some row most of them by more than 2 cm (the
     // stairs' risers are 14-20 cm: a fifth is 2.8-4 cm).
-    let o = Command::new(python())
-        .arg(workspace_root().join("scripts/riser_shares.py"))
-        .args(["--stage", "smoothing", "--per-row", &arg(dir.path(), "g")])
-        .output()
-        .expect("python");
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let rows = String::from_utf8_lossy(&o.stdout).into_owned();
+    let rows = riser_shares(&["--stage", "smoothing", "--per-row", &arg(dir.path(), "g")]);
     let tops: Vec<Vec<String>> = rows
         .lines()
         .filter(|l| l.contains("| riser-upper |"))
