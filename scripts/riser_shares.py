@@ -51,48 +51,52 @@ KINDS = {
 }
 
 
+def load(base, stage):
+    """Heights and validity of rows 0-19: without the stage, with all."""
+    a = np.load(f"{base}/data-no-{stage}/real.npy")
+    b = np.load(f"{base}/data-all/real.npy")
+    return a[:, :20, :, 0].astype(float), a[:, :20, :, 1] > 0, b[:, :20, :, 0].astype(float), b[:, :20, :, 1] > 0
+
+
+def beside_steps(za, va):
+    """Per kind, per row r: (row of the neighbour, step to it, the cells
+    valid without the stage whose neighbour, valid too, makes the step)."""
+    for kind, (dr, is_kind) in KINDS.items():
+        for r in range(max(0, -dr), min(20, 20 - dr)):
+            step = za[:, r + dr] - za[:, r]
+            yield kind, r, r + dr, step, va[:, r] & va[:, r + dr] & is_kind(step)
+
+
 def cells(base, stage):
     """Per kind, per row: (step to the neighbour, h_all - h_no) of the cells
     valid in both whose neighbour (valid without the stage) makes the step."""
-    a = np.load(f"{base}/data-no-{stage}/real.npy")
-    b = np.load(f"{base}/data-all/real.npy")
-    za, va = a[:, :20, :, 0].astype(float), a[:, :20, :, 1] > 0
-    zb, vb = b[:, :20, :, 0].astype(float), b[:, :20, :, 1] > 0
-    out = {}
-    for kind, (dr, is_kind) in KINDS.items():
-        rows = {}
-        for r in range(20):
-            rn = r + dr
-            if not 0 <= rn < 20:
-                continue
-            step = za[:, rn] - za[:, r]
-            m = va[:, r] & va[:, rn] & vb[:, r] & is_kind(step)
-            rows[r] = (step[m], (zb[:, r] - za[:, r])[m])
-        out[kind] = rows
+    za, va, zb, vb = load(base, stage)
+    out = {kind: {} for kind in KINDS}
+    for kind, r, _, step, m in beside_steps(za, va):
+        m = m & vb[:, r]
+        out[kind][r] = (step[m], (zb[:, r] - za[:, r])[m])
     return out
 
 
 def lost(base, stage):
     """Per kind: (cells valid without the stage whose neighbour, valid too,
     makes the step, share of them missing with it, per row: (cells, lost));
-    and of the drops:
+    and of the drops (a drop's upper cell and the one beyond):
     (drops, share with a cell lost, share with both lost)."""
-    a = np.load(f"{base}/data-no-{stage}/real.npy")
-    b = np.load(f"{base}/data-all/real.npy")
-    za, va = a[:, :20, :, 0].astype(float), a[:, :20, :, 1] > 0
-    gone = va & (b[:, :20, :, 1] <= 0)
+    za, va, _, vb = load(base, stage)
+    gone = va & ~vb
+    rows = {kind: {} for kind in KINDS}
+    n = one = both = 0
+    for kind, r, rn, _, m in beside_steps(za, va):
+        rows[kind][r] = (int(m.sum()), int((m & gone[:, r]).sum()))
+        if kind == "drop-upper":
+            n += m.sum()
+            one += (m & (gone[:, r] | gone[:, rn])).sum()
+            both += (m & gone[:, r] & gone[:, rn]).sum()
     out = {}
-    for kind, (dr, is_kind) in KINDS.items():
-        rows = {}
-        for r in range(max(0, -dr), min(20, 20 - dr)):
-            m = va[:, r] & va[:, r + dr] & is_kind(za[:, r + dr] - za[:, r])
-            rows[r] = (int(m.sum()), int((m & gone[:, r]).sum()))
-        n, k = sum(v[0] for v in rows.values()), sum(v[1] for v in rows.values())
-        out[kind] = (n, k / n if n else None, rows)
-    drop = va[:, :-1] & va[:, 1:] & (za[:, :-1] - za[:, 1:] > JUMP)
-    n = drop.sum()
-    one = (drop & (gone[:, :-1] | gone[:, 1:])).sum()
-    both = (drop & gone[:, :-1] & gone[:, 1:]).sum()
+    for kind, per_row in rows.items():
+        total, k = sum(v[0] for v in per_row.values()), sum(v[1] for v in per_row.values())
+        out[kind] = (total, k / total if total else None, per_row)
     return out, (int(n), one / n if n else None, both / n if n else None)
 
 
