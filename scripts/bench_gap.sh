@@ -26,8 +26,8 @@ secs=$(echo "$end - $start" | bc)
 import json, sys
 r = json.load(open(sys.argv[1]))
 names = ", ".join(s.get("effect", "?") for s in r["steps"])
-a, b = r["gap_initial"], r["gap_final"]
-print(f"gap {a:.3f} -> {b:.3f} ({1 - b / a:.1%} removed) with {names}")
+a, b, u = r["gap_initial"], r["gap_final"], r["gap_final_unseen"]
+print(f"gap {a:.3f} -> {b:.3f} ({1 - b / a:.1%} removed; {1 - u / a:.1%} with unseen draws) with {names}")
 ' "$OUT/gap-run/report.json")"
   printf '    command: dem-gap --sim %s/sim.npy --real %s/real.npy --sim-labels ... --real-labels ... --out %s/gap-run --seed 1\n' \
       "$data" "$data" "$OUT"

@@ -61,19 +61,21 @@ expect = {
 }
 cases = [(f"no-{s}-{m}", f"{s} ({m})", s) for s in stages for m in ("paired", "unpaired")]
 cases += [("exact-paired", "exact sim -> all (paired)", None), ("exact-unpaired", "exact sim -> all (unpaired)", None)]
-print("| stage hidden | effects named, in order (fitted parameters) | first named right | at box edge | gap initial | gap final | removed |")
-print("|---|---|---|---|---|---|---|")
+# "unseen draws": the final model applied with random draws no fit saw.
+print("| stage hidden | effects named, in order (fitted parameters) | first named right | at box edge | gap initial | gap final | removed | removed, unseen draws |")
+print("|---|---|---|---|---|---|---|---|")
 for case, label, st in cases:
     try:
         r = json.load(open(f"{d}/{case}/report.json"))
     except FileNotFoundError:
-        print(f"| {label} | (no report) | | | | | |")
+        print(f"| {label} | (no report) | | | | | | |")
         continue
     named = "; ".join(f"`{s['effect']}` ({', '.join(f'{k} {v:.3g}' for k, v in s['params'].items())})" for s in r["steps"]) or "nothing"
     first = r["steps"][0]["effect"] if r["steps"] else None
     right = "-" if st is None else ("yes" if first in expect.get(st, set()) else "**no**")
     edges = "; ".join([f"{s['effect']}.{p}" for s in r["steps"] for p in s.get("at_edge", [])]
                       + [f"{s['effect']}.{p} (re-fit)" for s in r.get("refits", []) for p in s.get("at_edge", [])]) or "none"
-    g0, g1 = r["gap_initial"], r["gap_final"]
-    print(f"| {label} | {named} | {right} | {edges} | {g0:.2f} | {g1:.2f} | {100 * (1 - g1 / g0) if g0 else 0:.0f}% |")
+    g0, g1, gu = r["gap_initial"], r["gap_final"], r["gap_final_unseen"]
+    share = lambda g: f"{100 * (1 - g / g0) if g0 else 0:.0f}%"
+    print(f"| {label} | {named} | {right} | {edges} | {g0:.2f} | {g1:.2f} | {share(g1)} | {share(gu)} |")
 PYEOF

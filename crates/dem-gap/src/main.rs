@@ -152,9 +152,10 @@ fn main() -> ExitCode {
         bar.finish_and_clear();
         report::write(&cfg.out, &outcome, &sets, &cfg.start, cfg.seed)?;
         cli::log(format_args!(
-            "gap {:.3} -> {:.3} with {}; {} written in {:.1} s",
+            "gap {:.3} -> {:.3} ({:.3} with unseen draws) with {}; {} written in {:.1} s",
             outcome.gap_initial,
             outcome.gap_final,
+            outcome.gap_final_unseen,
             outcome.model.summary(),
             cfg.out,
             t.elapsed().as_secs_f64()

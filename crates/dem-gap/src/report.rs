@@ -7,7 +7,7 @@
 //! {"steps": [{"effect": NAME, "params": {...}, "gap_before": x, "gap_after": y, "evidence": "...",
 //!             "at_edge": [PARAM, ...], "widened": [PARAM, ...]}],
 //!  "refits": [{"effect": NAME, "params_named": {...}, "params": {...}, "gap_before": x, "gap_after": y, "at_edge": [...]}],
-//!  "gap_initial": x, "gap_final": y}
+//!  "gap_initial": x, "gap_final": y, "gap_final_unseen": z}
 //! ```
 //!
 //! `at_edge` names the parameters fitted on an edge of their search box
@@ -59,8 +59,14 @@ pub fn report_json(o: &Outcome) -> Value {
         })
         .collect();
     json!({"steps": steps, "refits": refits, "gap_initial": o.gap_initial, "gap_final": o.gap_final,
+        "gap_final_unseen": o.gap_final_unseen,
         "sim_records": o.sizes.0, "real_records": o.sizes.1, "over_pairs": o.over_pairs,
         "terrain_mix": o.terrain_mix.map(|(kept, of)| json!({"drawn": kept, "from": of}))})
+}
+
+/// Share of `before` that `after` removes, in percent.
+fn removed(before: f64, after: f64) -> f64 {
+    if before > 0.0 { 100.0 * (1.0 - after / before) } else { 0.0 }
 }
 
 fn path(dir: &str, name: &str) -> String {
@@ -239,14 +245,17 @@ pub fn markdown(o: &Outcome) -> String {
     let _ = writeln!(s, "# dem-gap report\n");
     let _ = writeln!(
         s,
-        "{} comparison of model(sim) ({} records) against real ({} records). Gap {:.3} -> {:.3} ({:.0}% removed); sampling floor {:.3}.\n",
+        "{} comparison of model(sim) ({} records) against real ({} records). Gap {:.3} -> {:.3} ({:.0}% removed); sampling floor {:.3}. \
+         With random draws of the model's effects that no fit or check saw (a new seed): {:.3} ({:.0}% removed).\n",
         if o.paired { "Paired (per position)" } else { "Unpaired (distributions of records)" },
         o.sizes.0,
         o.sizes.1,
         o.gap_initial,
         o.gap_final,
-        if o.gap_initial > 0.0 { 100.0 * (1.0 - o.gap_final / o.gap_initial) } else { 0.0 },
-        o.floor
+        removed(o.gap_initial, o.gap_final),
+        o.floor,
+        o.gap_final_unseen,
+        removed(o.gap_initial, o.gap_final_unseen)
     );
     if o.over_pairs {
         let _ = writeln!(

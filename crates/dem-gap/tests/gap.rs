@@ -311,6 +311,28 @@ fn two_hidden_effects_are_both_named() {
     assert_eq!(n, ["bias", "dropout"], "{r:#}");
 }
 
+/// The final model's gap with draws no fit saw: the same as the fitted
+/// gap for a model without random effects (an occlusion is geometry), and
+/// another draw's gap, close but not equal, for one with them (dropout).
+#[test]
+fn the_gap_with_unseen_draws_is_reported() {
+    let dir = tempdir();
+    let (sim, pairs) = setup(dir.path());
+    let gaps = |r: &Value| ["gap_initial", "gap_final", "gap_final_unseen"].map(|k| r[k].as_f64().unwrap());
+    let real = hide(dir.path(), &sim, "shadows.npy", &["occlusion:h=0.62,x0=0.12"]);
+    let r = gap(dir.path(), &sim, &real, Some(&pairs), &["--max-steps", "1"], "geometry");
+    assert_eq!(names(&r), ["occlusion"]);
+    let [_, fitted, unseen] = gaps(&r);
+    assert_eq!(fitted, unseen, "{r:#}");
+    let real = hide(dir.path(), &sim, "holes.npy", &["dropout:p=0.17"]);
+    let r = gap(dir.path(), &sim, &real, Some(&pairs), &["--max-steps", "1"], "random");
+    assert_eq!(names(&r), ["dropout"]);
+    let [initial, fitted, unseen] = gaps(&r);
+    assert!(fitted != unseen && unseen < 0.5 * initial, "{r:#}");
+    let md = std::fs::read_to_string(dir.path().join("random/report.md")).unwrap();
+    assert!(md.contains(&format!("that no fit or check saw (a new seed): {unseen:.3}")), "{md}");
+}
+
 #[test]
 fn nothing_hidden_names_nothing() {
     // Real = sim + noise (numpy's draws); the start model already has that
@@ -337,7 +359,7 @@ fn the_report_has_the_schema_pictures_and_a_usable_model() {
     let r = gap(dir.path(), &sim, &real, Some(&pairs), &["--max-steps", "1"], "out");
     let mut keys: Vec<&String> = r.as_object().unwrap().keys().collect();
     keys.sort();
-    assert_eq!(keys, ["gap_final", "gap_initial", "over_pairs", "real_records", "refits", "sim_records", "steps", "terrain_mix"]);
+    assert_eq!(keys, ["gap_final", "gap_final_unseen", "gap_initial", "over_pairs", "real_records", "refits", "sim_records", "steps", "terrain_mix"]);
     let step = r["steps"][0].as_object().unwrap();
     let mut k: Vec<&String> = step.keys().collect();
     k.sort();
