@@ -29,8 +29,19 @@ valid without the stage, r + 1 lower by more than 5 cm) the shares that lose
 one cell and both (the measurement behind dem-sensor's `drop-holes`):
 
     python scripts/riser_shares.py --stage holes --lost out-high/gap
+
+With --per-run, per run (the `sequence` of data-all/real_labels.csv) the
+records, the records the stage changes, the cells it loses and the cells it
+moves by more than 2 cm, largest first, and the share of all lost cells the
+three largest runs hold: whether a stage's gap is a property of the
+population or of a few events (a dark patch on one stair edge):
+
+    python scripts/riser_shares.py --stage dropout --per-run out/gap
 """
 import argparse
+import csv
+import os
+import sys
 
 import numpy as np
 
@@ -100,6 +111,25 @@ def lost(base, stage):
     return out, (int(n), one / n if n else None, both / n if n else None)
 
 
+def per_run(base, stage):
+    """Per run, largest loss first: (run, terrain, records, records
+    changed, cells lost, cells moved by more than MOVE), over rows 0-19."""
+    za, va, zb, vb = load(base, stage)
+    with open(f"{base}/data-all/real_labels.csv", newline="") as f:
+        labels = list(csv.DictReader(f))
+    if len(labels) != len(za):
+        raise SystemExit(f"{base}/data-all/real_labels.csv: {len(labels)} labels for {len(za)} records")
+    run = np.array([int(l["sequence"]) for l in labels])
+    gone = (va & ~vb).sum(axis=(1, 2))
+    moved = (va & vb & (np.abs(zb - za) > MOVE)).sum(axis=(1, 2))
+    changed = (va != vb).any(axis=(1, 2)) | (va & vb & (zb != za)).any(axis=(1, 2))
+    out = []
+    for k in np.unique(run):
+        m = run == k
+        out.append((int(k), labels[int(np.argmax(m))]["terrain"], int(m.sum()), int(changed[m].sum()), int(gone[m].sum()), int(moved[m].sum())))
+    return sorted(out, key=lambda t: (-t[4], -t[5], t[0]))
+
+
 def shares(base, stage="smoothing"):
     out = {}
     for kind, rows in cells(base, stage).items():
@@ -125,8 +155,21 @@ def main():
     ap.add_argument("--per-row", action="store_true", help="per row: the shares of cells that read higher and lower with the stage on")
     ap.add_argument("--least", type=int, default=10, help="per row: leave out rows with fewer cells of a kind (default 10)")
     ap.add_argument("--lost", action="store_true", help="per kind: the share of the cells beside a step that the stage loses, and of the drops")
+    ap.add_argument("--per-run", action="store_true", help="per run: the records the stage changes and the cells it loses and moves")
     a = ap.parse_args()
     pct = lambda v: "-" if v is None else f"{100 * v:.1f} %"
+    if a.per_run:
+        print(f"| folder | run | terrain | records | changed | cells lost | cells moved > {100 * MOVE:.0f} cm |")
+        print("|---|---|---|---|---|---|---|")
+        for base in a.folders:
+            runs = per_run(base, a.stage)
+            for r in runs:
+                print(f"| {base} | {r[0]} | {r[1]} | {r[2]} | {r[3]} | {r[4]} | {r[5]} |")
+            lost_all, moved_all = sum(r[4] for r in runs), sum(r[5] for r in runs)
+            top = sum(r[4] for r in runs[:3])
+            print(f"| {base} | all {len(runs)} | | {sum(r[2] for r in runs)} | {sum(r[3] for r in runs)} | {lost_all} | {moved_all} |")
+            print(f"| {base} | the 3 that lose most | | | | {pct(top / lost_all if lost_all else None)} | |")
+        return
     if a.lost:
         print("| folder | cell | cells | lost |")
         print("|---|---|---|---|")
@@ -161,4 +204,8 @@ def main():
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except BrokenPipeError:
+        # `| head` took what it wanted: end quietly, as the tools do.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())

@@ -638,6 +638,50 @@ fn riser_shares_lost_counts_a_known_loss() {
     assert!(row("riser-lower").1 < 10.0 && row("riser-upper").1 < 10.0, "{out}");
 }
 
+/// scripts/riser_shares.py --per-run (how many runs hold a stage's
+/// effect) on a known change: "all stages" loses rows 15-19 in the records
+/// of run 3 and lifts one valid cell of run 5 by 3 cm; no other run
+/// changes.
+#[test]
+fn riser_shares_per_run_finds_the_runs_that_change() {
+    let dir = tempdir();
+    stage_folders(
+        dir.path(),
+        "dropout",
+        &format!(
+            "seq = np.loadtxt({:?}, delimiter=',', skiprows=1, usecols=5).astype(int)\n\
+             lose = np.zeros(z.shape, bool)\n\
+             lose[seq == 3, 15:20] = v[seq == 3, 15:20]\n\
+             b[:, :20, :, 0][lose] = 0.0\n\
+             b[:, :20, :, 1][lose] = -1.0\n\
+             i, r, c = np.argwhere(v & (seq == 5)[:, None, None])[0]\n\
+             b[i, r, c, 0] += 0.03\n\
+             open('lost.txt', 'w').write(str(int(lose.sum())))\n",
+            testdata("real_labels.csv")
+        ),
+    );
+    std::fs::copy(testdata("real_labels.csv"), dir.path().join("g/data-all/real_labels.csv")).unwrap();
+    let lost: usize = std::fs::read_to_string(dir.path().join("lost.txt")).unwrap().parse().unwrap();
+    let out = riser_shares(&["--stage", "dropout", "--per-run", &arg(dir.path(), "g")]);
+    // | folder | run | terrain | records | changed | cells lost | cells moved > 2 cm |
+    let rows: Vec<Vec<String>> = out
+        .lines()
+        .skip(2)
+        .map(|l| l.split('|').map(|c| c.trim().to_string()).filter(|c| !c.is_empty()).collect())
+        .collect();
+    assert!(lost > 50, "{lost}");
+    assert_eq!(rows[0][1..2], ["3".to_string()], "{out}");
+    assert_eq!(rows[0][5], lost.to_string(), "{out}");
+    assert_eq!(rows[0][6], "0", "{out}");
+    assert_eq!((rows[1][1].as_str(), rows[1][4].as_str(), rows[1][5].as_str(), rows[1][6].as_str()), ("5", "1", "0", "1"), "{out}");
+    let changed = |r: &Vec<String>| r[4].parse::<usize>().unwrap_or(0);
+    assert!(rows[2..].iter().filter(|r| !r[1].starts_with("all") && !r[1].starts_with("the 3")).all(|r| changed(r) == 0), "{out}");
+    let all = rows.iter().find(|r| r[1] == "all 20").unwrap_or_else(|| panic!("{out}"));
+    assert_eq!((all[2].as_str(), all[4].as_str()), ("966", lost.to_string().as_str()), "{out}");
+    let top = rows.iter().find(|r| r[1] == "the 3 that lose most").unwrap_or_else(|| panic!("{out}"));
+    assert_eq!(top[2], "100.0 %", "{out}");
+}
+
 /// scripts/riser_shares.py (the measurement behind results.md's riser
 /// numbers) on a case with a known answer: "all stages" is testdata's
 /// measured DEMs with every top cell after a riser moved a fifth of the
