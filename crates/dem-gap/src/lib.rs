@@ -148,8 +148,11 @@ pub struct Outcome {
     pub gap_final_unseen: f64,
     /// The final model.
     pub model: SensorModel,
-    /// Expected gap from sampling alone.
+    /// Expected gap from sampling alone, of the final model.
     pub floor: f64,
+    /// The same of the start model: a gap below it cannot be told from
+    /// sampling ([`below_floor`]).
+    pub floor_initial: f64,
     /// Why the loop stopped.
     pub stop: String,
     /// True when compared per position (pairs).
@@ -401,13 +404,14 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
     let mut current_halves = half_stats(&start_out);
     drop(start_out);
     let gap_initial = gap(&start_stats, &real_stats);
-    let mut floor = floor_of(&model);
+    let floor_initial = floor_of(&model);
     log(format!(
-        "{} mode, {} vs {} records; start model: {}; gap {gap_initial:.3} (sampling floor {floor:.3})",
+        "{} mode, {} vs {} records; start model: {}; gap {gap_initial:.3} (sampling floor {floor_initial:.3}){}",
         if paired { "paired" } else { "unpaired" },
         sets.sim.len(),
         sets.real.len(),
-        model.summary()
+        model.summary(),
+        if gap_initial < floor_initial { format!("; {}", below_floor(gap_initial, floor_initial)) } else { String::new() }
     ));
     let mut current = (gap_initial, start_stats.clone());
     let mut steps = Vec::new();
@@ -456,7 +460,6 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
                 continue;
             }
             let g = gap(&s, &real_stats);
-            floor = floor_of(&trial);
             threshold = cfg.min_gain * gap_before;
             let gain = gap_before - g;
             // The gain once more with the models' other random draws: a
@@ -576,6 +579,7 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
         [mean(&SensorModel::default()), mean(&cfg.start), mean(&model)]
     });
     let terrains = per_terrain(sets, &cfg.start, &model, cfg.seed);
+    let floor = if model == cfg.start { floor_initial } else { floor_of(&model) };
     Outcome {
         steps,
         gap_initial,
@@ -583,6 +587,7 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
         gap_final_unseen,
         model,
         floor,
+        floor_initial,
         stop,
         paired,
         sizes: (sets.sim.len(), sets.real.len()),
@@ -593,6 +598,17 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
         terrain_mix: sets.terrain_mix,
         over_pairs: sets.over_pairs,
     }
+}
+
+/// What a gap below the sampling floor means, in one sentence (the log's
+/// first line and report.md say it).
+pub fn below_floor(gap: f64, floor: f64) -> String {
+    format!(
+        "the gap is below the sampling floor ({:.0}% of it): a perfect model would show as large a gap from its random draws \
+         and, unpaired, from which records are in each set, so these records cannot tell an effect this small from sampling; \
+         more records (runs) are needed to name one",
+        100.0 * gap / floor
+    )
 }
 
 /// The gap a perfect model would still show from its own random draws:

@@ -7,7 +7,8 @@
 //! {"steps": [{"effect": NAME, "params": {...}, "gap_before": x, "gap_after": y, "evidence": "...",
 //!             "at_edge": [PARAM, ...], "widened": [PARAM, ...]}],
 //!  "refits": [{"effect": NAME, "params_named": {...}, "params": {...}, "gap_before": x, "gap_after": y, "at_edge": [...]}],
-//!  "gap_initial": x, "gap_final": y, "gap_final_unseen": z}
+//!  "gap_initial": x, "gap_final": y, "gap_final_unseen": z,
+//!  "sampling_floor": f, "sampling_floor_initial": f0, ...}
 //! ```
 //!
 //! `at_edge` names the parameters fitted on an edge of their search box
@@ -59,7 +60,7 @@ pub fn report_json(o: &Outcome) -> Value {
         })
         .collect();
     json!({"steps": steps, "refits": refits, "gap_initial": o.gap_initial, "gap_final": o.gap_final,
-        "gap_final_unseen": o.gap_final_unseen,
+        "gap_final_unseen": o.gap_final_unseen, "sampling_floor": o.floor, "sampling_floor_initial": o.floor_initial,
         "sim_records": o.sizes.0, "real_records": o.sizes.1, "over_pairs": o.over_pairs,
         "terrain_mix": o.terrain_mix.map(|(kept, of)| json!({"drawn": kept, "from": of}))})
 }
@@ -257,6 +258,9 @@ pub fn markdown(o: &Outcome) -> String {
         o.gap_final_unseen,
         removed(o.gap_initial, o.gap_final_unseen)
     );
+    if o.gap_initial < o.floor_initial {
+        let _ = writeln!(s, "**Below the sampling floor:** {}.\n", crate::below_floor(o.gap_initial, o.floor_initial));
+    }
     if o.over_pairs {
         let _ = writeln!(
             s,

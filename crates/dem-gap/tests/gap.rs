@@ -348,6 +348,11 @@ fn nothing_hidden_names_nothing() {
         assert_eq!(r["gap_initial"], r["gap_final"]);
         let md = std::fs::read_to_string(dir.path().join(out).join("report.md")).unwrap();
         assert!(md.contains("nothing explains the rest"), "{md}");
+        // Unpaired, the sets differ less than two halves of real do, and
+        // the report says what that means; never when above the floor.
+        let (g, floor) = (r["gap_initial"].as_f64().unwrap(), r["sampling_floor_initial"].as_f64().unwrap());
+        assert!(out == "paired" || g < floor, "{out}: gap {g} floor {floor}");
+        assert_eq!(md.contains("**Below the sampling floor:** the gap is below the sampling floor"), g < floor, "{md}");
     }
 }
 
@@ -359,7 +364,22 @@ fn the_report_has_the_schema_pictures_and_a_usable_model() {
     let r = gap(dir.path(), &sim, &real, Some(&pairs), &["--max-steps", "1"], "out");
     let mut keys: Vec<&String> = r.as_object().unwrap().keys().collect();
     keys.sort();
-    assert_eq!(keys, ["gap_final", "gap_final_unseen", "gap_initial", "over_pairs", "real_records", "refits", "sim_records", "steps", "terrain_mix"]);
+    assert_eq!(
+        keys,
+        [
+            "gap_final",
+            "gap_final_unseen",
+            "gap_initial",
+            "over_pairs",
+            "real_records",
+            "refits",
+            "sampling_floor",
+            "sampling_floor_initial",
+            "sim_records",
+            "steps",
+            "terrain_mix"
+        ]
+    );
     let step = r["steps"][0].as_object().unwrap();
     let mut k: Vec<&String> = step.keys().collect();
     k.sort();
