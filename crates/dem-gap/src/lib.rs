@@ -604,9 +604,9 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
 /// first line and report.md say it).
 pub fn below_floor(gap: f64, floor: f64) -> String {
     format!(
-        "the gap is below the sampling floor ({:.0}% of it): a perfect model would show as large a gap from its random draws \
-         and, unpaired, from which records are in each set, so these records cannot tell an effect this small from sampling; \
-         more records (runs) are needed to name one",
+        "the gap is below the sampling floor ({:.0}% of it): a perfect model's own random draws or, unpaired, two halves of real \
+         differ as much, so what separates the sets may be sampling; an effect is named only where it also helps on other draws \
+         and on both halves, and more records (runs) lower the floor",
         100.0 * gap / floor
     )
 }
