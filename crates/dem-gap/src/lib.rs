@@ -397,7 +397,19 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
     let fit_sim = pick(&sets.sim, &idx);
     let fit_times = times.map(|t| pick(t, &idx));
     let fit_real = if paired { distribution::stats(&pick(&sets.real, &idx), Some(&fit_sim)) } else { real_stats.clone() };
-    let target = fit::Target { sim: &fit_sim, times: fit_times.as_deref(), paired, real: &fit_real, seed: cfg.seed };
+    // Unpaired on a subsample, real is moved by what the subsample's draw
+    // of records does to model(sim) at the current model
+    // (`Stats::shifted`), so a small gap is not drowned by the subsample's
+    // own sampling: on the emulator's dark-patch stage over 100 runs the
+    // right effect removed 11% of the gap on 1,000 records against all of
+    // real, 80% on all records.
+    let subsampled = !paired && idx.len() < n;
+    let target_at = |model: &SensorModel, all: &Stats, real: &'_ Stats| -> Option<Stats> {
+        subsampled.then(|| {
+            let t = fit::Target { sim: &fit_sim, times: fit_times.as_deref(), paired, real, seed: cfg.seed };
+            real.shifted(all, &t.model_stats(model))
+        })
+    };
 
     let mut model = cfg.start.clone();
     let (start_out, start_stats) = measure(&model, &sets.sim, paired, cfg.seed);
@@ -422,6 +434,8 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
             stop = "every effect of the vocabulary is in the model".into();
             break;
         }
+        let moved = target_at(&model, &current.1, &fit_real);
+        let target = fit::Target { sim: &fit_sim, times: fit_times.as_deref(), paired, real: moved.as_ref().unwrap_or(&fit_real), seed: cfg.seed };
         let base_fit = target.gap(&model);
         let mut ranking: Vec<(Effect, f64, f64)> = Vec::new();
         let mut flags: Vec<(Effect, Vec<&'static str>, Vec<&'static str>)> = Vec::new();
@@ -545,6 +559,8 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
     // keep the new parameters when they lower the gap on all data.
     let mut refits = Vec::new();
     if model.effects.len() >= 2 {
+        let moved = target_at(&model, &current.1, &fit_real);
+        let target = fit::Target { sim: &fit_sim, times: fit_times.as_deref(), paired, real: moved.as_ref().unwrap_or(&fit_real), seed: cfg.seed };
         for i in 0..model.effects.len() {
             let old = model.effects[i];
             let mut base = model.clone();
