@@ -315,14 +315,28 @@ pub fn evidence(effect: &Effect, before: &Stats, after: &Stats, real: &Stats, ga
                 pct(before.mean_over("edge-2cm", 0..19)),
             )
         }
-        Effect::Bias { .. } => format!(
-            "mean {} behind (rows 0-5) real {} vs model {}, far ahead (rows 15-19) real {} vs model {}: an offset and a tilt",
-            if real.paired { "residual" } else { "height" },
-            mm(real.mean_over("height", 0..6)),
-            mm(before.mean_over("height", 0..6)),
-            mm(real.mean_over("height", 15..20)),
-            mm(before.mean_over("height", 15..20)),
-        ),
+        Effect::Bias { .. } => {
+            let (rb, mb) = (real.mean_over("height", 0..6), before.mean_over("height", 0..6));
+            let (ra, ma) = (real.mean_over("height", 15..20), before.mean_over("height", 15..20));
+            // Unpaired, mean heights follow the terrain: real higher than
+            // the model on one side of the robot and lower on the other is
+            // more like two sets of different terrain than a sensor offset.
+            let mixed = !real.paired && (rb - mb).abs() > 0.005 && (ra - ma).abs() > 0.005 && (rb - mb).signum() != (ra - ma).signum();
+            format!(
+                "mean {} behind (rows 0-5) real {} vs model {}, far ahead (rows 15-19) real {} vs model {}: {}",
+                if real.paired { "residual" } else { "height" },
+                mm(rb),
+                mm(mb),
+                mm(ra),
+                mm(ma),
+                if mixed {
+                    "real is higher on one side and lower on the other, more like two sets of different terrain than one offset: \
+                     read it as the closest effect, and compare the same terrain mix (--match-terrain-mix with both label files, or --pairs)"
+                } else {
+                    "an offset and a tilt"
+                }
+            )
+        }
         Effect::Quantization { q } => format!(
             "neighbour differences of 0.1-10 mm: real {} vs model {}; equal neighbours real {} vs model {}: heights come in steps of {}",
             pct(small_steps(real)),
@@ -362,5 +376,27 @@ mod tests {
         assert!(s.contains("at the foot real 100.0% vs model 0.0%") && s.contains("read part of the way across the step: the foot up"), "{s}");
         let s = evidence(&e, &model, &model, &model, 2.0, 1.0);
         assert!(s.contains("not a clear one"), "{s}");
+    }
+
+    /// Unpaired, `bias`'s sentence says an offset when real is higher (or
+    /// lower) behind and ahead alike, and points at the terrain mix when
+    /// real is higher on one side and lower on the other.
+    #[test]
+    fn bias_evidence_tells_an_offset_from_other_terrain() {
+        let set = |behind: f32, ahead: f32| {
+            let mut d = empty_dem();
+            for r in 0..GRID_ROWS {
+                for c in 0..COLS {
+                    d.set_valid(r, c, if r < 10 { behind } else { ahead });
+                }
+            }
+            stats(&vec![d; 10], None)
+        };
+        let model = set(0.0, 0.0);
+        let e = Effect::Bias { b: 0.02, t: 0.0 };
+        let s = evidence(&e, &model, &model, &set(0.02, 0.02), 2.0, 1.0);
+        assert!(s.contains("an offset and a tilt") && !s.contains("terrain"), "{s}");
+        let s = evidence(&e, &model, &model, &set(-0.02, 0.09), 2.0, 1.0);
+        assert!(s.contains("more like two sets of different terrain") && s.contains("--match-terrain-mix"), "{s}");
     }
 }
