@@ -399,9 +399,7 @@ impl Stats {
             0.0
         }
     }
-}
 
-impl Stats {
     /// These statistics moved by the difference between two summaries of
     /// one model's output, `to - from`, component by component where both
     /// have [`MIN_SUPPORT`] samples (elsewhere unchanged; supports are

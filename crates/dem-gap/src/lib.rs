@@ -150,8 +150,8 @@ pub struct Outcome {
     pub model: SensorModel,
     /// Expected gap from sampling alone, of the final model.
     pub floor: f64,
-    /// The same of the start model: a gap below it cannot be told from
-    /// sampling ([`below_floor`]).
+    /// The same of the start model: a gap below it may be sampling
+    /// ([`below_floor`]).
     pub floor_initial: f64,
     /// Why the loop stopped.
     pub stop: String,
