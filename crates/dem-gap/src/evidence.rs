@@ -48,7 +48,7 @@ fn paired_misses(real: &Stats, before: &Stats, more: &str, not_more: &str) -> St
 /// One sentence of evidence for `effect`, from the statistics of the model
 /// before it was added, after, and of real.
 pub fn evidence(effect: &Effect, before: &Stats, after: &Stats, real: &Stats, gap_before: f64, gap_after: f64) -> String {
-    let removed = if gap_before > 0.0 { 1.0 - gap_after / gap_before } else { 0.0 };
+    let removed = crate::share_removed(gap_before, gap_after);
     let per_rec = |s: &Stats, name: &str| total(s, name) / s.records.max(1) as f64;
     let spread = if real.paired { "residual (real - sim) sd" } else { "across-robot height difference sd / sqrt 2" };
     let body = match *effect {

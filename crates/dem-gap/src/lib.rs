@@ -441,7 +441,7 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
         let mut flags: Vec<(Effect, Vec<&'static str>, Vec<&'static str>)> = Vec::new();
         for name in &candidates {
             if let Some(f) = fit::fit(name, &model, &target) {
-                let removed = if base_fit > 0.0 { 1.0 - f.gap / base_fit } else { 0.0 };
+                let removed = share_removed(base_fit, f.gap);
                 let edge = if f.at_edge.is_empty() {
                     String::new()
                 } else {
@@ -613,6 +613,15 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
         refits,
         terrain_mix: sets.terrain_mix,
         over_pairs: sets.over_pairs,
+    }
+}
+
+/// Share of the gap `before` that `after` removes (0 when there was none).
+pub fn share_removed(before: f64, after: f64) -> f64 {
+    if before > 0.0 {
+        1.0 - after / before
+    } else {
+        0.0
     }
 }
 

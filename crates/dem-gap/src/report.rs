@@ -67,7 +67,7 @@ pub fn report_json(o: &Outcome) -> Value {
 
 /// Share of `before` that `after` removes, in percent.
 fn removed(before: f64, after: f64) -> f64 {
-    if before > 0.0 { 100.0 * (1.0 - after / before) } else { 0.0 }
+    100.0 * crate::share_removed(before, after)
 }
 
 fn path(dir: &str, name: &str) -> String {
