@@ -77,9 +77,8 @@ for case, label, st in cases:
                       + [f"{s['effect']}.{p} (re-fit)" for s in r.get("refits", []) for p in s.get("at_edge", [])]) or "none"
     g0, g1, gu = r["gap_initial"], r["gap_final"], r["gap_final_unseen"]
     share = lambda g: f"{100 * (1 - g / g0) if g0 else 0:.0f}%"
-    # A gap below the start model's sampling floor cannot be told from
-    # sampling (dem-gap says so): marked, so a reader does not count it
-    # as a miss of the fitter alone.
+    # A gap below the start model's sampling floor may be sampling (dem-gap
+    # warns): marked, so a reader sees which misses sit at the floor.
     floor = r.get("sampling_floor_initial")  # absent in reports before 2026-11-27
     fl = "-" if floor is None else f"{floor:.2f}" + (" (**above the gap**)" if g0 < floor else "")
     print(f"| {label} | {named} | {right} | {edges} | {g0:.2f} | {fl} | {g1:.2f} | {share(g1)} | {share(gu)} |")

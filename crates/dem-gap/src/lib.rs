@@ -404,10 +404,10 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
     // right effect removed 11% of the gap on 1,000 records against all of
     // real, 80% on all records.
     let subsampled = !paired && idx.len() < n;
-    let target_at = |model: &SensorModel, all: &Stats, real: &'_ Stats| -> Option<Stats> {
+    let moved_real = |model: &SensorModel, all: &Stats| -> Option<Stats> {
         subsampled.then(|| {
-            let t = fit::Target { sim: &fit_sim, times: fit_times.as_deref(), paired, real, seed: cfg.seed };
-            real.shifted(all, &t.model_stats(model))
+            let t = fit::Target { sim: &fit_sim, times: fit_times.as_deref(), paired, real: &fit_real, seed: cfg.seed };
+            fit_real.shifted(all, &t.model_stats(model))
         })
     };
 
@@ -434,7 +434,7 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
             stop = "every effect of the vocabulary is in the model".into();
             break;
         }
-        let moved = target_at(&model, &current.1, &fit_real);
+        let moved = moved_real(&model, &current.1);
         let target = fit::Target { sim: &fit_sim, times: fit_times.as_deref(), paired, real: moved.as_ref().unwrap_or(&fit_real), seed: cfg.seed };
         let base_fit = target.gap(&model);
         let mut ranking: Vec<(Effect, f64, f64)> = Vec::new();
@@ -559,7 +559,7 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
     // keep the new parameters when they lower the gap on all data.
     let mut refits = Vec::new();
     if model.effects.len() >= 2 {
-        let moved = target_at(&model, &current.1, &fit_real);
+        let moved = moved_real(&model, &current.1);
         let target = fit::Target { sim: &fit_sim, times: fit_times.as_deref(), paired, real: moved.as_ref().unwrap_or(&fit_real), seed: cfg.seed };
         for i in 0..model.effects.len() {
             let old = model.effects[i];
