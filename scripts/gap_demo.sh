@@ -70,9 +70,15 @@ for case, label, st in cases:
     except FileNotFoundError:
         print(f"| {label} | (no report) | | | | | | | |")
         continue
-    named = "; ".join(f"`{s['effect']}` ({', '.join(f'{k} {v:.3g}' for k, v in s['params'].items())})" for s in r["steps"]) or "nothing"
+    # A step tied with a rival (report.json's tied_with, from 2026-11-27)
+    # names one of two effects the data does not tell apart.
+    ties = lambda s: [t["effect"] for t in s.get("tied_with", [])]
+    tie_note = lambda s: f" [tied with {', '.join(ties(s))}]" if ties(s) else ""
+    named = "; ".join(f"`{s['effect']}` ({', '.join(f'{k} {v:.3g}' for k, v in s['params'].items())}){tie_note(s)}" for s in r["steps"]) or "nothing"
     first = r["steps"][0]["effect"] if r["steps"] else None
-    right = "-" if st is None else ("yes" if first in expect.get(st, set()) else "**no**")
+    tied_right = [t for t in (ties(r["steps"][0]) if r["steps"] else []) if t in expect.get(st, set())]
+    right = "-" if st is None else ("yes" if first in expect.get(st, set())
+                                    else f"**no**, tied with `{tied_right[0]}`" if tied_right else "**no**")
     edges = "; ".join([f"{s['effect']}.{p}" for s in r["steps"] for p in s.get("at_edge", [])]
                       + [f"{s['effect']}.{p} (re-fit)" for s in r.get("refits", []) for p in s.get("at_edge", [])]) or "none"
     g0, g1, gu = r["gap_initial"], r["gap_final"], r["gap_final_unseen"]

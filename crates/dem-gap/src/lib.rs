@@ -98,6 +98,53 @@ pub struct Step {
     /// Candidates refused because their model hides far more cells than
     /// real misses, with the reason.
     pub refused: Vec<(Effect, String)>,
+    /// Close rivals the data does not tell from the effect ([`Tie`]).
+    pub tied_with: Vec<Tie>,
+}
+
+/// A candidate that came close to the named effect on the fitting
+/// subsample, that the data does not order behind it (the named effect
+/// does not remove more of the gap than the rival on all records and on
+/// each of two halves of them, [`named_ahead`]) and that explains the same
+/// part of the gap (on top of the named effect it removes little). Two effects of the
+/// vocabulary can leave the same trace (the floor beyond a drop edge read
+/// part of the way up: the edge's occlusion or the stereo window's blend);
+/// the step then names one of the two, and says so.
+#[derive(Debug, Clone)]
+pub struct Tie {
+    /// The rival with its fitted parameters.
+    pub effect: Effect,
+    /// Gap it removes on all records, in place of the named effect.
+    pub gain: f64,
+    /// Gap it removes added on top of the named effect (its parameters
+    /// as fitted alone): less than [`SAME_PART`] of `gain`.
+    pub gain_on_top: f64,
+    /// Gap it removes on each half of the records.
+    pub gains_halves: Vec<f64>,
+    /// Gap the named effect removes on each half.
+    pub named_gains_halves: Vec<f64>,
+}
+
+/// A rival is checked when it removes at least this share of what the
+/// named effect removes on the fitting subsample. Only a bound on the
+/// work (one more model on all records per rival): whether the two are
+/// tied is decided on the records' halves.
+const RIVAL_SHARE: f64 = 0.8;
+
+/// A rival not ordered behind the named effect is tied with it when, added
+/// on top of it, it removes less than this share of what it removes alone:
+/// the two explain the same part of the gap. (Otherwise they explain two
+/// parts of a like size, and the next step names the other.)
+pub const SAME_PART: f64 = 0.5;
+
+/// Rivals checked per step, closest first.
+const MAX_RIVALS: usize = 2;
+
+/// True when the named effect leaves a smaller gap than the rival on all
+/// records and on every half: the data orders the two. Gaps after each,
+/// all records first, then per half (no halves: all records decide).
+pub fn named_ahead(named: f64, named_halves: &[f64], rival: f64, rival_halves: &[f64]) -> bool {
+    named < rival && named_halves.iter().zip(rival_halves).all(|(n, r)| n < r)
 }
 
 /// An effect re-fitted after the naming loop with all others in place.
@@ -192,7 +239,8 @@ pub struct Sets {
     /// given), when the sim labels carry times.
     pub sim_time: Option<Vec<f64>>,
     /// Run (labels' `sequence`) of each real record, when every real label
-    /// has one (unpaired only: the sampling halves deal whole runs).
+    /// has one: the sampling halves (unpaired) and the halves that order a
+    /// named effect and its rival (both modes) deal whole runs.
     pub real_runs: Option<Vec<u64>>,
     /// Run of each sim record, likewise (unpaired only).
     pub sim_runs: Option<Vec<u64>>,
@@ -304,7 +352,7 @@ pub fn load(cfg: &GapConfig) -> Result<Sets> {
     }
     // Paired: both sides share the pair's terrain; prefer the real label.
     let t = if tr.is_some() { Some(rt) } else if ts.is_some() { Some(st) } else { None };
-    Ok(Sets { sim: s, real: r, paired: true, sim_terrain: t.clone(), real_terrain: t, sim_time: times.map(|_| tt), real_runs: None, sim_runs: None, terrain_mix: None, over_pairs: false })
+    Ok(Sets { sim: s, real: r, paired: true, sim_terrain: t.clone(), real_terrain: t, sim_time: times.map(|_| tt), real_runs: real_runs.map(|_| runs), sim_runs: None, terrain_mix: None, over_pairs: false })
 }
 
 /// The sim records (indices, ascending, a record may repeat) to compare
@@ -387,6 +435,30 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
         Vec::new()
     };
     let half_stats = |out: &[Dem]| -> Vec<Stats> { halves.iter().map(|(s, _)| distribution::stats(&pick(out, s), None)).collect() };
+    // Halves that tell a named effect from a close rival ([`Tie`]):
+    // unpaired the sampling halves, paired two halves of the pairs (whole
+    // runs when labelled).
+    let order_halves: Vec<(Vec<usize>, Stats)> = if paired && sets.real.len() >= 100 {
+        real_halves(sets)
+            .into_iter()
+            .filter(|h| !h.is_empty())
+            .map(|h| {
+                let st = distribution::stats(&pick(&sets.real, &h), Some(&pick(&sets.sim, &h)));
+                (h, st)
+            })
+            .collect()
+    } else {
+        halves.clone()
+    };
+    let half_gaps = |out: &[Dem]| -> Vec<f64> {
+        order_halves
+            .iter()
+            .map(|(s, r)| {
+                let sim_half = paired.then(|| pick(&sets.sim, s));
+                gap(&distribution::stats(&pick(out, s), sim_half.as_deref()), r)
+            })
+            .collect()
+    };
     let measure = |m: &SensorModel, sim: &[Dem], paired: bool, seed: u64| measure_at(m, sim, times, paired, seed);
     // The fitting subsample (all records when few).
     let mut rng = ChaCha8Rng::seed_from_u64(dem_core::seeded::mix(cfg.seed ^ 0x5eed));
@@ -414,7 +486,8 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
     let mut model = cfg.start.clone();
     let (start_out, start_stats) = measure(&model, &sets.sim, paired, cfg.seed);
     let mut current_halves = half_stats(&start_out);
-    drop(start_out);
+    // The current model's output on all sim, for the rival checks' halves.
+    let mut current_out = start_out;
     let gap_initial = gap(&start_stats, &real_stats);
     let floor_initial = floor_of(&model);
     log(format!(
@@ -505,7 +578,7 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
                 .map(|((_, r), (before, after))| gap(before, r) - gap(after, r))
                 .collect();
             if on_halves.iter().all(|&x| x > 0.0) {
-                added = Some((*e, trial, g, s, after_halves));
+                added = Some((*e, trial, g, s, after_halves, out));
                 break;
             }
             let why = format!(
@@ -514,7 +587,7 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
             );
             log(format!("step {}: {e} not added: {why}", step + 1));
         }
-        let Some((effect, trial, gap_after, after_stats, after_halves)) = added else {
+        let Some((effect, trial, gap_after, after_stats, after_halves, after_out)) = added else {
             stop = match ranking.first() {
                 Some((e, r, _)) => format!(
                     "nothing explains the rest: the best candidate, {e}, removes {:.1}% of the gap {gap_before:.3} on the fitting subsample (needed on all data: more than {:.3}, {:.0}% of the gap, with the model's random draws and with others{})",
@@ -528,7 +601,44 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
         };
         let (at_edge, widened) =
             flags.iter().find(|f| f.0 == effect).map(|f| (f.1.clone(), f.2.clone())).unwrap_or_default();
+        // Close rivals further down the ranking (those above it were tried
+        // and did not hold up), on all records and on the halves.
+        let named_share = ranking.iter().find(|r| r.0 == effect).map_or(0.0, |r| r.1);
+        let past_named = ranking.iter().skip_while(|r| r.0 != effect).skip(1);
+        let mut tied_with = Vec::new();
+        let mut named_halves: Option<(Vec<f64>, Vec<f64>)> = None;
+        for (rival, share, _) in past_named.filter(|r| r.1 > 0.0 && r.1 >= RIVAL_SHARE * named_share).take(MAX_RIVALS) {
+            let (out, s) = measure(&model.with(*rival), &sets.sim, paired, cfg.seed);
+            if distribution::hides_too_much(&s, &real_stats).is_some() {
+                continue;
+            }
+            let (before_h, named_h) = named_halves.get_or_insert_with(|| (half_gaps(&current_out), half_gaps(&after_out)));
+            let rival_h = half_gaps(&out);
+            let g = gap(&s, &real_stats);
+            if named_ahead(gap_after, named_h, g, &rival_h) {
+                log(format!("step {}: {effect} is ahead of {rival} ({:.1}% on the subsample) on all records and on both halves", step + 1, 100.0 * share));
+                continue;
+            }
+            // Not ordered, but two parts of the gap of a like size are no
+            // tie: the rival must explain the part the named effect does.
+            let gain = gap_before - g;
+            let on_top = gap_after - gap(&measure(&trial.with(*rival), &sets.sim, paired, cfg.seed).1, &real_stats);
+            if on_top >= SAME_PART * gain {
+                log(format!(
+                    "step {}: {effect} and {rival} are not ordered by the data, but explain different parts of the gap ({rival} removes {gain:.3} alone, {on_top:.3} on top)",
+                    step + 1
+                ));
+                continue;
+            }
+            let gains = |h: &[f64]| before_h.iter().zip(h).map(|(b, a)| b - a).collect::<Vec<f64>>();
+            tied_with.push(Tie { effect: *rival, gain, gain_on_top: on_top, gains_halves: gains(&rival_h), named_gains_halves: gains(named_h) });
+        }
         let mut ev = evidence::evidence(&effect, &before_stats, &after_stats, &real_stats, gap_before, gap_after);
+        for t in &tied_with {
+            let sentence = tie_sentence(&effect, gap_before - gap_after, t);
+            log(format!("step {}: {sentence}", step + 1));
+            ev.push_str(&format!("; {sentence}"));
+        }
         if !at_edge.is_empty() {
             let w = if widened.is_empty() { String::new() } else { format!(" (widened: {})", widened.join(", ")) };
             ev.push_str(&format!(
@@ -548,10 +658,12 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
             at_edge,
             widened,
             refused,
+            tied_with,
         });
         model = trial;
         current = (gap_after, after_stats);
         current_halves = after_halves;
+        current_out = after_out;
     }
     // Polish: the greedy order can leave an early effect covering for one
     // named later (an occlusion fitted before startup hides rows startup
@@ -623,6 +735,26 @@ pub fn share_removed(before: f64, after: f64) -> f64 {
     } else {
         0.0
     }
+}
+
+/// The words for a tie: `named` removed `gain` of the gap on all records.
+pub fn tie_sentence(named: &Effect, gain: f64, t: &Tie) -> String {
+    let halves = |h: &[f64]| h.iter().map(|x| format!("{x:.3}")).collect::<Vec<_>>().join(" and ");
+    let on_halves = if t.gains_halves.is_empty() {
+        String::new()
+    } else {
+        format!(", on the two halves of the records {} against {}", halves(&t.named_gains_halves), halves(&t.gains_halves))
+    };
+    format!(
+        "TIED with {}: the data does not order the two ({} removes {gain:.3} of the gap, {} {:.3}{on_halves}) and they explain the same part \
+         of it ({} added on top {}): the step names one of two effects that leave the same trace here, not the one",
+        t.effect,
+        named.name(),
+        t.effect.name(),
+        t.gain,
+        t.effect.name(),
+        if t.gain_on_top > -5e-4 { format!("removes only {:.3} more", t.gain_on_top.max(0.0)) } else { format!("widens the gap by {:.3}", -t.gain_on_top) }
+    )
 }
 
 /// What a gap below the sampling floor means, in one sentence (the log's
@@ -835,6 +967,18 @@ mod tests {
         let few: Vec<u64> = (0..360).map(|i| i / 120).collect();
         let [a, b] = halves(360, Some(&few), None);
         assert_eq!((a[..HALF_BLOCK].to_vec(), b[..HALF_BLOCK].to_vec()), ((0..50).collect(), (50..100).collect()));
+    }
+
+    /// The named effect is ahead of a rival only with a smaller gap on all
+    /// records and on every half; equal gaps (two effects that give the
+    /// same cells) are not ordered.
+    #[test]
+    fn a_rival_is_ordered_behind_only_on_all_records_and_every_half() {
+        assert!(named_ahead(1.0, &[0.4, 0.6], 1.2, &[0.5, 0.7]));
+        assert!(!named_ahead(1.0, &[0.4, 0.6], 1.2, &[0.5, 0.5]), "behind on one half");
+        assert!(!named_ahead(1.0, &[0.4, 0.6], 0.9, &[0.5, 0.7]), "behind on all records");
+        assert!(!named_ahead(0.0, &[0.0, 0.0], 0.0, &[0.0, 0.0]), "the same cells");
+        assert!(named_ahead(1.0, &[], 1.1, &[]), "no halves: all records decide");
     }
 
     /// Equal mixes keep every record once; a sim set heavy in stairs is

@@ -5,7 +5,9 @@
 //!
 //! ```text
 //! {"steps": [{"effect": NAME, "params": {...}, "gap_before": x, "gap_after": y, "evidence": "...",
-//!             "at_edge": [PARAM, ...], "widened": [PARAM, ...]}],
+//!             "at_edge": [PARAM, ...], "widened": [PARAM, ...],
+//!             "tied_with": [{"effect": NAME, "params": {...}, "gain": g, "gain_on_top": t,
+//!                            "gains_halves": [g1, g2], "named_gains_halves": [n1, n2]}]}],
 //!  "refits": [{"effect": NAME, "params_named": {...}, "params": {...}, "gap_before": x, "gap_after": y, "at_edge": [...]}],
 //!  "gap_initial": x, "gap_final": y, "gap_final_unseen": z,
 //!  "sampling_floor": f, "sampling_floor_initial": f0, ...}
@@ -13,7 +15,11 @@
 //!
 //! `at_edge` names the parameters fitted on an edge of their search box
 //! (after widening it up to the effect's limits, `widened`): such an effect
-//! is the closest of the vocabulary, not the right one. `refits`: effects
+//! is the closest of the vocabulary, not the right one. `tied_with`: close
+//! rivals the data does not order behind the named effect (`gain`: the gap
+//! the rival removes on all records in its place, `gain_on_top` added to
+//! it; the halves' gains, the rival's and the named effect's): the step names one of them, not the
+//! one. `refits`: effects
 //! re-fitted after the loop with all others in place (the final model,
 //! `sensor.json`, holds these parameters).
 //!
@@ -45,17 +51,23 @@ pub fn report_json(o: &Outcome) -> Value {
         .steps
         .iter()
         .map(|s| {
-            let params: Map<String, Value> = s.effect.params().into_iter().map(|(k, v)| (k.to_string(), json!(v))).collect();
-            json!({"effect": s.effect.name(), "params": params, "gap_before": s.gap_before, "gap_after": s.gap_after,
-                   "evidence": s.evidence, "at_edge": s.at_edge, "widened": s.widened})
+            let tied: Vec<Value> = s
+                .tied_with
+                .iter()
+                .map(|t| {
+                    json!({"effect": t.effect.name(), "params": params_of(&t.effect), "gain": t.gain, "gain_on_top": t.gain_on_top,
+                           "gains_halves": t.gains_halves, "named_gains_halves": t.named_gains_halves})
+                })
+                .collect();
+            json!({"effect": s.effect.name(), "params": params_of(&s.effect), "gap_before": s.gap_before, "gap_after": s.gap_after,
+                   "evidence": s.evidence, "at_edge": s.at_edge, "widened": s.widened, "tied_with": tied})
         })
         .collect();
     let refits: Vec<Value> = o
         .refits
         .iter()
         .map(|r| {
-            let p = |e: &dem_sensor::Effect| -> Map<String, Value> { e.params().into_iter().map(|(k, v)| (k.to_string(), json!(v))).collect() };
-            json!({"effect": r.after.name(), "params_named": p(&r.before), "params": p(&r.after),
+            json!({"effect": r.after.name(), "params_named": params_of(&r.before), "params": params_of(&r.after),
                    "gap_before": r.gap_before, "gap_after": r.gap_after, "at_edge": r.at_edge})
         })
         .collect();
@@ -63,6 +75,16 @@ pub fn report_json(o: &Outcome) -> Value {
         "gap_final_unseen": o.gap_final_unseen, "sampling_floor": o.floor, "sampling_floor_initial": o.floor_initial,
         "sim_records": o.sizes.0, "real_records": o.sizes.1, "over_pairs": o.over_pairs,
         "terrain_mix": o.terrain_mix.map(|(kept, of)| json!({"drawn": kept, "from": of}))})
+}
+
+/// The rivals a step is tied with, as `name` list.
+fn tied_names(st: &crate::Step) -> String {
+    st.tied_with.iter().map(|t| format!("`{}`", t.effect.name())).collect::<Vec<_>>().join(", ")
+}
+
+/// An effect's parameters as a JSON object.
+fn params_of(e: &dem_sensor::Effect) -> Map<String, Value> {
+    e.params().into_iter().map(|(k, v)| (k.to_string(), json!(v))).collect()
 }
 
 /// Share of `before` that `after` removes, in percent.
@@ -283,13 +305,31 @@ pub fn markdown(o: &Outcome) -> String {
             flagged.join(", ")
         );
     }
-    let _ = writeln!(s, "## Steps\n\n| step | effect | parameters | at box edge | gap before | gap after | evidence |\n|---|---|---|---|---|---|---|");
+    let tied: Vec<String> = o
+        .steps
+        .iter()
+        .enumerate()
+        .filter(|(_, st)| !st.tied_with.is_empty())
+        .map(|(k, st)| format!("step {} `{}` with {}", k + 1, st.effect.name(), tied_names(st)))
+        .collect();
+    if !tied.is_empty() {
+        let _ = writeln!(
+            s,
+            "**Tied:** {}. The named effect does not remove more of the gap than its rival on all records and on both halves of them, and on top of it the rival removes little: the two leave the same trace in these data, and the step names one of them, not the one.\n",
+            tied.join("; ")
+        );
+    }
+    let _ = writeln!(
+        s,
+        "## Steps\n\n| step | effect | parameters | at box edge | tied with | gap before | gap after | evidence |\n|---|---|---|---|---|---|---|---|"
+    );
     for (k, st) in o.steps.iter().enumerate() {
         let p: Vec<String> = st.effect.params().iter().map(|(n, v)| format!("{n} = {v:.4}")).collect();
         let edge = if st.at_edge.is_empty() { "no".to_string() } else { format!("**{}**", st.at_edge.join(", ")) };
+        let tie = if st.tied_with.is_empty() { "no".to_string() } else { format!("**{}**", tied_names(st)) };
         let _ = writeln!(
             s,
-            "| {} | `{}` | {} | {edge} | {:.3} | {:.3} | {} |",
+            "| {} | `{}` | {} | {edge} | {tie} | {:.3} | {:.3} | {} |",
             k + 1,
             st.effect.name(),
             p.join(", "),

@@ -66,6 +66,8 @@ fn check_single(r: &Value, effect: &str, want: &[(&str, f64, Option<f64>)]) {
     }
     let (g0, g1) = (r["gap_initial"].as_f64().unwrap(), r["gap_final"].as_f64().unwrap());
     assert!(g1 <= 0.5 * g0, "gap {g0} -> {g1}");
+    // The hidden effect itself is in the vocabulary: no rival leaves its trace.
+    assert_eq!(r["steps"][0]["tied_with"], serde_json::json!([]), "{r:#}");
 }
 
 fn single(effect: &str, spec: &str, want: &[(&str, f64, Option<f64>)]) {
@@ -248,6 +250,35 @@ fn hidden_mixed_cells() {
 /// on stderr: bias hidden beyond its box (b = 0.3 m, the box ends at 0.1 m
 /// and may widen to 0.5 m) is found after widening; hidden beyond the
 /// limit (b = 0.8 m) it is flagged.
+/// Two effects that hide the same cells: blocks 0.5-1 m tall in the four
+/// far rows, real missing those rows (a field of view to x = 1 m). `fov`
+/// and `view-top` (terrain above a height) both explain all of it; the
+/// step names one, reports the other as tied, and report.md says so.
+#[test]
+fn two_effects_with_the_same_trace_are_reported_tied() {
+    let dir = tempdir();
+    let sim = arg(dir.path(), "sim.npy");
+    let pairs = arg(dir.path(), "pairs.csv");
+    dem_testkit::py(
+        dir.path(),
+        "import numpy as np\nrng = np.random.default_rng(5)\nd = np.zeros((200, 21, 5, 2), np.float32)\n\
+         d[:, :20, :, 0] = -0.07\nd[:, :, :, 1] = 1.0\nd[:, 16:20, :, 0] = rng.uniform(0.5, 1.0, 200)[:, None, None]\n\
+         np.save('sim.npy', d)\nopen('pairs.csv','w').write('sim_index,real_index\\n' + ''.join(f'{i},{i}\\n' for i in range(200)))",
+    );
+    let real = hide(dir.path(), &sim, "real.npy", &["fov:x_min=-1,x_max=1.0"]);
+    for (pp, out) in [(Some(pairs.as_str()), "paired"), (None, "unpaired")] {
+        let r = gap(dir.path(), &sim, &real, pp, &[], out);
+        let named = names(&r);
+        assert!(matches!(named.first().map(String::as_str), Some("fov" | "view-top")), "{out}: named {named:?}");
+        let other = if named[0] == "fov" { "view-top" } else { "fov" };
+        let tied: Vec<&str> = r["steps"][0]["tied_with"].as_array().unwrap().iter().map(|t| t["effect"].as_str().unwrap()).collect();
+        assert!(tied.contains(&other), "{out}: {r:#}");
+        assert!(r["steps"][0]["evidence"].as_str().unwrap().contains("TIED with"), "{r:#}");
+        let md = std::fs::read_to_string(dir.path().join(out).join("report.md")).unwrap();
+        assert!(md.contains("**Tied:** step 1"), "{md}");
+    }
+}
+
 #[test]
 fn a_fit_at_the_edge_of_its_box_is_flagged() {
     let dir = tempdir();
@@ -403,7 +434,7 @@ fn the_report_has_the_schema_pictures_and_a_usable_model() {
     let step = r["steps"][0].as_object().unwrap();
     let mut k: Vec<&String> = step.keys().collect();
     k.sort();
-    assert_eq!(k, ["at_edge", "effect", "evidence", "gap_after", "gap_before", "params", "widened"]);
+    assert_eq!(k, ["at_edge", "effect", "evidence", "gap_after", "gap_before", "params", "tied_with", "widened"]);
     assert!(r["steps"][0]["at_edge"].as_array().unwrap().is_empty(), "a hidden fov is inside its box: {r:#}");
     assert!(r["steps"][0]["evidence"].as_str().unwrap().contains('%'));
     for f in ["report.md", "sensor.json", "compare.png", "rows-missing.png", "rows-height.png"] {
