@@ -54,7 +54,8 @@ d, stages = sys.argv[1], sys.argv[2:]
 expect = {
     "fov": {"fov", "startup", "view-top", "riser-blend", "floor-lift"},
     "occlusion": {"occlusion", "pit-fill", "mixed-cells", "floor-lift"},
-    "smoothing": {"smoothing", "drop-blend", "riser-blend", "hole-growth", "edge-holes", "rim-holes", "mixed-cells", "drop-holes"},
+    "smoothing": {"smoothing", "drop-blend", "riser-blend", "hole-growth", "edge-holes", "rim-holes", "mixed-cells", "drop-holes",
+                  "floor-lift"},
     "noise": {"noise"},
     "dropout": {"patch-dropout", "dropout"},
     "holes": {"hole-growth", "drop-holes", "edge-holes", "rim-holes", "dropout", "patch-dropout"},
