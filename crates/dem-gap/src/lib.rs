@@ -106,7 +106,8 @@ pub struct Step {
 /// subsample, that the data does not order behind it (the named effect
 /// does not remove more of the gap than the rival on all records and on
 /// each of two halves of them, [`named_ahead`]) and that explains the same
-/// part of the gap (on top of the named effect it removes little). Two effects of the
+/// part of the gap (on top of the named effect it removes little, and no
+/// later step names it). Two effects of the
 /// vocabulary can leave the same trace (the floor beyond a drop edge read
 /// part of the way up: the edge's occlusion or the stereo window's blend);
 /// the step then names one of the two, and says so.
@@ -630,15 +631,14 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
                 ));
                 continue;
             }
+            log(format!(
+                "step {}: {effect} and {rival} are not ordered by the data, and {rival} on top removes {on_top:.3} against {gain:.3} alone: tied, unless a later step names it",
+                step + 1
+            ));
             let gains = |h: &[f64]| before_h.iter().zip(h).map(|(b, a)| b - a).collect::<Vec<f64>>();
             tied_with.push(Tie { effect: *rival, gain, gain_on_top: on_top, gains_halves: gains(&rival_h), named_gains_halves: gains(named_h) });
         }
         let mut ev = evidence::evidence(&effect, &before_stats, &after_stats, &real_stats, gap_before, gap_after);
-        for t in &tied_with {
-            let sentence = tie_sentence(&effect, gap_before - gap_after, t);
-            log(format!("step {}: {sentence}", step + 1));
-            ev.push_str(&format!("; {sentence}"));
-        }
         if !at_edge.is_empty() {
             let w = if widened.is_empty() { String::new() } else { format!(" (widened: {})", widened.join(", ")) };
             ev.push_str(&format!(
@@ -664,6 +664,19 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
         current = (gap_after, after_stats);
         current_halves = after_halves;
         current_out = after_out;
+    }
+    // A rival a later step names (re-fitted with the named effect in place)
+    // explains a part of its own: both are in the model, and the step is
+    // no choice between them.
+    for k in 0..steps.len() {
+        let later: Vec<&str> = steps[k + 1..].iter().map(|st| st.effect.name()).collect();
+        let st = &mut steps[k];
+        st.tied_with.retain(|t| !later.contains(&t.effect.name()));
+        for t in &st.tied_with {
+            let sentence = tie_sentence(&st.effect, st.gap_before - st.gap_after, t);
+            log(format!("step {}: {sentence}", k + 1));
+            st.evidence.push_str(&format!("; {sentence}"));
+        }
     }
     // Polish: the greedy order can leave an early effect covering for one
     // named later (an occlusion fitted before startup hides rows startup
