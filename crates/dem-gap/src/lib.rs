@@ -102,8 +102,9 @@ pub struct Step {
     pub tied_with: Vec<Tie>,
 }
 
-/// A candidate that came close to the named effect on the fitting
-/// subsample, that the data does not order behind it (the named effect
+/// A candidate that came close to the named effect (on the fitting
+/// subsample and on all records, [`RIVAL_SHARE`]), that the data does
+/// not order behind it (the named effect
 /// does not remove more of the gap than the rival on all records and on
 /// each of two halves of them, [`named_ahead`]) and that explains the same
 /// part of the gap (on top of the named effect it removes little, and no
@@ -127,9 +128,9 @@ pub struct Tie {
 }
 
 /// A rival is checked when it removes at least this share of what the
-/// named effect removes on the fitting subsample. Only a bound on the
-/// work (one more model on all records per rival): whether the two are
-/// tied is decided on the records' halves.
+/// named effect removes on the fitting subsample, and is one only when it
+/// does so on all records too: a rival that removes next to nothing is no
+/// choice, however the halves fall.
 const RIVAL_SHARE: f64 = 0.8;
 
 /// A rival not ordered behind the named effect is tied with it when, added
@@ -616,13 +617,17 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
             let (before_h, named_h) = named_halves.get_or_insert_with(|| (half_gaps(&current_out), half_gaps(&after_out)));
             let rival_h = half_gaps(&out);
             let g = gap(&s, &real_stats);
+            let gain = gap_before - g;
+            if gain < RIVAL_SHARE * (gap_before - gap_after) {
+                log(format!("step {}: {effect} removes {:.3} of the gap on all records, {rival} {gain:.3}: no rival", step + 1, gap_before - gap_after));
+                continue;
+            }
             if named_ahead(gap_after, named_h, g, &rival_h) {
                 log(format!("step {}: {effect} is ahead of {rival} ({:.1}% on the subsample) on all records and on both halves", step + 1, 100.0 * share));
                 continue;
             }
             // Not ordered, but two parts of the gap of a like size are no
             // tie: the rival must explain the part the named effect does.
-            let gain = gap_before - g;
             let on_top = gap_after - gap(&measure(&trial.with(*rival), &sets.sim, paired, cfg.seed).1, &real_stats);
             if on_top >= SAME_PART * gain {
                 log(format!(
