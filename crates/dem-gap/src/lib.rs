@@ -131,7 +131,7 @@ pub struct Tie {
 /// named effect removes on the fitting subsample, and is one only when it
 /// does so on all records too: a rival that removes next to nothing is no
 /// choice, however the halves fall.
-const RIVAL_SHARE: f64 = 0.8;
+pub const RIVAL_SHARE: f64 = 0.8;
 
 /// A rival not ordered behind the named effect is tied with it when, added
 /// on top of it, it removes less than this share of what it removes alone:
@@ -140,7 +140,7 @@ const RIVAL_SHARE: f64 = 0.8;
 pub const SAME_PART: f64 = 0.5;
 
 /// Rivals checked per step, closest first.
-const MAX_RIVALS: usize = 2;
+pub const MAX_RIVALS: usize = 2;
 
 /// True when the named effect leaves a smaller gap than the rival on all
 /// records and on every half: the data orders the two. Gaps after each,
