@@ -315,7 +315,7 @@ pub fn markdown(o: &Outcome) -> String {
     if !tied.is_empty() {
         let _ = writeln!(
             s,
-            "**Tied:** {}. The named effect does not remove more of the gap than its rival on all records and on both halves of them, and on top of it the rival removes little: the two leave the same trace in these data, and the step names one of them, not the one.\n",
+            "**Tied:** {}. The rival removes nearly as much of the gap in the named effect's place, the data does not order the named effect ahead of it (on all records and on each half of them), and on top of it the rival removes little: the two leave the same trace in these data, and the step names one of them, not the one.\n",
             tied.join("; ")
         );
     }
