@@ -18,10 +18,10 @@
 //! is the closest of the vocabulary, not the right one. `tied_with`: close
 //! rivals the data does not order behind the named effect (`gain`: the gap
 //! the rival removes on all records in its place, `gain_on_top` added to
-//! it; the halves' gains, the rival's and the named effect's): the step names one of them, not the
-//! one. `refits`: effects
-//! re-fitted after the loop with all others in place (the final model,
-//! `sensor.json`, holds these parameters).
+//! it; the halves' gains, the rival's and the named effect's): the step
+//! names one of them, not the one. `refits`: effects re-fitted after the
+//! loop with all others in place (the final model, `sensor.json`, holds
+//! these parameters).
 //!
 //! ```text
 //! ```
@@ -77,7 +77,7 @@ pub fn report_json(o: &Outcome) -> Value {
         "terrain_mix": o.terrain_mix.map(|(kept, of)| json!({"drawn": kept, "from": of}))})
 }
 
-/// The rivals a step is tied with, as `name` list.
+/// The rivals a step is tied with, as a list of `name`s.
 fn tied_names(st: &crate::Step) -> String {
     st.tied_with.iter().map(|t| format!("`{}`", t.effect.name())).collect::<Vec<_>>().join(", ")
 }
