@@ -424,23 +424,15 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
     let split_floor = if paired { 0.0 } else { noise_floor(sets) };
     let times = sets.sim_time.as_deref();
     let floor_of = |m: &SensorModel| split_floor.max(draw_floor(m, &sets.sim, times, paired, cfg.seed));
-    // Unpaired, a gain must also hold on two replicates of the comparison
-    // at half the size, sim half k against real half k (whole sim when it
-    // is too small to split).
-    let halves: Vec<(Vec<usize>, Stats)> = if !paired && sets.real.len() >= 100 {
-        let mut sh = sim_halves(sets);
-        if sh.iter().any(Vec::is_empty) {
-            sh = [(0..sets.sim.len()).collect(), (0..sets.sim.len()).collect()];
-        }
-        sh.into_iter().zip(real_halves(sets)).map(|(s, r)| (s, distribution::stats(&pick(&sets.real, &r), None))).collect()
-    } else {
+    // Two halves of the comparison, sim half k against real half k.
+    // Unpaired, a gain must also hold on both, replicates at half the size
+    // (whole sim when it is too small to split); in both modes they tell a
+    // named effect from a close rival ([`Tie`]). Paired, sim record i is
+    // real record i's pair, and the halves are real's (whole runs when
+    // labelled).
+    let halves: Vec<(Vec<usize>, Stats)> = if sets.real.len() < 100 {
         Vec::new()
-    };
-    let half_stats = |out: &[Dem]| -> Vec<Stats> { halves.iter().map(|(s, _)| distribution::stats(&pick(out, s), None)).collect() };
-    // Halves that tell a named effect from a close rival ([`Tie`]):
-    // unpaired the sampling halves, paired two halves of the pairs (whole
-    // runs when labelled).
-    let order_halves: Vec<(Vec<usize>, Stats)> = if paired && sets.real.len() >= 100 {
+    } else if paired {
         real_halves(sets)
             .into_iter()
             .filter(|h| !h.is_empty())
@@ -450,17 +442,22 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
             })
             .collect()
     } else {
-        halves.clone()
+        let mut sh = sim_halves(sets);
+        if sh.iter().any(Vec::is_empty) {
+            sh = [(0..sets.sim.len()).collect(), (0..sets.sim.len()).collect()];
+        }
+        sh.into_iter().zip(real_halves(sets)).map(|(s, r)| (s, distribution::stats(&pick(&sets.real, &r), None))).collect()
     };
-    let half_gaps = |out: &[Dem]| -> Vec<f64> {
-        order_halves
+    let half_stats = |out: &[Dem]| -> Vec<Stats> {
+        halves
             .iter()
-            .map(|(s, r)| {
+            .map(|(s, _)| {
                 let sim_half = paired.then(|| pick(&sets.sim, s));
-                gap(&distribution::stats(&pick(out, s), sim_half.as_deref()), r)
+                distribution::stats(&pick(out, s), sim_half.as_deref())
             })
             .collect()
     };
+    let half_gaps = |per_half: &[Stats]| -> Vec<f64> { halves.iter().zip(per_half).map(|((_, r), s)| gap(s, r)).collect() };
     let measure = |m: &SensorModel, sim: &[Dem], paired: bool, seed: u64| measure_at(m, sim, times, paired, seed);
     // The fitting subsample (all records when few).
     let mut rng = ChaCha8Rng::seed_from_u64(dem_core::seeded::mix(cfg.seed ^ 0x5eed));
@@ -488,8 +485,7 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
     let mut model = cfg.start.clone();
     let (start_out, start_stats) = measure(&model, &sets.sim, paired, cfg.seed);
     let mut current_halves = half_stats(&start_out);
-    // The current model's output on all sim, for the rival checks' halves.
-    let mut current_out = start_out;
+    drop(start_out);
     let gap_initial = gap(&start_stats, &real_stats);
     let floor_initial = floor_of(&model);
     log(format!(
@@ -574,13 +570,10 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
                 continue;
             }
             let after_halves = half_stats(&out);
-            let on_halves: Vec<f64> = halves
-                .iter()
-                .zip(current_halves.iter().zip(&after_halves))
-                .map(|((_, r), (before, after))| gap(before, r) - gap(after, r))
-                .collect();
-            if on_halves.iter().all(|&x| x > 0.0) {
-                added = Some((*e, trial, g, s, after_halves, out));
+            let on_halves: Vec<f64> =
+                half_gaps(&current_halves).iter().zip(half_gaps(&after_halves)).map(|(before, after)| before - after).collect();
+            if paired || on_halves.iter().all(|&x| x > 0.0) {
+                added = Some((*e, trial, g, s, after_halves));
                 break;
             }
             let why = format!(
@@ -589,7 +582,7 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
             );
             log(format!("step {}: {e} not added: {why}", step + 1));
         }
-        let Some((effect, trial, gap_after, after_stats, after_halves, after_out)) = added else {
+        let Some((effect, trial, gap_after, after_stats, after_halves)) = added else {
             stop = match ranking.first() {
                 Some((e, r, _)) => format!(
                     "nothing explains the rest: the best candidate, {e}, removes {:.1}% of the gap {gap_before:.3} on the fitting subsample (needed on all data: more than {:.3}, {:.0}% of the gap, with the model's random draws and with others{})",
@@ -608,21 +601,19 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
         let named_share = ranking.iter().find(|r| r.0 == effect).map_or(0.0, |r| r.1);
         let past_named = ranking.iter().skip_while(|r| r.0 != effect).skip(1);
         let mut tied_with = Vec::new();
-        let mut named_halves: Option<(Vec<f64>, Vec<f64>)> = None;
         for (rival, share, _) in past_named.filter(|r| r.1 > 0.0 && r.1 >= RIVAL_SHARE * named_share).take(MAX_RIVALS) {
             let (out, s) = measure(&model.with(*rival), &sets.sim, paired, cfg.seed);
             if distribution::hides_too_much(&s, &real_stats).is_some() {
                 continue;
             }
-            let (before_h, named_h) = named_halves.get_or_insert_with(|| (half_gaps(&current_out), half_gaps(&after_out)));
-            let rival_h = half_gaps(&out);
+            let (before_h, named_h, rival_h) = (half_gaps(&current_halves), half_gaps(&after_halves), half_gaps(&half_stats(&out)));
             let g = gap(&s, &real_stats);
             let gain = gap_before - g;
             if gain < RIVAL_SHARE * (gap_before - gap_after) {
                 log(format!("step {}: {effect} removes {:.3} of the gap on all records, {rival} {gain:.3}: no rival", step + 1, gap_before - gap_after));
                 continue;
             }
-            if named_ahead(gap_after, named_h, g, &rival_h) {
+            if named_ahead(gap_after, &named_h, g, &rival_h) {
                 log(format!("step {}: {effect} is ahead of {rival} ({:.1}% on the subsample) on all records and on both halves", step + 1, 100.0 * share));
                 continue;
             }
@@ -641,7 +632,7 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
                 step + 1
             ));
             let gains = |h: &[f64]| before_h.iter().zip(h).map(|(b, a)| b - a).collect::<Vec<f64>>();
-            tied_with.push(Tie { effect: *rival, gain, gain_on_top: on_top, gains_halves: gains(&rival_h), named_gains_halves: gains(named_h) });
+            tied_with.push(Tie { effect: *rival, gain, gain_on_top: on_top, gains_halves: gains(&rival_h), named_gains_halves: gains(&named_h) });
         }
         let mut ev = evidence::evidence(&effect, &before_stats, &after_stats, &real_stats, gap_before, gap_after);
         if !at_edge.is_empty() {
@@ -668,7 +659,6 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
         model = trial;
         current = (gap_after, after_stats);
         current_halves = after_halves;
-        current_out = after_out;
     }
     // A rival a later step names (re-fitted with the named effect in place)
     // explains a part of its own: both are in the model, and the step is
