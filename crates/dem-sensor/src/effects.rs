@@ -8,7 +8,7 @@
 //!
 //! | effect | formula |
 //! |---|---|
-//! | `noise` | h += N(0, sigma^2), sigma = sigma0 + k d^2, d = distance from the nominal sensor mount [`NOISE_ORIGIN`] to the cell's centre at its height |
+//! | `noise` | h += sigma z, z a standard normal (Box-Muller, [`crate::draws`]), sigma = sigma0 + k d^2, d = distance from the nominal sensor mount [`NOISE_ORIGIN`] to the cell's centre at its height (clamped to +-[`NOISE_RANGE_HEIGHT`]) |
 //! | `dropout` | each valid cell missing with probability p |
 //! | `row-dropout` | each grid row wholly missing with probability p |
 //! | `occlusion` | in each column, a sensor at (x0, h) looks at the far edge of each cell's top; the cell is missing when the line of sight passes more than [`OCCLUSION_TOLERANCE`] below the top of a valid cell between, or when its top is more than that above the sensor and its valid neighbour toward the sensor is not more than that lower (a top above the sensor faces away from it; only the cell holding the face is seen) |
@@ -29,9 +29,9 @@
 //! | `riser-blend` | at a riser along x (valid cells of rows r and r + 1, row r + 1 higher by more than [`MIXED_JUMP`]), the cell at its foot reads h + u `foot` (h_n - h) and the cell on its top h + u `top` (h_n - h), u uniform per cell, h_n the other cell (a cell beside two risers takes the larger step); `foot`, `top` in [-1, 1], negative: away from the other surface: the stereo window over a riser's corners moves the points there along their rays, up or down the step as the view angle gives |
 //! | `mixed-cells` | a cell is the mean of its two half cells along x; at a jump of more than [`MIXED_JUMP`] between valid x-neighbours the step lies at s, uniform over the 10 cm between their centres (one draw per row boundary), and the higher surface reaches e = u r past it into the lower cell (u uniform per cell; r = `up` when the higher cell lies ahead, `down` when it lies behind, i.e. beyond a drop): a half of the lower cell whose centre the higher surface reaches reads the higher height, a half of the higher cell the lower surface reaches (the step lies in it, deeper than e) reads the lower height |
 
-use rand::Rng;
-use rand_chacha::ChaCha8Rng;
-use rand_distr::StandardNormal;
+use rand::RngCore;
+
+use crate::draws::Draws;
 use serde::{Deserialize, Serialize};
 
 use dem_core::format::{col_center_y, row_center_x, Dem, DemCells, COLS, GRID_ROWS};
@@ -39,6 +39,10 @@ use dem_core::format::{col_center_y, row_center_x, Dem, DemCells, COLS, GRID_ROW
 /// Where `noise` measures its range from: the nominal depth camera mount,
 /// 0.15 m ahead of C and 0.45 m above it (x, z in metres).
 pub const NOISE_ORIGIN: (f64, f64) = (0.15, 0.45);
+/// The heights (m, either sign) beyond which `noise`'s range stops
+/// growing: a cell 2 m above or below the robot is out of any DEM, and the
+/// bound keeps every draw finite however many noise effects a model has.
+pub const NOISE_RANGE_HEIGHT: f64 = 2.0;
 /// How far (m) the line of sight may pass below a cell's top before that
 /// cell hides what lies behind it: terrain within a centimetre of the ray
 /// grazes it rather than blocks it.
@@ -47,6 +51,10 @@ pub const OCCLUSION_TOLERANCE: f64 = 0.01;
 /// or a count): a DEM spans 2 m, so a larger value is a typo, and bounding
 /// it keeps every output finite.
 pub const MAX_PARAM: f64 = 10.0;
+/// Smallest `quantization` step (m): a tenth of a millimetre, finer than
+/// any depth camera resolves at a metre, and large enough that h / q stays
+/// far from float32's range.
+pub const MIN_QUANTUM: f64 = 1e-4;
 /// Half the edge of a grid cell (m).
 const HALF: f64 = 0.05;
 /// Blob slots per record of `patch-dropout`: at most this many blobs.
@@ -401,33 +409,67 @@ impl Effect {
             Effect::Occlusion { h, .. } if h <= 0.0 => Err(format!("sensor height h = {h} must be > 0")),
             Effect::Fov { x_min, x_max } if x_min >= x_max => Err(format!("x_min = {x_min} must be < x_max = {x_max}")),
             Effect::Smoothing { w } if !(w > 0.0 && w <= 1.0) => Err(format!("w = {w} must be in (0, 1]")),
-            Effect::Quantization { q } if q <= 0.0 => Err(format!("q = {q} must be > 0")),
+            Effect::Quantization { q } if q < MIN_QUANTUM => Err(format!("q = {q:e} must be >= {MIN_QUANTUM:e} m")),
             _ => Ok(()),
         }
     }
 
-    /// Apply to one DEM with this effect's random stream for the record.
-    /// Draws a fixed number of values whatever the parameters: 100 normals
-    /// (noise), 100 uniforms (dropout, edge-holes, rim-holes, pit-fill,
-    /// hole-growth, riser-blend), 200 uniforms (drop-blend, floor-lift, drop-holes), 20 uniforms
-    /// (row-dropout), 2 (startup), 3 per slot (patch-dropout), 19 + 95
-    /// (mixed-cells: a step position per row boundary, a reach per cell pair).
-    pub fn apply(&self, d: &mut Dem, rng: &mut ChaCha8Rng) {
-        self.apply_at(d, rng, None)
+    /// Uniforms this effect reads per record, whatever its parameters
+    /// (common random numbers for the fitter; the width of its slice of the
+    /// ONNX graph's `uniform` input): 100 (noise: 50 Box-Muller pairs, one
+    /// normal per cell; dropout, edge-holes, rim-holes, pit-fill,
+    /// hole-growth, riser-blend: one per cell), 200 (drop-blend,
+    /// floor-lift, drop-holes: two per cell), 20 (row-dropout: one per
+    /// row), 2 (startup), 3 per slot (patch-dropout), 19 x 6 (mixed-cells:
+    /// per row boundary a step position, then a reach per column), 0 (the
+    /// deterministic effects).
+    pub fn draws(&self) -> usize {
+        match self {
+            Effect::Noise { .. }
+            | Effect::Dropout { .. }
+            | Effect::EdgeHoles { .. }
+            | Effect::RimHoles { .. }
+            | Effect::PitFill { .. }
+            | Effect::HoleGrowth { .. }
+            | Effect::RiserBlend { .. } => GRID_ROWS * COLS,
+            Effect::DropBlend { .. } | Effect::FloorLift { .. } | Effect::DropHoles { .. } => 2 * GRID_ROWS * COLS,
+            Effect::RowDropout { .. } => GRID_ROWS,
+            Effect::Startup { .. } => 2,
+            Effect::PatchDropout { .. } => 3 * PATCH_SLOTS,
+            Effect::MixedCells { .. } => (GRID_ROWS - 1) * (1 + COLS),
+            Effect::Occlusion { .. }
+            | Effect::Fov { .. }
+            | Effect::ViewTop { .. }
+            | Effect::Smoothing { .. }
+            | Effect::Bias { .. }
+            | Effect::Quantization { .. } => 0,
+        }
     }
 
-    /// [`Effect::apply`] for a record `time` seconds into its run, when
+    /// Apply to one DEM, drawing this effect's uniforms from `rng`
+    /// ([`crate::draws::uniform`]).
+    pub fn apply(&self, d: &mut Dem, rng: &mut impl RngCore) {
+        let mut u = vec![0.0f32; self.draws()];
+        crate::draws::fill_uniform(rng, &mut u);
+        self.apply_drawn(d, &u, None)
+    }
+
+    /// Apply to one DEM with this effect's uniforms for the record (`u`,
+    /// [`Effect::draws`] of them) and the record's time in its run, when
     /// known (only `startup` uses it).
-    pub fn apply_at(&self, d: &mut Dem, rng: &mut ChaCha8Rng, time: Option<f64>) {
+    pub fn apply_drawn(&self, d: &mut Dem, u: &[f32], time: Option<f64>) {
+        assert_eq!(u.len(), self.draws(), "{}: wrong number of uniforms", self.name());
+        let rng = &mut Draws::new(u);
         match *self {
             Effect::Noise { sigma0, k } => {
                 let (sx, sz) = NOISE_ORIGIN;
+                let normals: [f64; GRID_ROWS * COLS] = rng.normals();
                 for r in 0..GRID_ROWS {
                     for c in 0..COLS {
-                        let z: f64 = rng.sample(StandardNormal);
+                        let z = normals[r * COLS + c];
                         if d.is_valid(r, c) {
                             let h = d.height(r, c) as f64;
-                            let (dx, dy, dz) = (row_center_x(r) - sx, col_center_y(c), h - sz);
+                            let (dx, dy, dz) = (row_center_x(r) - sx, col_center_y(c), h.clamp(-NOISE_RANGE_HEIGHT, NOISE_RANGE_HEIGHT) - sz);
                             let sigma = sigma0 + k * (dx * dx + dy * dy + dz * dz);
                             d.set_valid(r, c, (h + sigma * z) as f32);
                         }
@@ -538,8 +580,18 @@ impl Effect {
 
 impl std::fmt::Display for Effect {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let p: Vec<String> = self.params().iter().map(|(n, v)| format!("{n}={v:.4}")).collect();
+        let p: Vec<String> = self.params().iter().map(|(n, v)| format!("{n}={}", short_number(*v))).collect();
         write!(f, "{}({})", self.name(), p.join(", "))
+    }
+}
+
+/// `v` with four decimals, or in scientific notation when that would hide
+/// it (below 1e-3 or from 1e5 on).
+fn short_number(v: f64) -> String {
+    if v != 0.0 && (v.abs() < 1e-3 || v.abs() >= 1e5) {
+        format!("{v:.3e}")
+    } else {
+        format!("{v:.4}")
     }
 }
 
@@ -592,7 +644,7 @@ fn heights(d: &Dem) -> [[Option<f64>; COLS]; GRID_ROWS] {
 /// along x that the blobs leave valid. Measured on the emulator
 /// (`--no-dropout` against all stages): such cells move down, never up,
 /// and only where that lower neighbour was seen.
-fn drop_patches(d: &mut Dem, rng: &mut ChaCha8Rng, n: f64, radius: f64, a: f64) {
+fn drop_patches(d: &mut Dem, rng: &mut Draws, n: f64, radius: f64, a: f64) {
     let (ylo, yhi) = (col_center_y(COLS - 1) - HALF, col_center_y(0) + HALF);
     let (xlo, xhi) = (row_center_x(0) - HALF, row_center_x(GRID_ROWS - 1) + HALF);
     let mut blobs = Vec::with_capacity(PATCH_SLOTS);
@@ -655,7 +707,7 @@ fn occlude(d: &mut Dem, h: f64, x0: f64) {
 /// `edge-holes` (`sign` 1: a neighbour higher by more than g) and
 /// `rim-holes` (`sign` -1: lower by more than g): the cell is lost with
 /// probability p.
-fn jump_holes(d: &mut Dem, rng: &mut ChaCha8Rng, g: f64, p: f64, sign: f64) {
+fn jump_holes(d: &mut Dem, rng: &mut Draws, g: f64, p: f64, sign: f64) {
     let z = heights(d);
     for r in 0..GRID_ROWS {
         for c in 0..COLS {
@@ -673,7 +725,7 @@ fn jump_holes(d: &mut Dem, rng: &mut ChaCha8Rng, g: f64, p: f64, sign: f64) {
 /// as it comes in, so a lost lip makes no new drop. Two uniforms per row
 /// boundary and column (the last row's pair unused): whether the edge's
 /// cell is lost, and which of the two holds the edge.
-fn drop_holes(d: &mut Dem, rng: &mut ChaCha8Rng, p: f64) {
+fn drop_holes(d: &mut Dem, rng: &mut Draws, p: f64) {
     let z = heights(d);
     for r in 0..GRID_ROWS {
         for c in 0..COLS {
@@ -688,7 +740,7 @@ fn drop_holes(d: &mut Dem, rng: &mut ChaCha8Rng, p: f64) {
 
 /// `hole-growth`: missing neighbours are counted on the DEM as it comes in,
 /// so a hole grows by one ring of cells at most.
-fn grow_holes(d: &mut Dem, rng: &mut ChaCha8Rng, p: f64) {
+fn grow_holes(d: &mut Dem, rng: &mut Draws, p: f64) {
     let z = heights(d);
     for r in 0..GRID_ROWS {
         for c in 0..COLS {
@@ -709,7 +761,7 @@ fn grow_holes(d: &mut Dem, rng: &mut ChaCha8Rng, p: f64) {
 /// cell ahead) are left alone: the surface seen is continuous there (a
 /// corner, not a jump in range), and the emulator moves their cells by a
 /// fifth of the step at most.
-fn blend_drops(d: &mut Dem, rng: &mut ChaCha8Rng, p: f64, a: f64) {
+fn blend_drops(d: &mut Dem, rng: &mut Draws, p: f64, a: f64) {
     let z = heights(d);
     for r in 0..GRID_ROWS {
         for c in 0..COLS {
@@ -734,7 +786,7 @@ fn blend_drops(d: &mut Dem, rng: &mut ChaCha8Rng, p: f64, a: f64) {
 /// `floor-lift` (formula in the module table): heights are read on the DEM
 /// as it comes in, so a cell beyond two drops (a one-cell tread) moves
 /// toward the edge just behind it only.
-fn lift_floors(d: &mut Dem, rng: &mut ChaCha8Rng, x: f64, p: f64, a: f64) {
+fn lift_floors(d: &mut Dem, rng: &mut Draws, x: f64, p: f64, a: f64) {
     let z = heights(d);
     for (r, row) in z.iter().enumerate() {
         for (c, &zc) in row.iter().enumerate() {
@@ -750,7 +802,7 @@ fn lift_floors(d: &mut Dem, rng: &mut ChaCha8Rng, x: f64, p: f64, a: f64) {
 
 /// `riser-blend`: heights are read on the DEM as it comes in; a cell beside
 /// two risers (a one-cell tread) moves across the larger step only.
-fn blend_risers(d: &mut Dem, rng: &mut ChaCha8Rng, foot: f64, top: f64) {
+fn blend_risers(d: &mut Dem, rng: &mut Draws, foot: f64, top: f64) {
     let z = heights(d);
     for r in 0..GRID_ROWS {
         for c in 0..COLS {
@@ -787,7 +839,7 @@ fn neighbours4(r: usize, c: usize) -> impl Iterator<Item = (usize, usize)> {
 /// [`HALF`] / 2 from its cell's boundary, the other half's 3/2 [`HALF`].
 /// Where neighbours both reach a half, the higher surface wins, as in a
 /// map cell that keeps the higher of two heights.
-fn mix_cells(d: &mut Dem, rng: &mut ChaCha8Rng, up: f64, down: f64) {
+fn mix_cells(d: &mut Dem, rng: &mut Draws, up: f64, down: f64) {
     let z = heights(d);
     // Per half: the height the higher neighbour spills in, the lower one's.
     let mut raise = [[[f64::NEG_INFINITY; 2]; COLS]; GRID_ROWS];
@@ -795,7 +847,7 @@ fn mix_cells(d: &mut Dem, rng: &mut ChaCha8Rng, up: f64, down: f64) {
     let (near, far) = (0.5 * HALF, 1.5 * HALF);
     for b in 0..GRID_ROWS - 1 {
         // The step's distance past the boundary into row b (negative: into b + 1).
-        let s = (1.0 - 2.0 * rng.gen::<f64>()) * HALF;
+        let s = (1.0 - 2.0 * rng.gen()) * HALF;
         for c in 0..COLS {
             let u: f64 = rng.gen();
             let (Some(z0), Some(z1)) = (z[b][c], z[b + 1][c]) else { continue };
@@ -865,6 +917,7 @@ mod tests {
     use super::*;
     use dem_core::format::{empty_dem, FLAT_GROUND};
     use rand::SeedableRng;
+    use rand_chacha::ChaCha8Rng;
 
     fn flat() -> Dem {
         let mut d = empty_dem();

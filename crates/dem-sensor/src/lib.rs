@@ -13,6 +13,7 @@
 //!   output is identical for any thread count or chunking.
 //! - [`apply_stream`]: a whole NPY stream, chunk by chunk, in parallel.
 
+pub mod draws;
 pub mod effects;
 
 use rand::SeedableRng;
@@ -22,10 +23,14 @@ use serde::{Deserialize, Serialize};
 
 use dem_core::error::{DemError, Result};
 use dem_core::format::Dem;
-use dem_core::npy::transform;
+use dem_core::npy::transform_checked;
 use dem_core::seeded::mix;
 
 pub use effects::Effect;
+
+/// Most effects a model may have: a few of each of the vocabulary's, and
+/// a bound on the work per record and on how far heights can move.
+pub const MAX_EFFECTS: usize = 64;
 
 /// An ordered list of effects; applied first to last.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
@@ -57,6 +62,13 @@ impl SensorModel {
     /// Parse and check a model from JSON text.
     pub fn from_json(text: &str) -> std::result::Result<Self, String> {
         let m: SensorModel = serde_json::from_str(text).map_err(|e| format!("not a sensor model: {e}"))?;
+        if m.effects.len() > MAX_EFFECTS {
+            return Err(format!(
+                "{} effects: a sensor model has at most {MAX_EFFECTS} (the vocabulary has {}; more is a generated file gone wrong)",
+                m.effects.len(),
+                effects::NAMES.len()
+            ));
+        }
         for (i, e) in m.effects.iter().enumerate() {
             e.check().map_err(|r| format!("effect {i} ({}): {r}", e.name()))?;
         }
@@ -105,16 +117,51 @@ impl SensorModel {
         self.apply_at(d, seed, index, None)
     }
 
+    /// Uniforms per record of the whole model ([`Effect::draws`] summed):
+    /// the width `K` of its ONNX graph's `uniform` input.
+    pub fn draws(&self) -> usize {
+        self.effects.iter().map(Effect::draws).sum()
+    }
+
+    /// The uniforms of record `index` under `seed`, effect after effect in
+    /// the model's order, into `out` ([`SensorModel::draws`] long). Each
+    /// effect's come from its own stream ([`effect_rng`]).
+    pub fn uniforms(&self, seed: u64, index: u64, out: &mut [f32]) {
+        assert_eq!(out.len(), self.draws(), "uniforms: wrong length");
+        let mut seen: std::collections::HashMap<&'static str, u64> = std::collections::HashMap::new();
+        let mut at = 0;
+        for e in &self.effects {
+            let occurrence = seen.entry(e.name()).or_insert(0);
+            let n = e.draws();
+            if n > 0 {
+                let mut rng = effect_rng(seed, e, *occurrence, index);
+                draws::fill_uniform(&mut rng, &mut out[at..at + n]);
+            }
+            *occurrence += 1;
+            at += n;
+        }
+    }
+
+    /// Apply every effect to `d` with the record's uniforms `u` (laid out
+    /// as [`SensorModel::uniforms`] writes them) and its time in its run
+    /// when known (finite; `startup` uses it): what the ONNX graph computes.
+    pub fn apply_drawn(&self, d: &mut Dem, u: &[f32], time: Option<f64>) {
+        assert_eq!(u.len(), self.draws(), "apply_drawn: wrong number of uniforms");
+        let time = time.filter(|t| t.is_finite());
+        let mut at = 0;
+        for e in &self.effects {
+            let n = e.draws();
+            e.apply_drawn(d, &u[at..at + n], time);
+            at += n;
+        }
+    }
+
     /// [`SensorModel::apply`] for a record `time` seconds into its run, when
     /// known (labels' `time`; `startup` uses it).
     pub fn apply_at(&self, d: &mut Dem, seed: u64, index: u64, time: Option<f64>) {
-        let mut seen: Vec<&'static str> = Vec::with_capacity(self.effects.len());
-        for e in &self.effects {
-            let occurrence = seen.iter().filter(|n| **n == e.name()).count() as u64;
-            seen.push(e.name());
-            let mut rng = effect_rng(seed, e, occurrence, index);
-            e.apply_at(d, &mut rng, time);
-        }
+        let mut u = vec![0.0f32; self.draws()];
+        self.uniforms(seed, index, &mut u);
+        self.apply_drawn(d, &u, time);
     }
 
     /// Apply the model to records whose stream indices start at `first`, in
@@ -173,6 +220,18 @@ impl SensorModel {
     }
 }
 
+/// Refuse labels (`(path, rows)`) that do not have exactly one row per
+/// record of a stream of `records`: one row more is as wrong as one less.
+pub fn labels_cover(labels: Option<(&str, usize)>, records: u64) -> Result<()> {
+    match labels {
+        Some((path, rows)) if rows as u64 != records => Err(DemError::input(
+            path,
+            format!("{rows} labels for a stream of {records} records (one row per record, in stream order)"),
+        )),
+        _ => Ok(()),
+    }
+}
+
 /// Apply `model` to the NPY stream `input`, writing `output` (`-` for
 /// stdin/stdout), one chunk at a time. Returns the records written.
 pub fn apply_stream(model: &SensorModel, input: &str, output: &str, seed: u64, progress: impl Fn(u64)) -> Result<u64> {
@@ -206,11 +265,16 @@ pub fn apply_shard(
     times: Option<(&str, &[f64])>,
     progress: impl Fn(u64),
 ) -> Result<u64> {
-    let (_, written) = transform(input, output, |first, chunk| {
-        model.apply_chunk(chunk, seed, first_index, first, times)?;
-        progress(chunk.len() as u64);
-        Ok(())
-    })?;
+    let (_, written) = transform_checked(
+        input,
+        output,
+        |first, chunk| {
+            model.apply_chunk(chunk, seed, first_index, first, times)?;
+            progress(chunk.len() as u64);
+            Ok(())
+        },
+        |read| labels_cover(times.map(|(p, t)| (p, t.len())), read),
+    )?;
     Ok(written)
 }
 
