@@ -1,10 +1,10 @@
 #!/usr/bin/env python3
 """Turn a `dem-synth --emit-maps` folder into ROS recordings of a tracked
 robot running elevation_mapping: grid_map_msgs/GridMap messages, TF and
-joint states, as a ROS 1 bag or a ROS 2 MCAP recording, for testing
+joint states, as a ROS 1 bag or a ROS 2 recording (MCAP or SQLite), for testing
 dem-import.
 
-    maps_to_bag.py DIR --out PATH --format ros1|mcap [--verify] ...
+    maps_to_bag.py DIR --out PATH --format ros1|mcap|db3 [--verify] ...
 
 Reads DIR/maps.npy ((M, 2, n, n) float32: elevation and variance in
 grid_map's unwrapped index order) and DIR/maps.csv (window centre and robot
@@ -47,7 +47,11 @@ each TF link has its own connection on /tf, callerid /odometry and
 /robot_state_publisher, as two publishers give). mcap: a rosbag2 folder PATH
 holding PATH/metadata.yaml and PATH/<name of PATH>.mcap (rosbags.rosbag2.Writer,
 version 9, storage MCAP; --compression zstd compresses the MCAP chunks, lz4
-too, through the writer's chunk compressor, none leaves them plain).
+too, through the writer's chunk compressor, none leaves them plain). db3:
+the same messages (CDR) in a rosbag2 folder with SQLite storage, as ROS 2
+before Iron records by default: PATH/metadata.yaml and PATH/<name of
+PATH>.db3 (rosbags' SQLite writer, Python's sqlite3: tables topics and
+messages, an index on the timestamp; --compression none).
 
 The message definitions are grid_map's own (ANYbotics/grid_map, ROS 1
 master/noetic and ROS 2 humble differ: the header moved from GridMapInfo to
@@ -175,13 +179,13 @@ def log(msg: str) -> None:
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
     p = argparse.ArgumentParser(
         prog="maps_to_bag.py",
-        description="Write a dem-synth --emit-maps folder as a ROS 1 bag or a ROS 2 MCAP recording "
+        description="Write a dem-synth --emit-maps folder as a ROS 1 bag or a ROS 2 recording (MCAP or SQLite) "
         "of grid_map_msgs/GridMap, /tf and /joint_states.",
         epilog="Example: maps_to_bag.py run/ --out run.bag --format ros1 --verify",
     )
     p.add_argument("dir", type=Path, help="dem-synth --out folder made with --emit-maps")
-    p.add_argument("--out", type=Path, required=True, help="the .bag file (ros1) or rosbag2 folder (mcap) to create")
-    p.add_argument("--format", choices=("ros1", "mcap"), required=True)
+    p.add_argument("--out", type=Path, required=True, help="the .bag file (ros1) or rosbag2 folder (mcap, db3) to create")
+    p.add_argument("--format", choices=("ros1", "mcap", "db3"), required=True)
     p.add_argument("--sequences", help="runs to write, comma-separated (default: all)")
     p.add_argument("--stamp0", type=int, default=1_700_000_000, help="stamp of run 0 at time 0 (whole seconds)")
     p.add_argument("--compression", choices=("none", "bz2", "lz4", "zstd"), default="none")
@@ -217,7 +221,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
             a.sequences = {int(s) for s in a.sequences.split(",")}
         except ValueError:
             p.error(f"--sequences {a.sequences!r} is not a comma-separated list of run indices")
-    allowed = {"ros1": ("none", "bz2", "lz4"), "mcap": ("none", "zstd", "lz4")}[a.format]
+    allowed = {"ros1": ("none", "bz2", "lz4"), "mcap": ("none", "zstd", "lz4"), "db3": ("none",)}[a.format]
     if a.compression not in allowed:
         p.error(f"--compression {a.compression} is not available for {a.format} (one of {', '.join(allowed)})")
     if a.stamp0 < 0:
@@ -522,11 +526,13 @@ def write_ros1(a, ts, planned: list[Planned]) -> None:
 
 
 def write_mcap(a, ts, planned: list[Planned]) -> None:
+    """A rosbag2 folder: MCAP storage (--format mcap) or SQLite (--format db3)."""
     from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.rosbag2.enums import CompressionFormat, CompressionMode
 
-    w = Writer(a.out, version=9, storage_plugin=StoragePlugin.MCAP)
+    plugin = StoragePlugin.SQLITE3 if a.format == "db3" else StoragePlugin.MCAP
+    w = Writer(a.out, version=9, storage_plugin=plugin)
     if a.compression == "zstd":
         w.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
 
@@ -816,7 +822,7 @@ def verify(a, rows: list[MapRow], maps: np.ndarray, n: int, expected: dict, plan
 
 
 def output_file(a) -> Path:
-    return a.out if a.format == "ros1" else a.out / f"{a.out.name}.mcap"
+    return a.out if a.format == "ros1" else a.out / f"{a.out.name}.{a.format}"
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,4 +1,4 @@
-//! dem-import: robot recordings (ROS 1 bags, ROS 2 MCAP) of grid_map
+//! dem-import: robot recordings (ROS 1 bags, ROS 2 MCAP and SQLite) of grid_map
 //! elevation maps into the contract's DEM streams.
 //!
 //! Per recording, two passes over the file, each in bounded memory:
@@ -35,7 +35,7 @@ use window::Resampling;
 /// A validated request.
 #[derive(Clone, Debug)]
 pub struct ImportConfig {
-    /// Recordings: `.bag` or `.mcap` files, or ROS 2 bag folders.
+    /// Recordings: `.bag`, `.mcap` or `.db3` files, or ROS 2 bag folders.
     pub recordings: Vec<PathBuf>,
     /// Output folder (created if missing).
     pub out: PathBuf,

@@ -9,8 +9,8 @@ use dem_core::Terrain;
 use dem_import::window::Resampling;
 use dem_import::{import, summary, ImportConfig};
 
-/// Import robot recordings, ROS 1 bags (.bag) and ROS 2 MCAP (.mcap files
-/// or bag folders), in which elevation mapping published
+/// Import robot recordings, ROS 1 bags (.bag) and ROS 2 bags (.mcap or
+/// SQLite .db3 files, or bag folders), in which elevation mapping published
 /// grid_map_msgs/GridMap messages, into the DEM contract: for each map, the
 /// robot's pose at the map's stamp from TF (the chain from the map's frame
 /// to --frame, interpolated), the 20 x 5 window of 10 cm cells in the
@@ -33,7 +33,7 @@ use dem_import::{import, summary, ImportConfig};
   dem-import --out dems/ --keep-going recordings/*.bag && dem-cat dems/*.npy -o real.npy
   dem-render dems/run1.npy --start 40 --count 24 -o run1.png")]
 struct Args {
-    /// Recordings: .bag or .mcap files, or ROS 2 bag folders (of .mcap files).
+    /// Recordings: .bag, .mcap or .db3 files, or ROS 2 bag folders (of .mcap or .db3 files).
     #[arg(required = true)]
     recordings: Vec<PathBuf>,
     /// Output folder (created if missing).

@@ -174,7 +174,7 @@ fn bad_recordings_are_named_skipped_and_counted() {
     let mfile = std::fs::read_dir(&mdir).unwrap().flatten().map(|e| e.path()).find(|p| p.extension().is_some_and(|x| x == "mcap")).unwrap();
     truncated_keeps_the_maps_before_the_break(&mfile, &dir.path().join("mcut.mcap"), &want);
 
-    // Not a recording at all, and a ROS 2 SQLite bag: named, not imported.
+    // Not a recording at all, and a .db3 that is SQLite's magic alone: named, not imported.
     let junk = dir.path().join("junk.bag");
     std::fs::write(&junk, b"hello").unwrap();
     let o = import(&dir.path().join("o6"), &[], &[&junk]);
@@ -182,7 +182,7 @@ fn bad_recordings_are_named_skipped_and_counted() {
     assert!(stderr(&o).contains("junk.bag: not imported") && stderr(&o).contains("not a ROS 1 bag"), "{}", stderr(&o));
     let db3 = dir.path().join("x.db3");
     std::fs::write(&db3, b"SQLite format 3\0").unwrap();
-    assert!(stderr(&import(&dir.path().join("o7"), &[], &[&db3])).contains("convert"));
+    assert!(stderr(&import(&dir.path().join("o7"), &[], &[&db3])).contains("x.db3: not imported"));
 }
 
 /// `whole` cut to 60 % as `cut`: exit 1, the break named with its byte

@@ -1,10 +1,12 @@
 //! Recording containers, read front to back in bounded memory: ROS 1 bags
-//! ([`ros1`]) and MCAP files ([`mcap`], also the `.mcap` files of a ROS 2
-//! bag folder). Both give the same events: each message with its
+//! ([`ros1`]), MCAP files ([`mcap`], also the `.mcap` files of a ROS 2
+//! bag folder) and ROS 2 SQLite bags ([`sqlite`], `.db3` files, in
+//! timestamp order). All give the same events: each message with its
 //! connection, or a part of the file that had to be skipped.
 
 pub mod mcap;
 pub mod ros1;
+pub mod sqlite;
 
 use std::path::{Path, PathBuf};
 
@@ -71,42 +73,40 @@ pub enum Kind {
     Ros1Bag,
     /// One `.mcap` file.
     Mcap,
+    /// One `.db3` file (rosbag2's SQLite storage).
+    Sqlite,
 }
 
-/// The files of a recording given on the command line: a `.bag` or `.mcap`
-/// file, or a ROS 2 bag folder (its `.mcap` files in split order).
+/// The files of a recording given on the command line: a `.bag`, `.mcap`
+/// or `.db3` file, or a ROS 2 bag folder (its `.mcap` or `.db3` files in
+/// split order).
 pub fn files_of(path: &Path) -> Result<Vec<(Kind, PathBuf)>, String> {
     if path.is_dir() {
-        let mut mcaps = Vec::new();
-        let mut db3 = false;
+        let mut parts = Vec::new();
         let entries = std::fs::read_dir(path).map_err(|e| format!("cannot list the folder: {e}"))?;
         for e in entries.flatten() {
             let p = e.path();
             match p.extension().and_then(|x| x.to_str()) {
-                Some("mcap") => mcaps.push(p),
-                Some("db3") => db3 = true,
+                Some("mcap") => parts.push((Kind::Mcap, p)),
+                Some("db3") => parts.push((Kind::Sqlite, p)),
                 _ => {}
             }
         }
-        if mcaps.is_empty() {
-            return Err(if db3 {
-                "a ROS 2 bag in SQLite storage (.db3): convert it to MCAP first (`ros2 bag convert` or `rosbags-convert`)".into()
-            } else {
-                "a folder without .mcap files (a ROS 2 bag folder holds metadata.yaml and NAME_0.mcap, ...)".into()
-            });
+        if parts.is_empty() {
+            return Err("a folder without .mcap or .db3 files (a ROS 2 bag folder holds metadata.yaml and NAME_0.mcap or NAME_0.db3, ...)".into());
         }
         // rosbag2 splits as NAME_0.mcap, NAME_1.mcap, ..., NAME_10.mcap: by number.
         let split_no = |p: &PathBuf| {
             p.file_stem().and_then(|s| s.to_str()).and_then(|s| s.rsplit('_').next()).and_then(|n| n.parse::<u64>().ok())
         };
-        mcaps.sort_by(|a, b| split_no(a).cmp(&split_no(b)).then_with(|| a.cmp(b)));
-        return Ok(mcaps.into_iter().map(|p| (Kind::Mcap, p)).collect());
+        parts.sort_by(|a, b| split_no(&a.1).cmp(&split_no(&b.1)).then_with(|| a.1.cmp(&b.1)));
+        return Ok(parts);
     }
     match path.extension().and_then(|x| x.to_str()) {
         Some("bag") => Ok(vec![(Kind::Ros1Bag, path.to_path_buf())]),
         Some("mcap") => Ok(vec![(Kind::Mcap, path.to_path_buf())]),
-        Some("db3") => Err("ROS 2 SQLite storage (.db3) is not read: convert the bag to MCAP first (`ros2 bag convert` or `rosbags-convert`)".into()),
-        _ => Err("not a recording dem-import reads (a ROS 1 .bag, a .mcap, or a ROS 2 bag folder of .mcap files)".into()),
+        Some("db3") => Ok(vec![(Kind::Sqlite, path.to_path_buf())]),
+        _ => Err("not a recording dem-import reads (a ROS 1 .bag, a .mcap or .db3, or a ROS 2 bag folder of them)".into()),
     }
 }
 
@@ -116,5 +116,6 @@ pub fn read(kind: Kind, path: &Path, on_event: &mut dyn FnMut(Event<'_>), on_byt
     match kind {
         Kind::Ros1Bag => ros1::read(path, on_event, on_bytes),
         Kind::Mcap => mcap::read(path, on_event, on_bytes),
+        Kind::Sqlite => sqlite::read(path, on_event, on_bytes),
     }
 }
