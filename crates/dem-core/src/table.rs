@@ -108,6 +108,19 @@ pub fn open_input(path: &str) -> Result<Box<dyn std::io::Read>> {
 /// Read every row of a CSV at `path` (`-` for stdin), checking that the
 /// header starts with `required` columns.
 pub fn read_rows<T: DeserializeOwned>(path: &str, required: &[&str]) -> Result<Vec<T>> {
+    let mut out = Vec::new();
+    for_each_row(path, required, |_, row| {
+        out.push(row);
+        Ok(())
+    })?;
+    Ok(out)
+}
+
+/// Read a CSV at `path` (`-` for stdin) a row at a time, checking that the
+/// header starts with `required` columns, and hand each row to `f` with its
+/// line number (of the row's first line), so a caller's own checks of a
+/// row's values can name the line as the reader's do.
+pub fn for_each_row<T: DeserializeOwned>(path: &str, required: &[&str], mut f: impl FnMut(u64, T) -> Result<()>) -> Result<()> {
     let src = open_input(path)?;
     let mut rdr = csv::ReaderBuilder::new().trim(csv::Trim::All).from_reader(src);
     let bad = |line: u64, reason: String| DemError::Table { path: path.into(), line, reason };
@@ -120,19 +133,21 @@ pub fn read_rows<T: DeserializeOwned>(path: &str, required: &[&str]) -> Result<V
             ));
         }
     }
-    let mut out = Vec::new();
-    for row in rdr.deserialize() {
-        let row: T = row.map_err(|e| {
-            let line = e.position().map_or(0, |p| p.line());
-            let reason = match e.kind() {
-                csv::ErrorKind::Deserialize { err, .. } => err.to_string(),
-                _ => e.to_string(),
-            };
-            bad(line, reason)
-        })?;
-        out.push(row);
+    let csv_err = |e: csv::Error| {
+        let line = e.position().map_or(0, |p| p.line());
+        let reason = match e.kind() {
+            csv::ErrorKind::Deserialize { err, .. } => err.to_string(),
+            _ => e.to_string(),
+        };
+        bad(line, reason)
+    };
+    let mut rec = csv::StringRecord::new();
+    while rdr.read_record(&mut rec).map_err(csv_err)? {
+        let line = rec.position().map_or(0, |p| p.line());
+        let row: T = rec.deserialize(Some(&headers)).map_err(csv_err)?;
+        f(line, row)?;
     }
-    Ok(out)
+    Ok(())
 }
 
 /// Write rows as CSV to `path` (`-` for stdout), atomically for files.
@@ -274,5 +289,19 @@ mod tests {
         assert_eq!(read_pairs(&p).unwrap()[0].split, None);
         std::fs::write(&p, "sim_index,real_index\n3,-1\n").unwrap();
         assert!(read_pairs(&p).unwrap_err().to_string().contains("line 2"));
+    }
+
+    #[test]
+    fn rows_come_with_the_line_they_start_on() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("i.csv").to_string_lossy().into_owned();
+        std::fs::write(&p, "index,note\n4,\"two\nlines\"\n7,x\n").unwrap();
+        let mut seen = Vec::new();
+        for_each_row(&p, &["index"], |line, r: IndexRow| {
+            seen.push((line, r.index));
+            Ok(())
+        })
+        .unwrap();
+        assert_eq!(seen, [(2, 4), (4, 7)]);
     }
 }

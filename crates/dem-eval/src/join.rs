@@ -7,7 +7,7 @@ use clap::Args;
 use dem_core::cli;
 use dem_core::eval::forms::{read_table, write_pivot, write_table, Format};
 use dem_core::eval::{check_table, Measure, TableRow};
-use dem_core::output;
+use dem_core::{output, DemError};
 
 /// Arguments of `dem-eval join`.
 #[derive(Args)]
@@ -38,7 +38,9 @@ pub fn run(a: JoinArgs) -> anyhow::Result<()> {
     output::check_outputs(&a.tables.iter().map(String::as_str).collect::<Vec<_>>(), &[&a.output])?;
     let mut rows: Vec<TableRow> = Vec::new();
     for t in &a.tables {
-        rows.extend(read_table(t)?);
+        let table = read_table(t)?;
+        check_finite(t, &table)?;
+        rows.extend(table);
     }
     let mut rows = check_table(&a.tables.join(" + "), rows)?;
     if let Some(t) = &a.terrain {
@@ -52,6 +54,37 @@ pub fn run(a: JoinArgs) -> anyhow::Result<()> {
     } else {
         Ok(write_pivot(&a.output, &rows, &a.pivot, a.format)?)
     }
+}
+
+/// Refuse a table row whose pair errors are not finite (the table reader
+/// refuses NaN, negative numbers and non-finite measures; this adds an
+/// infinity, which no evaluation writes), naming the file, the row's line
+/// (when the file can be read again: not on stdin) and the column.
+pub fn check_finite(path: &str, rows: &[TableRow]) -> Result<(), DemError> {
+    for r in rows {
+        let errors = [("lowest", r.lowest), ("highest", r.highest), ("mean", r.mean), ("median", r.median)];
+        if let Some((column, v)) = errors.iter().find(|(_, v)| !v.is_finite()) {
+            let reason = format!("column {column}: {v} is not a finite number (row {}/{})", r.method, r.terrain);
+            return Err(match line_of(path, &r.method, &r.terrain) {
+                Some(line) => DemError::Table { path: path.into(), line, reason },
+                None => DemError::input(path, reason),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// The line of a CSV table that holds the row (method, terrain).
+fn line_of(path: &str, method: &str, terrain: &str) -> Option<u64> {
+    if path == "-" {
+        return None;
+    }
+    let text = std::fs::read_to_string(path).ok()?;
+    let at = text.lines().position(|l| {
+        let mut f = l.split(',').map(|f| f.trim().trim_matches('"'));
+        f.next() == Some(method) && f.next() == Some(terrain)
+    })?;
+    Some(at as u64 + 1)
 }
 
 fn measure(s: &str) -> Result<Measure, String> {

@@ -127,6 +127,10 @@ fn main() -> ExitCode {
         match a.cmd {
             Some(Cmd::Compare { baseline, current, tolerance, height_tolerance, rough_tolerance, gap_tolerance, format }) => {
                 dem_core::output::check_outputs(&[&baseline, &current], &["-"])?;
+                // Infinite errors are refused as join refuses them (stdin is read once, by compare).
+                for t in [&baseline, &current].into_iter().filter(|t| *t != "-") {
+                    join::check_finite(t, &eval::forms::read_table(t)?)?;
+                }
                 let tol = eval::Tolerances { pair: tolerance, height_cm: height_tolerance, rough_cm: rough_tolerance, gap: gap_tolerance };
                 compare::run(&baseline, &current, &tol, format)
             }

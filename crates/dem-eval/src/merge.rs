@@ -152,8 +152,20 @@ pub fn run(a: MergeArgs) -> anyhow::Result<()> {
         }
     }
     let mut rows: BTreeMap<Option<Terrain>, RowAcc> = BTreeMap::new();
+    // The counts each row pools, added checked: an overflow is an error,
+    // never a wrapped count.
+    let mut counts: BTreeMap<Option<Terrain>, [u64; 5]> = BTreeMap::new();
     for r in &recs {
         for key in keys(r, a.table.by.is_some()) {
+            let total = counts.entry(key).or_default();
+            let add = [r.height, r.rough_across, r.rough_along, r.real_rough_across, r.real_rough_along].map(|s| s.count);
+            for (k, (t, n)) in total.iter_mut().zip(add).enumerate() {
+                *t = t.checked_add(n).ok_or_else(|| {
+                    let column = ["height_n", "rough_across_n", "rough_along_n", "real_rough_across_n", "real_rough_along_n"][k];
+                    let row = key.map_or(dem_core::eval::ALL, |t| t.as_str());
+                    DemError::input(a.records.join(", "), format!("the {column} of the {row} row add up past {}", u64::MAX))
+                })?;
+            }
             rows.entry(key).or_default().add(r);
         }
     }

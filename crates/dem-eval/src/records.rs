@@ -13,6 +13,7 @@
 use std::io::Write;
 
 use dem_core::eval::{RecordResult, Sum};
+use dem_core::format::{COLS, GRID_CELLS, GRID_ROWS};
 use dem_core::output::AtomicOutput;
 use dem_core::DemError;
 use serde::Deserialize;
@@ -68,6 +69,7 @@ struct Row {
     real_index: u64,
     error: f64,
     terrain: Option<String>,
+    height_cm: Option<f64>,
     height_sum_m: f64,
     height_n: u64,
     rough_across_sum_m: f64,
@@ -80,33 +82,98 @@ struct Row {
     real_rough_along_n: u64,
 }
 
-/// Read a records CSV (`-` for stdin). A file of an older dem-eval, without
-/// the sums, is refused with the reason.
-pub fn read(path: &str) -> anyhow::Result<Vec<RecordResult>> {
-    let rows: Vec<Row> = dem_core::table::read_rows(path, &["sim_index", "real_index", "error", "terrain", "height_cm", "height_sum_m"])
-        .map_err(|e| match e {
-            DemError::Table { line: 1, .. } => DemError::input(
-                path,
-                "is not a per-record results CSV of this dem-eval (its header must be that of --records; \
-                 files of older versions lack the sums a merge needs: run the shard again)",
-            ),
-            e => e,
-        })?;
-    let sum = |sum: f64, count: u64| Sum { sum, count };
-    Ok(rows
-        .into_iter()
-        .map(|r| RecordResult {
-            sim_index: r.sim_index,
-            real_index: r.real_index,
-            error: r.error,
-            terrain: r.terrain.filter(|t| !t.is_empty()),
-            height: sum(r.height_sum_m, r.height_n),
-            rough_across: sum(r.rough_across_sum_m, r.rough_across_n),
-            rough_along: sum(r.rough_along_sum_m, r.rough_along_n),
-            real_rough_across: sum(r.real_rough_across_sum_m, r.real_rough_across_n),
-            real_rough_along: sum(r.real_rough_along_sum_m, r.real_rough_along_n),
+/// The largest pair error two records of the contract can give: every
+/// cell's height and mask as far apart as two finite `f32` can be,
+/// `(2 * f32::MAX)^2 * 2` (about 9.3e77). A larger one is not a result.
+pub const MAX_ERROR: f64 = 1e78;
+
+/// The largest sum of absolute height differences (m) a record can give:
+/// 100 cells, each at most `2 * f32::MAX` (about 6.8e40).
+pub const MAX_SUM_M: f64 = 1e41;
+
+/// The most differences each sum of a record counts: the cells of the
+/// grid (height), neighbours across (4 per row) and along (19 rows of 5).
+const MAX_COUNTS: [u64; 5] = [
+    GRID_CELLS as u64,
+    (GRID_ROWS * (COLS - 1)) as u64,
+    ((GRID_ROWS - 1) * COLS) as u64,
+    (GRID_ROWS * (COLS - 1)) as u64,
+    ((GRID_ROWS - 1) * COLS) as u64,
+];
+
+/// The sum columns of a records CSV, in [`HEADER`] order.
+const SUM_NAMES: [&str; 5] = ["height", "rough_across", "rough_along", "real_rough_across", "real_rough_along"];
+
+impl Row {
+    /// The result this row holds, once every value is one a record can
+    /// have: finite, not negative, within what two DEMs of the contract
+    /// give, counts within the cells. Else an error naming the line and
+    /// the column.
+    fn result(self, path: &str, line: u64) -> Result<RecordResult, DemError> {
+        let bad = |column: &str, reason: String| DemError::Table { path: path.into(), line, reason: format!("column {column}: {reason}") };
+        let number = |column: &str, v: f64, max: f64| {
+            if v.is_finite() && (0.0..=max).contains(&v) {
+                Ok(())
+            } else {
+                Err(bad(column, format!("{v} is not a finite number in 0..={max:e}")))
+            }
+        };
+        number("error", self.error, MAX_ERROR)?;
+        if let Some(h) = self.height_cm {
+            number("height_cm", h, 100.0 * MAX_SUM_M)?;
+        }
+        let raw = [
+            (self.height_sum_m, self.height_n),
+            (self.rough_across_sum_m, self.rough_across_n),
+            (self.rough_along_sum_m, self.rough_along_n),
+            (self.real_rough_across_sum_m, self.real_rough_across_n),
+            (self.real_rough_along_sum_m, self.real_rough_along_n),
+        ];
+        let mut sums = [Sum::default(); 5];
+        for (k, ((sum, count), name)) in raw.into_iter().zip(SUM_NAMES).enumerate() {
+            number(&format!("{name}_sum_m"), sum, MAX_SUM_M)?;
+            if count > MAX_COUNTS[k] {
+                return Err(bad(&format!("{name}_n"), format!("{count} is more than the {} a record has", MAX_COUNTS[k])));
+            }
+            if count == 0 && sum != 0.0 {
+                return Err(bad(&format!("{name}_sum_m"), format!("{sum} is a sum of no differences ({name}_n is 0)")));
+            }
+            sums[k] = Sum { sum, count };
+        }
+        let [height, rough_across, rough_along, real_rough_across, real_rough_along] = sums;
+        Ok(RecordResult {
+            sim_index: self.sim_index,
+            real_index: self.real_index,
+            error: self.error,
+            terrain: self.terrain.filter(|t| !t.is_empty()),
+            height,
+            rough_across,
+            rough_along,
+            real_rough_across,
+            real_rough_along,
         })
-        .collect())
+    }
+}
+
+/// Read a records CSV (`-` for stdin). A file of an older dem-eval, without
+/// the sums, is refused with the reason; so is a value no record can have
+/// (NaN, an infinity, a negative or out-of-range number, more differences
+/// than a record has cells), naming the line and the column.
+pub fn read(path: &str) -> anyhow::Result<Vec<RecordResult>> {
+    let mut out = Vec::new();
+    dem_core::table::for_each_row(path, &["sim_index", "real_index", "error", "terrain", "height_cm", "height_sum_m"], |line, r: Row| {
+        out.push(r.result(path, line)?);
+        Ok(())
+    })
+    .map_err(|e| match e {
+        DemError::Table { line: 1, .. } => DemError::input(
+            path,
+            "is not a per-record results CSV of this dem-eval (its header must be that of --records; \
+             files of older versions lack the sums a merge needs: run the shard again)",
+        ),
+        e => e,
+    })?;
+    Ok(out)
 }
 
 #[cfg(test)]
@@ -147,5 +214,50 @@ mod tests {
         rs.iter().for_each(|r| w.write(r).unwrap());
         w.finish().unwrap();
         assert_eq!(read(&path).unwrap(), rs);
+    }
+
+    /// The farthest apart two records of the contract can be (heights at
+    /// +-f32::MAX, every neighbour apart, a raw mask at -f32::MAX) give a
+    /// row the reader takes back: nothing the writer writes is refused.
+    #[test]
+    fn the_contract_s_extremes_are_read_back() {
+        use dem_core::format::{empty_dem, DemCells};
+        let (mut y, mut p) = (empty_dem(), empty_dem());
+        for r in 0..GRID_ROWS {
+            for c in 0..COLS {
+                let s = if (r + c) % 2 == 0 { f32::MAX } else { -f32::MAX };
+                y.set_valid(r, c, s);
+                p.set_valid(r, c, -s);
+            }
+        }
+        let mut q = p;
+        for v in q.iter_mut().skip(1).step_by(2).take(GRID_CELLS) {
+            *v = -f32::MAX;
+        }
+        let dir = dem_testkit::tempdir();
+        let path = dir.path().join("r.csv").to_string_lossy().into_owned();
+        let mut w = RecordsWriter::create(&path).unwrap();
+        let mut rs = Vec::new();
+        for pred in [p, q] {
+            let ((rough_across, rough_along), (real_rough_across, real_rough_along)) = (dem_core::eval::roughness(&pred), dem_core::eval::roughness(&y));
+            let r = RecordResult {
+                sim_index: rs.len() as u64,
+                real_index: 0,
+                error: dem_core::metric::dem_error(&y, &pred),
+                terrain: None,
+                height: dem_core::eval::height_error(&y, &pred),
+                rough_across,
+                rough_along,
+                real_rough_across,
+                real_rough_along,
+            };
+            assert!(r.error.is_finite() && r.error < MAX_ERROR && r.height.sum < MAX_SUM_M, "{r:?}");
+            w.write(&r).unwrap();
+            rs.push(r);
+        }
+        w.finish().unwrap();
+        assert_eq!(read(&path).unwrap(), rs);
+        assert_eq!(rs[0].height.count, 100);
+        assert_eq!((rs[0].real_rough_across.count, rs[0].real_rough_along.count), (80, 95));
     }
 }
