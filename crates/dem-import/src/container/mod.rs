@@ -4,6 +4,7 @@
 //! timestamp order). All give the same events: each message with its
 //! connection, or a part of the file that had to be skipped.
 
+pub mod bounded;
 pub mod mcap;
 pub mod ros1;
 pub mod sqlite;

@@ -16,15 +16,17 @@
 
 use std::collections::HashMap;
 use std::fs::File;
-use std::io::{self, BufReader, Read};
+use std::io::{self, BufReader, Read, Seek};
 use std::path::Path;
 
+use super::bounded::{self, Codec, MAX_RECORD_BYTES};
 use super::{short_type, Connection, Event, StopError};
 use crate::wire::Encoding;
 
 const MAGIC: &[u8] = b"#ROSBAG V2.0\n";
-/// No record of a sane bag has a header this large.
-const MAX_HEADER: u64 = 1 << 24;
+/// No record of a sane bag has a header this large (a header holds a few
+/// short fields; the connection's message definition is in its data).
+pub const MAX_HEADER: u64 = 1 << 20;
 
 /// Record header fields as `name -> value bytes`.
 fn fields(header: &[u8]) -> Result<Vec<(&str, &[u8])>, String> {
@@ -110,114 +112,120 @@ fn split_record(b: &[u8]) -> Option<(&[u8], &[u8], &[u8])> {
     Some((header, data, &b[at + 4 + dl..]))
 }
 
-fn decompress(compression: &[u8], data: &[u8], size: usize, out: &mut Vec<u8>) -> Result<(), String> {
-    out.clear();
-    out.reserve(size);
+/// The compression of a chunk: None for `none`.
+fn codec(compression: &[u8]) -> Result<Option<Codec>, String> {
     match compression {
-        b"bz2" => {
-            bzip2::read::BzDecoder::new(data).read_to_end(out).map_err(|e| format!("bz2 chunk: {e}"))?;
-        }
-        b"lz4" => {
-            let mut d = lz4::Decoder::new(data).map_err(|e| format!("lz4 chunk: {e}"))?;
-            d.read_to_end(out).map_err(|e| format!("lz4 chunk: {e}"))?;
-        }
-        other => return Err(format!("chunk compression {:?} is not none, bz2 or lz4", String::from_utf8_lossy(other))),
+        b"none" => Ok(None),
+        b"bz2" => Ok(Some(Codec::Bz2)),
+        b"lz4" => Ok(Some(Codec::Lz4)),
+        other => Err(format!("chunk compression {:?} is not none, bz2 or lz4", String::from_utf8_lossy(other))),
     }
-    if out.len() != size {
-        return Err(format!("chunk holds {} bytes, its header says {size}", out.len()));
-    }
-    Ok(())
-}
-
-/// Read exactly `buf.len()` bytes; Ok(false) at a clean end of file before
-/// the first byte.
-fn read_or_end(r: &mut impl Read, buf: &mut [u8]) -> io::Result<bool> {
-    let mut got = 0;
-    while got < buf.len() {
-        match r.read(&mut buf[got..]) {
-            Ok(0) if got == 0 => return Ok(false),
-            Ok(0) => return Err(io::ErrorKind::UnexpectedEof.into()),
-            Ok(n) => got += n,
-            Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
-            Err(e) => return Err(e),
-        }
-    }
-    Ok(true)
 }
 
 /// Read the bag at `path`.
 pub fn read(path: &Path, on_event: &mut dyn FnMut(Event<'_>), on_bytes: &mut dyn FnMut(u64)) -> Result<(), StopError> {
     let file = File::open(path)?;
     let len = file.metadata()?.len();
-    let mut r = BufReader::with_capacity(1 << 20, file);
+    read_from(BufReader::with_capacity(1 << 20, file), len, on_event, on_bytes)
+}
+
+/// Read a bag of `len` bytes from `r` (positioned at its start).
+///
+/// Every record's header and data length is checked against the bytes
+/// left in the file and against [`MAX_HEADER`] and
+/// [`MAX_RECORD_BYTES`] before it is read; a compressed chunk is
+/// decompressed straight from the file into a buffer of its declared size
+/// (at most [`MAX_RECORD_BYTES`]), so memory is one such buffer whatever
+/// the file declares or holds.
+pub fn read_from<R: Read + Seek>(mut r: R, len: u64, on_event: &mut dyn FnMut(Event<'_>), on_bytes: &mut dyn FnMut(u64)) -> Result<(), StopError> {
     let mut magic = [0u8; MAGIC.len()];
-    if !read_or_end(&mut r, &mut magic).unwrap_or(false) || magic != MAGIC {
+    if !bounded::read_or_end(&mut r, &mut magic).unwrap_or(false) || magic != MAGIC {
         return Err(StopError::NotThisKind("not a ROS 1 bag (it does not start with #ROSBAG V2.0)".into()));
     }
     let mut state = State { conns: HashMap::new() };
-    let (mut header, mut data, mut chunk) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut header, mut buf) = (Vec::new(), Vec::new());
     let mut offset = MAGIC.len() as u64;
     let truncated = |offset: u64, what: &str| StopError::Broken {
         offset,
         reason: format!("the file ends inside {what} ({len} bytes in all): truncated"),
     };
+    let io_err = |offset: u64, e: io::Error| if e.kind() == io::ErrorKind::UnexpectedEof { truncated(offset, "a record") } else { StopError::Io(e) };
     loop {
         let mut n = [0u8; 4];
-        match read_or_end(&mut r, &mut n) {
+        match bounded::read_or_end(&mut r, &mut n) {
             Ok(false) => break,
             Ok(true) => {}
-            Err(e) if e.kind() == io::ErrorKind::UnexpectedEof => return Err(truncated(offset, "a record")),
-            Err(e) => return Err(e.into()),
+            Err(e) => return Err(io_err(offset, e)),
         }
         let hl = u32::from_le_bytes(n) as u64;
         if hl > MAX_HEADER || offset + 4 + hl + 4 > len {
             return Err(if offset + 4 + hl + 4 > len && hl <= MAX_HEADER {
                 truncated(offset, "a record header")
             } else {
-                StopError::Broken { offset, reason: format!("a record header of {hl} bytes: not a bag record") }
+                StopError::Broken { offset, reason: format!("a record header of {hl} bytes (at most {} in a bag): not a bag record", bounded::bytes(MAX_HEADER)) }
             });
         }
         header.resize(hl as usize, 0);
-        r.read_exact(&mut header)?;
-        r.read_exact(&mut n)?;
+        r.read_exact(&mut header).map_err(|e| io_err(offset, e))?;
+        r.read_exact(&mut n).map_err(|e| io_err(offset, e))?;
         let dl = u32::from_le_bytes(n) as u64;
         if offset + 8 + hl + dl > len {
             return Err(truncated(offset, "a record"));
         }
-        // The buffer only grows: a megabyte chunk is not zeroed before every read.
-        if data.len() < dl as usize {
-            data.resize(dl as usize, 0);
-        }
-        let data = &mut data[..dl as usize];
-        r.read_exact(data)?;
-        let f = fields(&header).map_err(|reason| StopError::Broken { offset, reason })?;
-        let is_chunk = field(&f, "op") == Some(&[0x05]);
-        let result = if is_chunk {
-            let compression = field(&f, "compression").unwrap_or(b"none");
-            u32_field(&f, "size").and_then(|size| {
-                if compression == b"none" {
-                    // `rosbag record`'s default: read the records where they are.
-                    if data.len() != size as usize {
-                        return Err(format!("chunk holds {} bytes, its header says {size}", data.len()));
+        let mut used = 0;
+        let result = match fields(&header) {
+            Err(reason) => Err(reason),
+            Ok(f) => {
+                let is_chunk = field(&f, "op") == Some(&[0x05]);
+                if is_chunk {
+                    match chunk_layout(&f, dl) {
+                        Err(reason) => Err(reason),
+                        Ok((codec, size)) => {
+                            let out = bounded::sized(&mut buf, size as usize);
+                            let mut data = Read::take(&mut r, dl);
+                            let got = match codec {
+                                // `rosbag record`'s default: read the records where they are.
+                                None => data.read_exact(out).map_err(|e| io_err(offset, e)).map(|()| Ok(())),
+                                Some(codec) => Ok(bounded::decompress_exact(codec, &mut data, out)),
+                            };
+                            used = dl - data.limit();
+                            got?.and_then(|()| state.chunk(out, offset, on_event))
+                        }
                     }
-                    state.chunk(data, offset, on_event)
+                } else if dl > MAX_RECORD_BYTES {
+                    Err(bounded::over_limit("a record's data", dl))
                 } else {
-                    decompress(compression, data, size as usize, &mut chunk)?;
-                    state.chunk(&chunk, offset, on_event)
+                    let data = bounded::sized(&mut buf, dl as usize);
+                    r.read_exact(data).map_err(|e| io_err(offset, e))?;
+                    used = dl;
+                    state.record(&header, data, offset, on_event)
                 }
-            })
-        } else {
-            state.record(&header, data, offset, on_event)
+            }
         };
         // A damaged chunk is stepped over: its length was sound, so the
         // records after it can still be read.
         if let Err(reason) = result {
             on_event(Event::Skipped { offset, reason });
         }
+        bounded::skip(&mut r, dl - used).map_err(|e| io_err(offset, e))?;
         offset += 8 + hl + dl;
         on_bytes(offset);
     }
     Ok(())
+}
+
+/// A chunk's compression and uncompressed size, checked against its
+/// data length and [`MAX_RECORD_BYTES`] before anything is read.
+fn chunk_layout(f: &[(&str, &[u8])], dl: u64) -> Result<(Option<Codec>, u64), String> {
+    let codec = codec(field(f, "compression").unwrap_or(b"none"))?;
+    let size = u64::from(u32_field(f, "size")?);
+    if codec.is_none() && dl != size {
+        return Err(format!("chunk holds {dl} bytes, its header says {size}"));
+    }
+    if size > MAX_RECORD_BYTES {
+        return Err(bounded::over_limit("a chunk", size));
+    }
+    Ok((codec, size))
 }
 
 #[cfg(test)]
