@@ -263,9 +263,15 @@ impl Builder {
         acc
     }
 
-    /// `Reduce{Max,Sum,Min}` over `axes`, dropping them.
+    /// `Reduce{Max,Sum,Min}` over `axes`, dropping them. At opset 17,
+    /// `ReduceSum` takes its axes as an input, the others as an attribute.
     pub fn reduce(&mut self, op: &str, x: &str, axes: &[i64]) -> String {
-        self.op(op, &[x], vec![attr_ints("axes", axes), attr_int("keepdims", 0)])
+        if op == "ReduceSum" {
+            let a = self.ints(axes);
+            self.op(op, &[x, &a], vec![attr_int("keepdims", 0)])
+        } else {
+            self.op(op, &[x], vec![attr_ints("axes", axes), attr_int("keepdims", 0)])
+        }
     }
 
     /// A model of this graph: `inputs` and `outputs` as value infos.

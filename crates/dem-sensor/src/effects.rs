@@ -528,8 +528,9 @@ impl Effect {
                 for r in 0..GRID_ROWS {
                     for c in 0..COLS {
                         if d.is_valid(r, c) {
-                            let h = d.height(r, c) as f64;
-                            d.set_valid(r, c, (q * (h / q + 0.5).floor()) as f32);
+                            // In float32, the graph's arithmetic: the same rounding everywhere.
+                            let (h, q) = (d.height(r, c), q as f32);
+                            d.set_valid(r, c, q * (h / q + 0.5).floor());
                         }
                     }
                 }
@@ -738,6 +739,12 @@ fn drop_holes(d: &mut Dem, rng: &mut Draws, p: f64) {
     }
 }
 
+/// `hole-growth`'s probability that a cell with `k` missing 4-neighbours is
+/// lost, 1 - (1 - p)^k, as float32: the graph looks it up in the same table.
+pub fn growth_threshold(p: f64, k: usize) -> f32 {
+    (1.0 - (1.0 - p).powi(k as i32)) as f32
+}
+
 /// `hole-growth`: missing neighbours are counted on the DEM as it comes in,
 /// so a hole grows by one ring of cells at most.
 fn grow_holes(d: &mut Dem, rng: &mut Draws, p: f64) {
@@ -749,7 +756,7 @@ fn grow_holes(d: &mut Dem, rng: &mut Draws, p: f64) {
                 continue;
             }
             let k = neighbours4(r, c).filter(|&(rr, cc)| z[rr][cc].is_none()).count();
-            if k > 0 && u < 1.0 - (1.0 - p).powi(k as i32) {
+            if (u as f32) < growth_threshold(p, k) {
                 d.set_missing(r, c);
             }
         }

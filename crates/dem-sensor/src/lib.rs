@@ -15,6 +15,7 @@
 
 pub mod draws;
 pub mod effects;
+pub mod graph;
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;

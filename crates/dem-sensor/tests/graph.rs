@@ -1,0 +1,147 @@
+//! The ONNX graph of a sensor model computes what the native code does,
+//! fed the same uniforms and times: every effect of the vocabulary alone,
+//! and models of several, on the bundled sim and measured DEMs, run by
+//! tract. (onnxruntime and PyTorch run the same check in dem-apply's tests.)
+
+use dem_core::format::{Dem, DemCells, COLS, GRID_ROWS};
+use dem_sensor::{graph, Effect, SensorModel};
+
+fn records() -> Vec<Dem> {
+    let mut all = dem_core::npy::read_all(dem_testkit::testdata("sim.npy").to_str().unwrap()).unwrap();
+    all.truncate(300);
+    let real = dem_core::npy::read_all(dem_testkit::testdata("real.npy").to_str().unwrap()).unwrap();
+    all.extend(real.into_iter().take(300));
+    all
+}
+
+/// Times in the run for each record: a spread of known ones, every fifth
+/// unknown (NaN).
+fn times(n: usize) -> Vec<f32> {
+    (0..n).map(|i| if i % 5 == 0 { f32::NAN } else { 0.05 * (i % 60) as f32 }).collect()
+}
+
+/// Native and graph outputs of `model` on the test records: the share of
+/// cells whose validity differs, the largest height difference where both
+/// are valid, and whether row 20 and the contract's missing cells agree.
+fn compare(model: &SensorModel) -> (f64, f32) {
+    let input = records();
+    let n = input.len();
+    let k = model.draws();
+    let mut uniform = vec![0.0f32; n * k];
+    for (i, u) in uniform.chunks_mut(k.max(1)).enumerate().take(n) {
+        if k > 0 {
+            model.uniforms(9, i as u64, u);
+        }
+    }
+    let t = times(n);
+    let mut native = input.clone();
+    for (i, d) in native.iter_mut().enumerate() {
+        model.apply_drawn(d, &uniform[i * k..(i + 1) * k], Some(f64::from(t[i])));
+    }
+    let proto = graph::sensor_model(model, "test", &[]);
+    let got = graph::run_tract(&proto, model, &input, &uniform, &t).unwrap();
+    let (mut differ, mut worst) = (0usize, 0.0f32);
+    for (a, b) in native.iter().zip(&got) {
+        assert_eq!(a[200..], b[200..], "row 20 passes through");
+        for r in 0..GRID_ROWS {
+            for c in 0..COLS {
+                if a.is_valid(r, c) != b.is_valid(r, c) {
+                    differ += 1;
+                } else if a.is_valid(r, c) {
+                    worst = worst.max((a.height(r, c) - b.height(r, c)).abs());
+                } else {
+                    assert_eq!((b.height(r, c), b.mask(r, c)), (0.0, -1.0), "a missing cell is height 0, mask -1");
+                }
+                assert!(b.mask(r, c).abs() == 1.0);
+            }
+        }
+    }
+    (differ as f64 / (n * GRID_ROWS * COLS) as f64, worst)
+}
+
+fn check(model: &SensorModel) {
+    let (differ, worst) = compare(model);
+    assert!(differ <= 1e-4, "{}: {:.5} % of cells differ in validity", model.summary(), 100.0 * differ);
+    assert!(worst <= 1e-5, "{}: heights differ by {worst:e}", model.summary());
+}
+
+/// Each effect at parameters where it acts on the bundled data.
+fn every_effect() -> Vec<Effect> {
+    vec![
+        Effect::Noise { sigma0: 0.01, k: 0.02 },
+        Effect::Dropout { p: 0.3 },
+        Effect::RowDropout { p: 0.2 },
+        Effect::Occlusion { h: 0.45, x0: 0.15 },
+        Effect::Occlusion { h: 0.3, x0: -0.2 },
+        Effect::Fov { x_min: -0.33, x_max: 0.97 },
+        Effect::ViewTop { h: 0.3, t: 0.3 },
+        Effect::Smoothing { w: 0.4 },
+        Effect::Bias { b: 0.02, t: -0.03 },
+        Effect::Quantization { q: 0.02 },
+        Effect::Startup { x0: 0.4, v: 0.3, p: 0.4 },
+        Effect::Startup { x0: 0.4, v: 0.0, p: 0.4 },
+        Effect::PatchDropout { n: 3.0, r: 0.12, a: 0.5 },
+        Effect::EdgeHoles { g: 0.05, p: 0.6 },
+        Effect::RimHoles { g: 0.05, p: 0.6 },
+        Effect::DropHoles { p: 0.7 },
+        Effect::HoleGrowth { p: 0.3 },
+        Effect::PitFill { g: 0.02, p: 0.8 },
+        Effect::DropBlend { p: 0.6, a: 0.8 },
+        Effect::FloorLift { x: 0.6, p: 0.7, a: 1.5 },
+        Effect::RiserBlend { foot: 0.4, top: -0.3 },
+        Effect::MixedCells { up: 0.04, down: 0.06 },
+    ]
+}
+
+#[test]
+fn every_effect_alone_computes_the_same_in_the_graph() {
+    let effects = every_effect();
+    let names: std::collections::BTreeSet<&str> = effects.iter().map(Effect::name).collect();
+    assert_eq!(names.len(), dem_sensor::effects::NAMES.len(), "every effect of the vocabulary is checked");
+    for e in effects {
+        let model = SensorModel { effects: vec![e] };
+        let before = records();
+        let mut after = before.clone();
+        model.apply_all_at(&mut after, 9, 0, None);
+        assert!(before != after, "{e} acts on the test records");
+        check(&model);
+    }
+}
+
+#[test]
+fn a_model_of_several_effects_computes_the_same_in_the_graph() {
+    let model = SensorModel::from_json(
+        r#"{"effects": [
+            {"effect": "fov", "params": {"x_min": -0.45, "x_max": 1.2}},
+            {"effect": "startup", "params": {"x0": 0.3, "v": 0.25, "p": 0.3}},
+            {"effect": "occlusion", "params": {"h": 0.42, "x0": 0.12}},
+            {"effect": "drop-holes", "params": {"p": 0.3}},
+            {"effect": "pit-fill", "params": {"g": 0.03, "p": 0.5}},
+            {"effect": "mixed-cells", "params": {"up": 0.03, "down": 0.05}},
+            {"effect": "floor-lift", "params": {"x": 2.0, "p": 0.4, "a": 1.2}},
+            {"effect": "smoothing", "params": {"w": 0.7}},
+            {"effect": "noise", "params": {"sigma0": 0.004, "k": 0.01}},
+            {"effect": "noise", "params": {"sigma0": 0.002, "k": 0.0}},
+            {"effect": "dropout", "params": {"p": 0.05}},
+            {"effect": "hole-growth", "params": {"p": 0.2}},
+            {"effect": "row-dropout", "params": {"p": 0.02}}
+        ]}"#,
+    )
+    .unwrap();
+    check(&model);
+}
+
+#[test]
+fn the_graph_says_what_its_inputs_are() {
+    let model = SensorModel { effects: vec![Effect::Noise { sigma0: 0.01, k: 0.0 }, Effect::Startup { x0: 0.3, v: 0.2, p: 0.1 }] };
+    let proto = graph::sensor_model(&model, "s", &[]);
+    let names: Vec<&str> = proto.graph.as_ref().unwrap().input.iter().map(|i| i.name.as_str()).collect();
+    assert_eq!(names, ["dem", "uniform", "time"]);
+    let meta: Vec<(&str, &str)> = proto.metadata_props.iter().map(|e| (e.key.as_str(), e.value.as_str())).collect();
+    assert!(meta.contains(&("dem.uniform_count", "102")), "{meta:?}");
+    assert!(meta.contains(&("dem.inputs", "dem,uniform,time")), "{meta:?}");
+    assert!(proto.doc_string.contains("uniform float32 (N,102)") && proto.doc_string.contains("NaN where unknown"), "{}", proto.doc_string);
+    let det = SensorModel { effects: vec![Effect::Bias { b: 0.01, t: 0.0 }] };
+    let names: Vec<String> = graph::sensor_model(&det, "s", &[]).graph.unwrap().input.iter().map(|i| i.name.clone()).collect();
+    assert_eq!(names, ["dem"], "a model without draws or time takes the DEM alone");
+}
