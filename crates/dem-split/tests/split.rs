@@ -292,3 +292,206 @@ fn dem_eval_shard_tables_merge_into_the_whole() {
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("table.csv") && stderr(&o).contains("--records"), "{}", stderr(&o));
 }
+
+/// Every file in `dir` (temp files too), by name, with its bytes.
+fn files(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    let mut v: Vec<(String, Vec<u8>)> = fs::read_dir(dir)
+        .unwrap()
+        .map(|e| {
+            let e = e.unwrap();
+            (e.file_name().to_string_lossy().into_owned(), fs::read(e.path()).unwrap_or_default())
+        })
+        .collect();
+    v.sort();
+    v
+}
+
+/// `dem-split ARGS >> target`: stdout opened for appending to `target`.
+fn split_appending_to(target: &str, args: &[&str], stdin: Option<&str>) -> std::process::Output {
+    let out = fs::OpenOptions::new().append(true).open(target).unwrap();
+    let input = match stdin {
+        Some(p) => std::process::Stdio::from(fs::File::open(p).unwrap()),
+        None => std::process::Stdio::null(),
+    };
+    Command::new(bin("dem-split")).args(args).stdin(input).stdout(out).output().unwrap()
+}
+
+/// The manifest on stdout is checked against every input, the labels
+/// included, also through a symlink and with the input on stdin:
+/// `dem-split ... s.npy >> s.npy` is refused and changes nothing.
+#[test]
+fn the_manifest_never_overwrites_an_input() {
+    let dir = tempdir();
+    let d = dir.path();
+    let (s, l, link, p) = (arg(d, "s.npy"), arg(d, "l.csv"), arg(d, "link.npy"), arg(d, "ap"));
+    fs::copy(td("sim.npy"), &s).unwrap();
+    fs::copy(td("sim_labels.csv"), &l).unwrap();
+    std::os::unix::fs::symlink(&s, &link).unwrap();
+    let before = files(d);
+    let cases: Vec<(&str, Vec<&str>, Option<&str>, &str)> = vec![
+        (&s, vec!["--records", "1000", "--out", &p, &s], None, "the input"),
+        (&l, vec!["--records", "1000", "--labels", &l, "--out", &p, &s], None, "the labels"),
+        (&s, vec!["--records", "1000", "--out", &p, &link], None, "the input through a symlink"),
+        (&link, vec!["--records", "1000", "--out", &p, &s], None, "stdout through a symlink"),
+        (&s, vec!["--records", "1000", "--out", &p, "-"], Some(&s), "the input on stdin"),
+    ];
+    for (target, args, stdin, what) in cases {
+        let o = split_appending_to(target, &args, stdin);
+        assert_eq!(o.status.code(), Some(2), "{what}: {}", stderr(&o));
+        assert!(stderr(&o).contains("output stdout would overwrite the input") && stderr(&o).lines().count() == 1, "{what}: {}", stderr(&o));
+        assert!(files(d) == before, "{what}: the folder changed");
+    }
+}
+
+/// A refused or failed run leaves the split that was there as it was: labels
+/// a row short or long, a bad labels row, a full disk for the manifest.
+#[test]
+fn a_refused_or_failed_split_leaves_the_earlier_one_untouched() {
+    let dir = tempdir();
+    let out = dir.path().join("out");
+    fs::create_dir(&out).unwrap();
+    let prefix = arg(&out, "prev");
+    let sim = td("sim.npy");
+    let labels = fs::read_to_string(td("sim_labels.csv")).unwrap();
+    let lines: Vec<&str> = labels.lines().collect();
+    let variant = |name: &str, rows: Vec<String>| {
+        let p = arg(dir.path(), name);
+        fs::write(&p, rows.join("\n") + "\n").unwrap();
+        p
+    };
+    let short = variant("short.csv", lines[..lines.len() - 1].iter().map(|l| l.to_string()).collect());
+    let mut long_rows: Vec<String> = lines.iter().map(|l| l.to_string()).collect();
+    long_rows.push(format!("3025,{}", lines.last().unwrap().split_once(',').unwrap().1));
+    let long = variant("long.csv", long_rows);
+    let mut bad_rows: Vec<String> = lines.iter().map(|l| l.to_string()).collect();
+    bad_rows[1999] = format!("1998,lava,{}", bad_rows[1999].splitn(3, ',').nth(2).unwrap());
+    let bad = variant("bad.csv", bad_rows);
+    ok(&run("dem-split", &["--records", "1000", "--labels", &td("sim_labels.csv"), "--out", &prefix, &sim], None));
+    let before = files(&out);
+    assert_eq!(before.len(), 8);
+    let cases = [
+        (&short, "short.csv: has 3024 rows but"),
+        (&long, "long.csv: has 3026 rows but"),
+        (&bad, "bad.csv: line 2000"),
+    ];
+    for (l, says) in cases {
+        let o = run("dem-split", &["--records", "1000", "--labels", l, "--out", &prefix, &sim], None);
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        assert!(stderr(&o).contains(says), "{says}: {}", stderr(&o));
+        assert!(files(&out) == before, "{says}: the earlier split changed");
+    }
+    // A full disk for the manifest: exit 1, nothing renamed, no temp file left.
+    for cut in [["--records", "1000"], ["--shards", "3"]] {
+        let full = fs::OpenOptions::new().write(true).open("/dev/full").unwrap();
+        let o = Command::new(bin("dem-split")).args(cut).args(["--out", &prefix, &sim]).stdout(full).output().unwrap();
+        assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+        assert!(stderr(&o).contains("No space left"), "{}", stderr(&o));
+        assert!(files(&out) == before, "{cut:?} > /dev/full: the earlier split changed");
+    }
+}
+
+/// A split to a prefix replaces the split that was there: the shards (and
+/// labels) beyond the new ones are removed, named on stderr, so
+/// `part-*.npy` is the new split; a file of that name that is the input stays.
+#[test]
+fn a_split_replaces_an_earlier_split_to_the_same_prefix() {
+    let dir = tempdir();
+    let d = dir.path();
+    let prefix = arg(d, "part");
+    let sim = td("sim.npy");
+    ok(&run("dem-split", &["--shards", "4", "--labels", &td("sim_labels.csv"), "--out", &prefix, &sim], None));
+    fs::write(arg(d, "part-00001.npy.out"), b"a tool's output").unwrap();
+    let o = run("dem-split", &["--shards", "2", "--out", &prefix, &sim], None);
+    let rows = manifest(ok(&o));
+    assert_eq!(rows.len(), 2);
+    let names: Vec<String> = files(d).into_iter().map(|f| f.0).collect();
+    assert_eq!(names, ["part-00000.npy", "part-00001.npy", "part-00001.npy.out"]);
+    let e = stderr(&o);
+    assert!(e.contains("removed 6 files an earlier split to this prefix left beyond these 2 shards") && e.contains("part-00003_labels.csv"), "{e}");
+    // The input named as a shard of the prefix is never removed.
+    let input = arg(d, "part-00007.npy");
+    fs::copy(&sim, &input).unwrap();
+    let o = run("dem-split", &["--shards", "3", "--out", &prefix, &input], None);
+    ok(&o);
+    assert!(fs::read(&input).unwrap() == fs::read(&sim).unwrap());
+    assert!(stderr(&o).contains("kept") && stderr(&o).contains("part-00007.npy"), "{}", stderr(&o));
+    let names: Vec<String> = files(d).into_iter().map(|f| f.0).collect();
+    assert_eq!(names, ["part-00000.npy", "part-00001.npy", "part-00001.npy.out", "part-00002.npy", "part-00007.npy"]);
+}
+
+/// `kill -9` in the middle of a split leaves no shard, only temp files,
+/// and the next run beside them removes them.
+#[test]
+fn a_killed_split_leaves_only_temp_files_the_next_run_removes() {
+    use std::io::Write;
+    let dir = tempdir();
+    let d = dir.path();
+    let prefix = arg(d, "k");
+    let mut child = Command::new(bin("dem-split"))
+        .args(["--records", "1000", "--out", &prefix, "-"])
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    // 6,050 records and stdin kept open: six shards done, the seventh waits.
+    let sim = fs::read(td("sim.npy")).unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    stdin.write_all(&sim).unwrap();
+    stdin.write_all(&sim).unwrap();
+    stdin.flush().unwrap();
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
+    while files(d).len() < 7 && std::time::Instant::now() < deadline {
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    std::thread::sleep(std::time::Duration::from_millis(200));
+    child.kill().unwrap();
+    child.wait().unwrap();
+    drop(stdin);
+    let left = files(d);
+    assert!(left.len() >= 7, "{:?}", left.iter().map(|f| &f.0).collect::<Vec<_>>());
+    assert!(left.iter().all(|(n, _)| n.starts_with('.') && n.contains("k-0000") && n.ends_with(".tmp")), "only temp files: {:?}", left.iter().map(|f| &f.0).collect::<Vec<_>>());
+    let o = run("dem-split", &["--records", "1000", "--out", &prefix, &td("sim.npy")], None);
+    ok(&o);
+    assert!(stderr(&o).contains("a temp file left by a killed run"), "{}", stderr(&o));
+    let names: Vec<String> = files(d).into_iter().map(|f| f.0).collect();
+    assert_eq!(names, ["k-00000.npy", "k-00001.npy", "k-00002.npy", "k-00003.npy"]);
+}
+
+/// Labels rows keep every column and byte (quoted fields, extra columns,
+/// CRLF line ends) but their index, which counts from 0 in each shard; a
+/// row the CSV reader would misread (a stray quote) is refused naming its line.
+#[test]
+fn labels_keep_their_columns_and_bytes_but_the_index() {
+    let dir = tempdir();
+    let d = dir.path();
+    let l = arg(d, "l.csv");
+    let header = "index,terrain,x,note,camera\r\n";
+    let rest = |i: usize| format!("{},{i}.5,\"run {i}, \"\"left\"\"\",\"cam,{}\"\r\n", ["flat", "pallet", "stairs-up"][i % 3], i % 2);
+    let mut text = String::from(header);
+    for i in 0..3025 {
+        text.push_str(&format!("{i},{}", rest(i)));
+    }
+    fs::write(&l, &text).unwrap();
+    let rows = manifest(ok(&run("dem-split", &["--records", "1000", "--labels", &l, "--out", &arg(d, "p"), &td("sim.npy")], None)));
+    assert_eq!(rows.len(), 4);
+    for (k, r) in rows.iter().enumerate() {
+        let mut want = String::from(header);
+        for n in 0..r[2].parse::<usize>().unwrap() {
+            want.push_str(&format!("{n},{}", rest(1000 * k + n)));
+        }
+        assert!(fs::read_to_string(&r[3]).unwrap() == want, "shard {k}'s labels");
+    }
+    // The shards' labels are labels every reader takes: split a shard again with them.
+    ok(&run("dem-split", &["--records", "300", "--labels", &rows[1][3], "--out", &arg(d, "again"), &rows[1][0]], None));
+    // A quote inside an unquoted field: refused, naming the line.
+    let lines: Vec<&str> = text.split_inclusive('\n').collect();
+    let mut stray = lines.clone();
+    let broken = lines[5].replacen(",pallet,", ",pal\"let,", 1);
+    stray[5] = &broken;
+    fs::write(&l, stray.concat()).unwrap();
+    let o = run("dem-split", &["--records", "1000", "--labels", &l, "--out", &arg(d, "q"), &td("sim.npy")], None);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("l.csv: line 6: unbalanced quotes"), "{}", stderr(&o));
+    assert!(!Path::new(&arg(d, "q-00000.npy")).exists());
+}
