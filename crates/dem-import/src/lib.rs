@@ -17,6 +17,7 @@
 pub mod container;
 pub mod geometry;
 pub mod msg;
+pub mod order;
 pub mod tf;
 pub mod window;
 pub mod wire;
@@ -30,6 +31,7 @@ use dem_core::{npy, output, table, DemError};
 use rayon::prelude::*;
 
 use container::{Event, StopError};
+use order::{Imported, StampOrder};
 use window::Resampling;
 
 /// A validated request.
@@ -123,13 +125,24 @@ pub fn check(cfg: &ImportConfig) -> Result<(), DemError> {
     if cfg.recordings.is_empty() {
         return Err(DemError::Usage("no recordings given".into()));
     }
+    if let Some(r) = cfg.recordings.iter().find(|r| !r.exists()) {
+        return Err(DemError::Open { path: r.display().to_string(), source: std::io::ErrorKind::NotFound.into() });
+    }
+    // Created only once the inputs are there, and removed again when the
+    // outputs are refused: a refused run leaves nothing behind.
+    let created = !cfg.out.exists();
     std::fs::create_dir_all(&cfg.out).map_err(|e| DemError::Usage(format!("cannot create the output folder {}: {e}", cfg.out.display())))?;
+    let checked = check_outputs(cfg);
+    if checked.is_err() && created {
+        let _ = std::fs::remove_dir(&cfg.out);
+    }
+    checked
+}
+
+fn check_outputs(cfg: &ImportConfig) -> Result<(), DemError> {
     let mut outputs = Vec::new();
     let mut inputs = Vec::new();
     for r in &cfg.recordings {
-        if !r.exists() {
-            return Err(DemError::Open { path: r.display().to_string(), source: std::io::ErrorKind::NotFound.into() });
-        }
         let (npy, labels) = outputs_of(&cfg.out, r);
         if outputs.contains(&npy) {
             return Err(DemError::Usage(format!("two recordings would both write {npy}: rename one or import them into different folders")));
@@ -209,15 +222,6 @@ fn bump(seen: &mut HashMap<String, u64>, topic: &str) -> u64 {
     }
 }
 
-/// One DEM with what its label needs.
-struct Imported {
-    stamp: i64,
-    dem: Dem,
-    x: f64,
-    y: f64,
-    yaw: f64,
-}
-
 #[derive(serde::Serialize)]
 struct LabelRow {
     index: u64,
@@ -276,7 +280,13 @@ fn import_one(cfg: &ImportConfig, path: &Path, seq: u64, tick: &(dyn Fn(u64) + S
                             }
                         }
                         "sensor_msgs/JointState" if msg::strip_slash(&conn.topic) == joint_topic => match msg::decode_joint_state(data, conn.encoding) {
-                            Ok(js) => joints.insert(&js),
+                            Ok(js) => {
+                                for (name, p) in joints.insert(&js) {
+                                    if cfg.flippers.contains(&name) {
+                                        rec.skip(SkipKind::Damaged, format!("{}: flipper joint {name} at {} rad is not an angle", at(), msg::num(p)));
+                                    }
+                                }
+                            }
                             Err(why) => rec.skip(SkipKind::Damaged, format!("{}: {why}", at())),
                         },
                         "grid_map_msgs/GridMap" if index == 0 => {
@@ -318,7 +328,8 @@ fn import_one(cfg: &ImportConfig, path: &Path, seq: u64, tick: &(dyn Fn(u64) + S
     rec.report.no_flippers = !cfg.flippers.iter().any(|f| joints.has(f));
 
     // Pass 2: the maps.
-    let mut dems: Vec<Imported> = Vec::new();
+    // Bounded whatever the recording's length: spilled in sorted runs past a cap.
+    let mut dems: StampOrder<Imported> = StampOrder::new(&cfg.out);
     for (kind, file) in &files {
         let fname = file.display().to_string();
         let mut index = 0u64;
@@ -350,6 +361,9 @@ fn import_one(cfg: &ImportConfig, path: &Path, seq: u64, tick: &(dyn Fn(u64) + S
                 let (yaw, pitch) = base.rotation.heading_and_pitch();
                 let flipper = |k: usize| joints.at(&cfg.flippers[k], map.stamp).unwrap_or(0.0) as f32;
                 dem.set_attitude([pitch as f32, flipper(0), flipper(1), flipper(2), flipper(3)]);
+                if let Err(why) = usable(&dem) {
+                    return rec.skip(SkipKind::Damaged, format!("{}: {why}", at()));
+                }
                 dems.push(Imported { stamp: map.stamp, dem, x: base.translation.x, y: base.translation.y, yaw });
             },
             &mut |b| {
@@ -360,36 +374,38 @@ fn import_one(cfg: &ImportConfig, path: &Path, seq: u64, tick: &(dyn Fn(u64) + S
         rec.report.maps += index;
     }
 
-    dems.sort_by_key(|d| d.stamp);
-    if let Some(every) = cfg.every {
-        let step = (every * 1e9).round() as i64;
-        let mut last: Option<i64> = None;
-        let before = dems.len();
-        dems.retain(|d| {
-            let keep = last.is_none_or(|l| d.stamp - l >= step);
-            if keep {
-                last = Some(d.stamp);
-            }
-            keep
-        });
-        rec.report.thinned = (before - dems.len()) as u64;
-    }
-    let first = dems.first().map_or(0, |d| d.stamp);
-    rec.report.span = dems.last().map_or(0.0, |d| (d.stamp - first) as f64 * 1e-9);
+    // In stamp order: --every keeps a DEM DT or more after the last kept;
+    // label times count from the first.
     let terrain = cfg.terrain.map_or("", Terrain::as_str);
-    let labels: Vec<LabelRow> = dems
-        .iter()
-        .enumerate()
-        .map(|(i, d)| LabelRow { index: i as u64, terrain, x: d.x, y: d.y, yaw: d.yaw, sequence: seq, time: (d.stamp - first) as f64 * 1e-9 })
-        .collect();
+    let step = cfg.every.map(|every| (every * 1e9).round() as i64);
     let (npy_path, labels_path) = outputs_of(&cfg.out, path);
     let mut writer = npy::create(&npy_path)?;
-    for d in &dems {
-        writer.write(std::slice::from_ref(&d.dem))?;
+    let mut labels = table::RowWriter::create(&labels_path)?;
+    let (mut first, mut last, mut written) = (None::<i64>, 0i64, 0u64);
+    let mut write_error: Option<DemError> = None;
+    let sorted = dems.finish(&mut |d| {
+        if step.is_some_and(|step| first.is_some() && d.stamp - last < step) {
+            rec.report.thinned += 1;
+            return Ok(());
+        }
+        let t0 = *first.get_or_insert(d.stamp);
+        last = d.stamp;
+        let row = LabelRow { index: written, terrain, x: d.x, y: d.y, yaw: d.yaw, sequence: seq, time: (d.stamp - t0) as f64 * 1e-9 };
+        if let Err(e) = writer.write(std::slice::from_ref(&d.dem)).and_then(|()| labels.write(&row)) {
+            write_error = Some(e);
+            return Err(std::io::Error::other("output failed"));
+        }
+        written += 1;
+        Ok(())
+    });
+    if let Some(e) = write_error {
+        return Err(e);
     }
+    sorted.map_err(|e| DemError::io(format!("{} (sorted runs of DEMs)", cfg.out.display()), e))?;
     writer.finish()?;
-    table::write_rows(&labels_path, &labels)?;
-    rec.report.dems = dems.len() as u64;
+    labels.commit()?;
+    rec.report.span = first.map_or(0.0, |f| (last - f) as f64 * 1e-9);
+    rec.report.dems = written;
     rec.report.npy = Some(npy_path);
     Ok(rec.report)
 }
@@ -414,6 +430,33 @@ fn pick_map_topic(cfg: &ImportConfig, map_topics: &BTreeSet<String>, all: &BTree
             )),
             _ => Err(format!("several GridMap topics ({}): choose one with --map-topic", listed(map_topics))),
         },
+    }
+}
+
+/// Heights further than this above or below the robot (m) are no terrain
+/// around it: a damaged map or transform.
+pub const MAX_HEIGHT: f32 = 1e5;
+
+/// Err naming the first value of `dem` that is not finite or, for a
+/// height, beyond [`MAX_HEIGHT`]: such a DEM is not written (the
+/// contract allows no infinity).
+fn usable(dem: &Dem) -> Result<(), String> {
+    use dem_core::format::{COLS, GRID_ROWS};
+    for r in 0..GRID_ROWS {
+        for c in 0..COLS {
+            let h = dem.height(r, c);
+            if dem.is_valid(r, c) && !(h.is_finite() && h.abs() <= MAX_HEIGHT) {
+                return Err(format!(
+                    "height {} m at DEM row {r}, column {c} (the map's height minus the robot's z) is beyond {} m",
+                    msg::num(f64::from(h)),
+                    msg::num(f64::from(MAX_HEIGHT))
+                ));
+            }
+        }
+    }
+    match dem.attitude().iter().position(|a| !a.is_finite()) {
+        Some(k) => Err(format!("attitude value {k} of row 20 is {}", dem.attitude()[k])),
+        None => Ok(()),
     }
 }
 
