@@ -205,6 +205,19 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         metavar="N",
         help="write each n x n window as an N x N map, same centre, NaN around it (N - n even; default: no padding)",
     )
+    p.add_argument(
+        "--crop",
+        type=int,
+        metavar="N",
+        help="write the middle N x N cells of each n x n window (same centre, n - N even), for small maps",
+    )
+    p.add_argument(
+        "--loop-for",
+        type=float,
+        metavar="SECONDS",
+        help="a long recording: the selected maps over and over, one every --loop-dt, for SECONDS",
+    )
+    p.add_argument("--loop-dt", type=float, default=0.2, metavar="DT", help="seconds between maps with --loop-for (default 0.2: 5 Hz)")
     p.add_argument("--map-topic", default="/elevation_mapping/elevation_map")
     p.add_argument(
         "--flippers",
@@ -230,6 +243,16 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         p.error("--damaged-map must not be negative")
     if a.pad_to is not None and not 1 <= a.pad_to <= 65535:
         p.error("--pad-to must be 1 .. 65535 (grid_map's start indices are uint16)")
+    if a.crop is not None and (a.crop < 1 or a.pad_to is not None):
+        p.error("--crop must be at least 1, and not with --pad-to")
+    if a.loop_for is not None:
+        if not (a.loop_for > 0 and a.loop_dt * NS > 2 * HALF_GAP_NS and math.isfinite(a.loop_for)):
+            p.error(f"--loop-for must be > 0 and --loop-dt > {2 * HALF_GAP_NS / NS} s (the TF samples around a map)")
+        if a.verify or a.damaged_map is not None or a.extra_map_without_tf or a.shuffle_maps:
+            p.error(
+                "--loop-for writes a long recording as it goes: not with --verify, --damaged-map, "
+                "--extra-map-without-tf or --shuffle-maps"
+            )
     return a
 
 
@@ -238,9 +261,11 @@ def seconds_to_ns(text: str) -> int:
     return int((Decimal(text) * NS).to_integral_value())
 
 
-def read_maps(folder: Path, sequences: set[int] | None, pad_to: int | None = None) -> tuple[list[MapRow], np.ndarray, int]:
+def read_maps(
+    folder: Path, sequences: set[int] | None, pad_to: int | None = None, crop: int | None = None
+) -> tuple[list[MapRow], np.ndarray, int]:
     """The selected rows, maps.npy (memory-mapped) and the size n of the map
-    messages (the windows' size, or --pad-to)."""
+    messages (the windows' size, --pad-to or --crop)."""
     csv_path, npy_path = folder / "maps.csv", folder / "maps.npy"
     for f in (csv_path, npy_path):
         if not f.is_file():
@@ -254,6 +279,8 @@ def read_maps(folder: Path, sequences: set[int] | None, pad_to: int | None = Non
     n = maps.shape[2]
     if pad_to is not None and (pad_to < n or (pad_to - n) % 2):
         raise BadInput(f"--pad-to {pad_to}: must be at least the windows' {n} cells, with an even difference (same centre)")
+    if crop is not None and (crop > n or (n - crop) % 2):
+        raise BadInput(f"--crop {crop}: must be at most the windows' {n} cells, with an even difference (same centre)")
     with csv_path.open(newline="") as f:
         reader = csv.DictReader(f)
         if reader.fieldnames != CSV_COLUMNS:
@@ -294,7 +321,7 @@ def read_maps(folder: Path, sequences: set[int] | None, pad_to: int | None = Non
             raise BadInput(f"no maps of run(s) {', '.join(map(str, sorted(missing)))} in {csv_path}")
     if not selected:
         raise BadInput(f"{csv_path}: no maps to write")
-    n = pad_to if pad_to is not None else n
+    n = pad_to if pad_to is not None else crop if crop is not None else n
     for a, b in zip(selected, selected[1:]):
         if b.stamp_ns - a.stamp_ns <= 2 * HALF_GAP_NS:
             raise BadInput(
@@ -307,10 +334,14 @@ def read_maps(folder: Path, sequences: set[int] | None, pad_to: int | None = Non
 def window(maps: np.ndarray, index: int, n: int) -> np.ndarray:
     """Map `index` as (2, n, n) float32: the window itself, or (--pad-to) in
     the middle of an n x n map of NaN (same centre: the unwrapped index i of
-    the window is i + (n - w) / 2 of the map)."""
+    the window is i + (n - w) / 2 of the map), or (--crop) the window's
+    middle n x n cells."""
     w = maps.shape[2]
     if n == w:
         return np.asarray(maps[index])
+    if n < w:
+        o = (w - n) // 2
+        return np.ascontiguousarray(maps[index][:, o : o + n, o : o + n])
     out = np.full((2, n, n), np.nan, dtype=np.float32)
     o = (n - w) // 2
     out[:, o : o + w, o : o + w] = maps[index]
@@ -454,6 +485,58 @@ class Planned:
     stamp_ns: int | None = None  # header stamp, for maps
 
 
+def samples(a: argparse.Namespace, mb: Messages, m: MapRow, ns: int, add) -> None:
+    """The TF (two links) and joint states of map `m` stamped `ns`, at ns -/+ 0.02 s."""
+    for sign in (-1, 1):
+        t = ns + sign * HALF_GAP_NS
+        recv = t + (TF_LATE_NS if a.tf_late else 0)
+        xyz = (m.x + sign * D_XY, m.y + sign * D_XY, 0.0)
+        add(recv, "tf_odom", mb.tf(t, "odom", "base_footprint", xyz, quat_z(m.yaw + sign * D_YAW), "odom"))
+        quat = quat_y(-(m.pitch + sign * D_PITCH))
+        add(recv, "tf_body", mb.tf(t, "base_footprint", "base_link", (0.0, 0.0, m.z + sign * D_Z), quat, "body"))
+        track = 0.1 * (m.stamp_ns / NS) + sign * 0.002
+        pos = {"L": track, "R": -track} | {f: m.flippers[f] + sign * D_FLIPPER for f in range(4)}
+        names = [TRACKS[0] if j == "L" else TRACKS[1] if j == "R" else a.flippers[j] for j in JOINT_ORDER]
+        add(t, "joints", mb.joints(t, names, [pos[j] for j in JOINT_ORDER]))
+
+
+def static_tf(mb: Messages, ns: int) -> bytes:
+    return mb.tf(ns, "base_link", "camera_link", (0.15, 0.0, 0.45), quat_y(math.radians(35.0)), "static")
+
+
+def plan_loop(a: argparse.Namespace, rows: list[MapRow], maps: np.ndarray, n: int, mb: Messages, counts: dict):
+    """--loop-for: map k is rows[k % len(rows)] (its window and pose) stamped
+    --stamp0 + k * --loop-dt, with its TF and joint states as plan() makes
+    them; messages are made as they are written, in receive-time order
+    (memory stays a few maps whatever the length). Counts into `counts`."""
+    import heapq
+
+    base, dt = a.stamp0 * NS, round(a.loop_dt * NS)
+    total = int(round(a.loop_for * NS) // dt)
+    windows = [window(maps, m.index, n) for m in rows]
+    heap: list = []
+
+    def add(recv: int, conn: str, data: bytes, stamp_ns: int | None = None) -> None:
+        heapq.heappush(heap, (recv, counts["messages"], conn, data, stamp_ns))
+        counts["messages"] += 1
+
+    add(base - HALF_GAP_NS - 100_000_000, "tf_static", static_tf(mb, base - HALF_GAP_NS - 100_000_000))
+    for k in range(total):
+        m = rows[k % len(rows)]
+        ns = base + k * dt
+        add(ns + MAP_DELAY_NS, "map", mb.grid_map(m, ns, windows[k % len(rows)], k, a.row_major), ns)
+        samples(a, mb, m, ns, add)
+        counts["maps"] += 1
+        counts["tf"] += 4
+        counts["joints"] += 2
+        # Messages of later maps are received at their stamp - 0.02 s or later.
+        horizon = ns + dt - HALF_GAP_NS
+        while heap and heap[0][0] < horizon:
+            yield Planned(*heapq.heappop(heap))
+    while heap:
+        yield Planned(*heapq.heappop(heap))
+
+
 def plan(a: argparse.Namespace, rows: list[MapRow], maps: np.ndarray, n: int, mb: Messages) -> tuple[list[Planned], dict]:
     """Every message in writing order, and what --verify expects."""
     out: list[Planned] = []
@@ -471,19 +554,9 @@ def plan(a: argparse.Namespace, rows: list[MapRow], maps: np.ndarray, n: int, mb
         ns = base + m.stamp_ns
         add(map_recv[k], "map", mb.grid_map(m, ns, window(maps, m.index, n), k, a.row_major), ns)
         expected["maps"].append((ns, map_recv[k], m, k))
-        for sign in (-1, 1):
-            t = ns + sign * HALF_GAP_NS
-            recv = t + (TF_LATE_NS if a.tf_late else 0)
-            xyz = (m.x + sign * D_XY, m.y + sign * D_XY, 0.0)
-            add(recv, "tf_odom", mb.tf(t, "odom", "base_footprint", xyz, quat_z(m.yaw + sign * D_YAW), "odom"))
-            quat = quat_y(-(m.pitch + sign * D_PITCH))
-            add(recv, "tf_body", mb.tf(t, "base_footprint", "base_link", (0.0, 0.0, m.z + sign * D_Z), quat, "body"))
-            track = 0.1 * (m.stamp_ns / NS) + sign * 0.002
-            pos = {"L": track, "R": -track} | {f: m.flippers[f] + sign * D_FLIPPER for f in range(4)}
-            names = [TRACKS[0] if j == "L" else TRACKS[1] if j == "R" else a.flippers[j] for j in JOINT_ORDER]
-            add(t, "joints", mb.joints(t, names, [pos[j] for j in JOINT_ORDER]))
-            expected["tf"] += 2
-            expected["joints"] += 1
+        samples(a, mb, m, ns, add)
+        expected["tf"] += 4
+        expected["joints"] += 2
     if a.extra_map_without_tf:
         m = rows[0]
         ns = base + m.stamp_ns - EXTRA_MAP_BEFORE_NS
@@ -492,8 +565,7 @@ def plan(a: argparse.Namespace, rows: list[MapRow], maps: np.ndarray, n: int, mb
         add(ns + MAP_DELAY_NS, "map", mb.grid_map(m, ns, window(maps, m.index, n), 0, a.row_major), ns)
         expected["maps"].append((ns, ns + MAP_DELAY_NS, m, 0))
     first = min(p.recv_ns for p in out) - 100_000_000
-    static = mb.tf(first, "base_link", "camera_link", (0.15, 0.0, 0.45), quat_y(math.radians(35.0)), "static")
-    add(first, "tf_static", static)
+    add(first, "tf_static", static_tf(mb, first))
     expected["tf_static"] = 1
     out.sort(key=lambda p: (p.recv_ns, p.order))
     if a.damaged_map is not None:
@@ -832,9 +904,13 @@ def main(argv: list[str] | None = None) -> int:
             raise BadInput(f"{a.out} exists already; not overwriting")
         if not a.out.parent.is_dir():
             raise BadInput(f"{a.out.parent} is not a folder")
-        rows, maps, n = read_maps(a.dir, a.sequences, a.pad_to)
+        rows, maps, n = read_maps(a.dir, a.sequences, a.pad_to, a.crop)
         ts = make_typestore(a.format)
-        planned, expected = plan(a, rows, maps, n, Messages(ts, a.format))
+        if a.loop_for is None:
+            planned, expected = plan(a, rows, maps, n, Messages(ts, a.format))
+        else:
+            expected = {"messages": 0, "maps": 0, "tf": 0, "joints": 0}
+            planned = plan_loop(a, rows, maps, n, Messages(ts, a.format), expected)
     except BadInput as e:
         log(str(e))
         return 2
@@ -842,10 +918,11 @@ def main(argv: list[str] | None = None) -> int:
         (write_ros1 if a.format == "ros1" else write_mcap)(a, ts, planned)
         size = sum(f.stat().st_size for f in ([a.out] if a.out.is_file() else a.out.iterdir()))
         runs = sorted({m.sequence for m in rows})
+        looped = f"{expected['maps']} maps: {len(rows)} of {len(runs)} run(s) over and over for {a.loop_for} s" if a.loop_for else ""
         log(
-            f"wrote {len(planned)} messages ({len(rows)} maps of {len(runs)} run(s)"
+            f"wrote {expected['messages'] if looped else len(planned)} messages ({looped or f'{len(rows)} maps of {len(runs)} run(s)'}"
             f"{' + 1 without TF' if a.extra_map_without_tf else ''}"
-            f"{f', {n} x {n} cells' if a.pad_to is not None else ''}"
+            f"{f', {n} x {n} cells' if a.pad_to is not None or a.crop is not None else ''}"
             f"{f', map message {a.damaged_map} cut short' if a.damaged_map is not None else ''}, "
             f"{expected['tf'] + 1} TF, {expected['joints']} joint states) to {output_file(a)} "
             f"({a.format}, compression {a.compression}, {size / 1e6:.1f} MB)"
