@@ -130,13 +130,38 @@ pub fn check(cfg: &ImportConfig) -> Result<(), DemError> {
     }
     // Created only once the inputs are there, and removed again when the
     // outputs are refused: a refused run leaves nothing behind.
-    let created = !cfg.out.exists();
-    std::fs::create_dir_all(&cfg.out).map_err(|e| DemError::Usage(format!("cannot create the output folder {}: {e}", cfg.out.display())))?;
-    let checked = check_outputs(cfg);
-    if checked.is_err() && created {
-        let _ = std::fs::remove_dir(&cfg.out);
+    let created = first_missing(&cfg.out);
+    let checked = std::fs::create_dir_all(&cfg.out)
+        .map_err(|e| DemError::Usage(format!("cannot create the output folder {}: {e}", cfg.out.display())))
+        .and_then(|()| check_outputs(cfg));
+    if let (Err(_), Some(top)) = (&checked, &created) {
+        remove_created(&cfg.out, top);
     }
     checked
+}
+
+/// The topmost folder on the way to `out` that does not exist yet (None
+/// when `out` exists): what creating `out` would create.
+pub fn first_missing(out: &Path) -> Option<PathBuf> {
+    let mut top = None;
+    let mut p = Some(out);
+    while let Some(dir) = p.filter(|d| !d.as_os_str().is_empty() && !d.exists()) {
+        top = Some(dir.to_path_buf());
+        p = dir.parent();
+    }
+    top
+}
+
+/// Remove `out` and its parents up to `top`, each only when empty: the
+/// folders a run that wrote nothing created.
+pub fn remove_created(out: &Path, top: &Path) {
+    let mut p = Some(out);
+    while let Some(dir) = p {
+        if std::fs::remove_dir(dir).is_err() || dir == top {
+            break;
+        }
+        p = dir.parent();
+    }
 }
 
 fn check_outputs(cfg: &ImportConfig) -> Result<(), DemError> {
@@ -463,6 +488,7 @@ fn usable(dem: &Dem) -> Result<(), String> {
 /// The one-line summary of a report.
 pub fn summary(r: &RecordingReport) -> String {
     if let Some(why) = &r.failed {
+        let why = why.strip_prefix(&format!("{}: ", r.recording)).unwrap_or(why);
         return format!("{}: not imported: {why}", r.recording);
     }
     let mut s = format!("{}: {} maps -> {} DEMs in {}", r.recording, r.maps, r.dems, r.npy.as_deref().unwrap_or("-"));

@@ -5,7 +5,7 @@ use std::process::ExitCode;
 
 use clap::Parser;
 use dem_core::cli::{self, value};
-use dem_core::Terrain;
+use dem_core::{DemError, Terrain};
 use dem_import::window::Resampling;
 use dem_import::{import, summary, ImportConfig};
 
@@ -75,9 +75,10 @@ struct Args {
     /// Exit 0 even when messages or recordings were skipped.
     #[arg(long)]
     keep_going: bool,
-    /// Worker threads (default: all cores; recordings run in parallel).
-    #[arg(long, value_parser = value::at_least_one::<usize>)]
-    threads: Option<usize>,
+    /// Worker threads, 1 to 1024 (default: all cores; recordings run in
+    /// parallel, one per thread).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    threads: Option<u32>,
 }
 
 fn main() -> ExitCode {
@@ -87,6 +88,8 @@ fn main() -> ExitCode {
             return Err(cli::usage("--min-valid must be > 0"));
         }
         if let Some(n) = a.threads {
+            // One recording per thread: more threads than recordings would idle.
+            let n = (n as usize).min(a.recordings.len()).max(1);
             rayon::ThreadPoolBuilder::new().num_threads(n).build_global()?;
         }
         let flippers: [String; 4] = a.flippers.try_into().map_err(|_| cli::usage("--flippers takes four joint names"))?;
@@ -101,10 +104,22 @@ fn main() -> ExitCode {
             every: a.every,
             terrain: a.terrain,
         };
+        let created = dem_import::first_missing(&cfg.out);
         dem_import::check(&cfg)?;
         let bar = cli::progress(2 * dem_import::total_bytes(&cfg), "bytes");
         let reports = import(&cfg, &|b| bar.set_position(b), &|line| bar.suspend(|| cli::log(line)))?;
         bar.finish_and_clear();
+        // A recording that could not be read at all (not a recording, no
+        // such --map-topic) is bad input: exit 2, after the others are
+        // written; a run that wrote nothing leaves no output folder.
+        let failed = reports.iter().filter(|r| r.failed.is_some()).count();
+        if let (Some(top), true) = (&created, reports.iter().all(|r| r.npy.is_none())) {
+            dem_import::remove_created(&cfg.out, top);
+        }
+        if failed == 1 && reports.len() == 1 && !a.keep_going {
+            // One line: the summary is the error.
+            return Err(DemError::Usage(summary(&reports[0])).into());
+        }
         for r in &reports {
             cli::log(summary(r));
         }
@@ -113,8 +128,15 @@ fn main() -> ExitCode {
         if reports.len() > 1 {
             cli::log(format_args!("{dems} DEMs from {} recordings", reports.len()));
         }
-        if bad > 0 && !a.keep_going {
-            anyhow::bail!("{bad} of {} recordings had skipped messages or could not be read (see above; --keep-going accepts that)", reports.len());
+        if a.keep_going {
+            return Ok(());
+        }
+        if failed > 0 {
+            let what = format!("{failed} of {} recordings could not be imported (see above; --keep-going accepts that)", reports.len());
+            return Err(DemError::Usage(what).into());
+        }
+        if bad > 0 {
+            anyhow::bail!("{bad} of {} recordings had skipped messages (see above; --keep-going accepts that)", reports.len());
         }
         Ok(())
     })

@@ -9,6 +9,32 @@
 use crate::geometry::{Quat, Transform, Vec3};
 use crate::wire::{ArrayAt, Encoding, Result, Wire, WireError};
 
+/// The largest coordinate (m) a transform or a map position may have: beyond
+/// any frame on Earth (UTM northings reach 1e7 m), so a larger one is a
+/// damaged message, refused before it can become an infinite DEM value.
+pub const MAX_COORDINATE: f64 = 1e9;
+
+/// A number for a message: as written when it is short, else in `{:e}`
+/// form (`1e300`, not 301 digits).
+pub fn num(v: f64) -> String {
+    let plain = format!("{v}");
+    if plain.len() <= 12 {
+        plain
+    } else {
+        format!("{v:e}")
+    }
+}
+
+/// Err naming `what` when `v` (x, y, z) is not finite or beyond [`MAX_COORDINATE`].
+fn check_position(v: Vec3, what: &str) -> Result<()> {
+    for (axis, x) in [("x", v.x), ("y", v.y), ("z", v.z)] {
+        if !(x.is_finite() && x.abs() <= MAX_COORDINATE) {
+            return Err(WireError(format!("{what} {axis} = {} m is not a position (at most {} m)", num(x), num(MAX_COORDINATE))));
+        }
+    }
+    Ok(())
+}
+
 /// Storage order of a grid_map layer (`Float32MultiArray.layout.dim[0].label`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Storage {
@@ -76,12 +102,36 @@ impl<'a> GridMap<'a> {
         let length_y = w.f64("info.length_y")?;
         let (center, q) = pose(&mut w)?;
         if !(resolution.is_finite() && resolution > 0.0 && length_x.is_finite() && length_y.is_finite()) {
-            return Err(WireError(format!("resolution {resolution} and lengths {length_x} x {length_y} are not a map")));
+            return Err(WireError(format!(
+                "info: resolution {} and lengths {} x {} are not a map",
+                num(resolution),
+                num(length_x),
+                num(length_y)
+            )));
         }
         let rows = (length_x / resolution).round();
         let cols = (length_y / resolution).round();
         if !(1.0..=65536.0).contains(&rows) || !(1.0..=65536.0).contains(&cols) {
-            return Err(WireError(format!("a map of {rows} x {cols} cells")));
+            return Err(WireError(format!(
+                "info: lengths {} x {} m at resolution {} m are {} x {} cells (1 to 65536 a side)",
+                num(length_x),
+                num(length_y),
+                num(resolution),
+                num(rows),
+                num(cols)
+            )));
+        }
+        check_position(center, "info.pose.position")?;
+        // grid_map writes the identity; a zero quaternion reads as no
+        // rotation, as grid_map (which ignores the orientation) reads it.
+        if ![q.x, q.y, q.z, q.w].iter().all(|v| v.is_finite()) {
+            return Err(WireError(format!(
+                "info.pose.orientation ({}, {}, {}, {}) is not a rotation",
+                num(q.x),
+                num(q.y),
+                num(q.z),
+                num(q.w)
+            )));
         }
         let (rows, cols) = (rows as usize, cols as usize);
         let layers = w.strings("layers")?;
@@ -127,8 +177,16 @@ impl<'a> GridMap<'a> {
         if sizes != [outer, inner] {
             return Err(WireError(format!("layer {name}: layout {sizes:?} does not fit a {rows} x {cols} map")));
         }
-        if offset + rows * cols > data.len {
-            return Err(WireError(format!("layer {name}: {} floats for {rows} x {cols} cells", data.len)));
+        let cells = rows * cols;
+        if data.len < cells {
+            return Err(WireError(format!("layer {name}: {} floats for {rows} x {cols} = {cells} cells", data.len)));
+        }
+        if offset > data.len - cells {
+            return Err(WireError(format!(
+                "layer {name}: layout.data_offset {offset} is out of range: {cells} cells from there need {} floats, the layer has {} (grid_map writes 0)",
+                offset + cells,
+                data.len
+            )));
         }
         Ok(Layer { data, offset, storage })
     }
@@ -190,9 +248,7 @@ pub fn decode_tf(buf: &[u8], encoding: Encoding) -> Result<Vec<StampedTransform>
         let t = Vec3::new(w.f64("translation.x")?, w.f64("translation.y")?, w.f64("translation.z")?);
         let q = Quat { x: w.f64("rotation.x")?, y: w.f64("rotation.y")?, z: w.f64("rotation.z")?, w: w.f64("rotation.w")? };
         let q = q.normalized().ok_or_else(|| WireError(format!("transform {parent} -> {child}: rotation is not a quaternion")))?;
-        if ![t.x, t.y, t.z].iter().all(|v| v.is_finite()) {
-            return Err(WireError(format!("transform {parent} -> {child}: translation is not finite")));
-        }
+        check_position(t, &format!("transform {parent} -> {child}: translation"))?;
         out.push(StampedTransform {
             stamp,
             parent: strip_slash(parent).to_string(),

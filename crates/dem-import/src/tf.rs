@@ -8,13 +8,21 @@
 //! linearly; a time just outside the recorded joint states (within
 //! [`JOINT_SLACK_NS`]) takes the nearest, further out is "not recorded".
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 
 use crate::geometry::Transform;
 use crate::msg::{JointState, StampedTransform};
 
 /// How far past its first or last joint state a joint is held (ns).
 pub const JOINT_SLACK_NS: i64 = 500_000_000;
+
+/// The longest chain of links followed from a frame to its root (a
+/// robot's tree is a few links deep; a longer chain is refused by name).
+pub const MAX_CHAIN: usize = 1024;
+
+/// The largest joint position used (rad): no joint turns a million
+/// radians; a larger value is a damaged message and is left out.
+pub const MAX_JOINT: f64 = 1e6;
 
 struct Link {
     parent: String,
@@ -87,14 +95,18 @@ impl TfBuffer {
     /// `frame` in it.
     fn up_chain(&self, frame: &str, t: i64) -> Result<Vec<(String, Transform)>, String> {
         let mut out = vec![(frame.to_string(), Transform::IDENTITY)];
+        let mut seen: HashSet<String> = HashSet::from([frame.to_string()]);
         let mut acc = Transform::IDENTITY;
         let mut cur = frame.to_string();
         while self.links.contains_key(&cur) {
             let (parent, tf) = self.link_at(&cur, t)?;
             acc = tf.then(acc);
             cur = parent.to_string();
-            if out.iter().any(|(f, _)| *f == cur) || out.len() > 256 {
+            if !seen.insert(cur.clone()) {
                 return Err(format!("the TF tree has a loop through {cur}"));
+            }
+            if out.len() > MAX_CHAIN {
+                return Err(format!("the TF chain from {frame} up to its root is deeper than {MAX_CHAIN} links"));
             }
             out.push((cur.clone(), acc));
         }
@@ -109,9 +121,10 @@ impl TfBuffer {
             return Ok(*tf);
         }
         let from_target = self.up_chain(target, t)?;
+        let frame_in: HashMap<&str, &Transform> = from_frame.iter().map(|(g, tf)| (g.as_str(), tf)).collect();
         for (f, target_in_f) in &from_target {
-            if let Some((_, frame_in_f)) = from_frame.iter().find(|(g, _)| g == f) {
-                return Ok(target_in_f.inverse().then(*frame_in_f));
+            if let Some(frame_in_f) = frame_in.get(f.as_str()) {
+                return Ok(target_in_f.inverse().then(**frame_in_f));
             }
         }
         let root = |c: &[(String, Transform)]| c.last().map(|r| r.0.clone()).unwrap_or_default();
@@ -130,13 +143,18 @@ pub struct JointTrack {
 }
 
 impl JointTrack {
-    /// Add a joint state message.
-    pub fn insert(&mut self, js: &JointState) {
+    /// Add a joint state message. Positions that are not finite or beyond
+    /// [`MAX_JOINT`] are left out and returned, with their joint's name.
+    pub fn insert(&mut self, js: &JointState) -> Vec<(String, f64)> {
+        let mut left_out = Vec::new();
         for (name, &p) in js.names.iter().zip(&js.positions) {
-            if p.is_finite() {
+            if p.is_finite() && p.abs() <= MAX_JOINT {
                 self.joints.entry(name.clone()).or_default().push((js.stamp, p));
+            } else {
+                left_out.push((name.clone(), p));
             }
         }
+        left_out
     }
 
     /// Sort by time; call once after the last insert.
@@ -209,6 +227,29 @@ mod tests {
         assert!(e.contains("no transform odom -> base") && e.contains("recorded"), "{e}");
         assert!(tf.lookup("odom", "wheel", 15).unwrap_err().contains("not connected"));
         assert!(tf.insert(st(30, "map", "base", 0.0, 0.0), false).unwrap_err().contains("two parents"));
+    }
+
+    #[test]
+    fn a_long_chain_is_no_loop_and_a_loop_is_named() {
+        let mut tf = TfBuffer::default();
+        for k in 0..300 {
+            tf.insert(st(0, &format!("f{}", k + 1), &format!("f{k}"), 1.0, 0.0), true).unwrap();
+        }
+        tf.finish();
+        assert!((tf.lookup("f300", "f0", 0).unwrap().translation.x - 300.0).abs() < 1e-9);
+        let mut deep = TfBuffer::default();
+        for k in 0..=MAX_CHAIN {
+            deep.insert(st(0, &format!("f{}", k + 1), &format!("f{k}"), 1.0, 0.0), true).unwrap();
+        }
+        deep.finish();
+        let e = deep.lookup("x", "f0", 0).unwrap_err();
+        assert!(e.contains("deeper than 1024 links") && !e.contains("loop"), "{e}");
+        let mut looped = TfBuffer::default();
+        looped.insert(st(0, "a", "b", 1.0, 0.0), true).unwrap();
+        looped.insert(st(0, "b", "c", 1.0, 0.0), true).unwrap();
+        looped.insert(st(0, "c", "a", 1.0, 0.0), true).unwrap();
+        looped.finish();
+        assert!(looped.lookup("x", "a", 0).unwrap_err().contains("loop through a"));
     }
 
     #[test]

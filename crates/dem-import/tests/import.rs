@@ -178,7 +178,7 @@ fn bad_recordings_are_named_skipped_and_counted() {
     let junk = dir.path().join("junk.bag");
     std::fs::write(&junk, b"hello").unwrap();
     let o = import(&dir.path().join("o6"), &[], &[&junk]);
-    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("junk.bag: not imported") && stderr(&o).contains("not a ROS 1 bag"), "{}", stderr(&o));
     let db3 = dir.path().join("x.db3");
     std::fs::write(&db3, b"SQLite format 3\0").unwrap();
