@@ -103,6 +103,8 @@ pub struct RecordingReport {
     /// True when no joint states of the flippers were found (row 20 holds
     /// zeros for them).
     pub no_flippers: bool,
+    /// `failed` is a defect of dem-import (a panic caught), not bad input.
+    pub internal: bool,
 }
 
 impl RecordingReport {
@@ -200,7 +202,22 @@ pub fn total_bytes(cfg: &ImportConfig) -> u64 {
 pub fn import(cfg: &ImportConfig, progress: &(dyn Fn(u64) + Sync), warn: &(dyn Fn(&str) + Sync)) -> Result<Vec<RecordingReport>, DemError> {
     let done = AtomicU64::new(0);
     let tick = |n: u64| progress(done.fetch_add(n, Ordering::Relaxed) + n);
-    cfg.recordings.par_iter().enumerate().map(|(seq, r)| import_one(cfg, r, seq as u64, &tick, warn)).collect()
+    cfg.recordings
+        .par_iter()
+        .enumerate()
+        .map(|(seq, r)| {
+            // A defect (a panic) costs its recording, not the batch.
+            std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| import_one(cfg, r, seq as u64, &tick, warn))).unwrap_or_else(|panic| {
+                let what = panic.downcast_ref::<&str>().map(|s| s.to_string()).or_else(|| panic.downcast_ref::<String>().cloned()).unwrap_or_default();
+                Ok(RecordingReport {
+                    recording: r.display().to_string(),
+                    failed: Some(format!("internal error, a defect of dem-import (please report it with this file): {what}")),
+                    internal: true,
+                    ..Default::default()
+                })
+            })
+        })
+        .collect()
 }
 
 /// Warnings per kind printed for one recording; the rest are counted only.
@@ -275,6 +292,7 @@ fn import_one(cfg: &ImportConfig, path: &Path, seq: u64, tick: &(dyn Fn(u64) + S
     let mut map_topics: BTreeSet<String> = BTreeSet::new();
     let mut all_topics: BTreeMap<String, String> = BTreeMap::new();
     let joint_topic = msg::strip_slash(&cfg.joint_topic).to_string();
+    let mut breaks: Vec<String> = Vec::new();
     for (kind, file) in &files {
         let fname = file.display().to_string();
         let mut seen: HashMap<String, u64> = HashMap::new();
@@ -330,9 +348,8 @@ fn import_one(cfg: &ImportConfig, path: &Path, seq: u64, tick: &(dyn Fn(u64) + S
         match result {
             Ok(()) => {}
             Err(StopError::Broken { offset, reason }) => {
-                let what = format!("{fname}: byte {offset}: {reason}");
-                warn(&format!("warning: {what}; the messages before it are imported"));
-                rec.report.broken = Some(what);
+                // Warned once the map topic is known; else it is why nothing was imported.
+                breaks.push(format!("{fname}: byte {offset}: {reason}"));
             }
             Err(e) => {
                 rec.report.failed = Some(format!("{fname}: {e}"));
@@ -345,11 +362,19 @@ fn import_one(cfg: &ImportConfig, path: &Path, seq: u64, tick: &(dyn Fn(u64) + S
 
     let topic = match pick_map_topic(cfg, &map_topics, &all_topics) {
         Ok(t) => t,
+        Err(why) if !breaks.is_empty() => {
+            rec.report.failed = Some(format!("{}; before it: {why}", breaks.join("; ")));
+            return Ok(rec.report);
+        }
         Err(why) => {
             rec.report.failed = Some(why);
             return Ok(rec.report);
         }
     };
+    for what in &breaks {
+        warn(&format!("warning: {what}; the messages before it are imported"));
+    }
+    rec.report.broken = breaks.pop();
     rec.report.no_flippers = !cfg.flippers.iter().any(|f| joints.has(f));
 
     // Pass 2: the maps.

@@ -116,7 +116,7 @@ fn main() -> ExitCode {
         if let (Some(top), true) = (&created, reports.iter().all(|r| r.npy.is_none())) {
             dem_import::remove_created(&cfg.out, top);
         }
-        if failed == 1 && reports.len() == 1 && !a.keep_going {
+        if failed == 1 && reports.len() == 1 && !a.keep_going && !reports[0].internal {
             // One line: the summary is the error.
             return Err(DemError::Usage(summary(&reports[0])).into());
         }
@@ -127,6 +127,9 @@ fn main() -> ExitCode {
         let dems: u64 = reports.iter().map(|r| r.dems).sum();
         if reports.len() > 1 {
             cli::log(format_args!("{dems} DEMs from {} recordings", reports.len()));
+        }
+        if reports.iter().any(|r| r.internal) {
+            anyhow::bail!("a defect of dem-import stopped a recording (see above)");
         }
         if a.keep_going {
             return Ok(());
