@@ -169,6 +169,18 @@ pub fn run(a: MergeArgs) -> anyhow::Result<()> {
             rows.entry(key).or_default().add(r);
         }
     }
-    let gaps = gaps(&a, &recs)?;
+    // A gap that is not a number (heights near float32's limit overflow its
+    // statistics) is left out, as a table reader would refuse it.
+    let mut gaps = gaps(&a, &recs)?;
+    gaps.retain(|key, g| {
+        let keep = g.is_finite();
+        if !keep {
+            cli::log(format_args!(
+                "gap of the {} row not computed: its statistics overflow (heights near float32's limit)",
+                key.map_or(dem_core::eval::ALL, |t| t.as_str())
+            ));
+        }
+        keep
+    });
     a.table.write(&Evaluation::new(rows, gaps), &a.name)
 }

@@ -653,3 +653,126 @@ fn the_table_goes_to_a_file_atomically_and_stdout_may_close_early() {
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("only one output can be `-`"));
 }
+
+/// A records file of three sims, as `dem-eval --records` writes it.
+fn records_csv(d: &Path) -> String {
+    let pairs = arg(d, "three.csv");
+    std::fs::write(&pairs, "sim_index,real_index\n0,0\n1,1\n2,2\n").unwrap();
+    let rec = arg(d, "r.csv");
+    ok(&run("dem-eval", &["--sim", &td("sim.npy"), "--real", &td("real.npy"), "--pairs", &pairs, "--identity", "--records", &rec, "-o", "/dev/null"], None));
+    rec
+}
+
+/// `dem-eval merge` refuses a records value no evaluation writes (NaN, an
+/// infinity, a negative or out-of-range number, more differences than a
+/// record has cells, a sum of none) with one line naming the file, the
+/// line and the column, exit 2, nothing written.
+#[test]
+fn merge_refuses_values_no_evaluation_writes_naming_line_and_column() {
+    let dir = tempdir();
+    let d = dir.path();
+    let text = std::fs::read_to_string(records_csv(d)).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    let header: Vec<&str> = lines[0].split(',').collect();
+    let table = arg(d, "t.csv");
+    ok(&run("dem-eval", &["merge", &arg(d, "r.csv"), "--name", "m", "-o", &table], None));
+    std::fs::remove_file(&table).unwrap();
+    let cases: [(&str, &str, &[usize]); 11] = [
+        ("error", "NaN", &[2]),
+        ("error", "inf", &[2]),
+        ("error", "-1", &[2]),
+        ("error", "1e400", &[2]),
+        ("height_sum_m", "NaN", &[2]),
+        ("height_sum_m", "inf", &[2]),
+        ("rough_across_sum_m", "-0.5", &[2]),
+        ("real_rough_along_sum_m", "1e300", &[2]),
+        ("height_n", "18446744073709551615", &[2, 3]),
+        ("rough_along_n", "96", &[2]),
+        ("height_n", "0", &[2]),
+    ];
+    for (column, value, rows) in cases {
+        let mut bad: Vec<String> = lines.iter().map(|l| l.to_string()).collect();
+        for &r in rows {
+            let mut f: Vec<&str> = lines[r].split(',').collect();
+            f[header.iter().position(|h| *h == column).unwrap()] = value;
+            bad[r] = f.join(",");
+        }
+        let path = arg(d, "bad.csv");
+        std::fs::write(&path, bad.join("\n") + "\n").unwrap();
+        let o = run("dem-eval", &["merge", &path, "--name", "m", "-o", &table], None);
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{column} = {value}: {e}");
+        let column = if value == "0" { "height_sum_m" } else { column };
+        assert!(e.contains(&format!("bad.csv: line 3: column {column}: ")) && e.lines().count() == 1, "{column} = {value}: {e}");
+        assert!(!Path::new(&table).exists());
+    }
+}
+
+/// `join` and `compare` refuse an infinite pair error in a table, naming the
+/// file, the line and the column (the row, on stdin); what dem-eval writes,
+/// in CSV and JSON, they read back.
+#[test]
+fn join_and_compare_refuse_an_infinite_error_naming_line_and_column() {
+    let dir = tempdir();
+    let d = dir.path();
+    let good = table_csv(d, "good.csv", &[("a", "all", 0.3, 0.2), ("a", "flat", 0.4, 0.3)]);
+    let inf = table_csv(d, "inf.csv", &[("a", "all", 0.3, 0.2), ("a", "flat", f64::INFINITY, 0.3)]);
+    let o = run("dem-eval", &["join", &inf, "--format", "json"], None);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("inf.csv: line 3: column mean: inf is not a finite number"), "{}", stderr(&o));
+    assert!(o.stdout.is_empty());
+    let o = run("dem-eval", &["join", "-"], Some(std::fs::read(&inf).unwrap()));
+    assert!(o.status.code() == Some(2) && stderr(&o).contains("-: column mean: inf is not a finite number (row a/flat)"), "{}", stderr(&o));
+    let o = run("dem-eval", &["compare", &good, &inf], None);
+    assert!(o.status.code() == Some(2) && stderr(&o).contains("inf.csv: line 3: column mean"), "{}", stderr(&o));
+    // What join writes, join reads: CSV to JSON and back.
+    let json = arg(d, "t.json");
+    ok(&run("dem-eval", &["join", &good, "--format", "json", "-o", &json], None));
+    let (back, direct) = (run("dem-eval", &["join", &json], None), run("dem-eval", &["join", &good], None));
+    assert_eq!(String::from_utf8_lossy(ok(&back)), String::from_utf8_lossy(ok(&direct)));
+}
+
+/// Records as far apart as two DEMs of the contract can be (heights at
+/// +-f32::MAX, every neighbour apart): evaluate's records, merged, in CSV
+/// and JSON, are read back by join, and two files of them add up.
+#[test]
+fn the_contract_s_extremes_are_written_and_read_back() {
+    use dem_core::format::{empty_dem, DemCells};
+    let dir = tempdir();
+    let d = dir.path();
+    let dem = |sign: f32| -> Vec<Dem> {
+        (0..6)
+            .map(|i| {
+                let mut x = empty_dem();
+                for r in 0..20 {
+                    for c in 0..5 {
+                        x.set_valid(r, c, if (r + c + i) % 2 == 0 { sign * f32::MAX } else { -sign * f32::MAX });
+                    }
+                }
+                x
+            })
+            .collect()
+    };
+    let (sim, real, pairs) = (arg(d, "xs.npy"), arg(d, "xr.npy"), arg(d, "xp.csv"));
+    npy::write_all(&sim, &dem(1.0)).unwrap();
+    npy::write_all(&real, &dem(-1.0)).unwrap();
+    std::fs::write(&pairs, "sim_index,real_index\n0,0\n1,1\n2,2\n3,3\n4,4\n5,5\n").unwrap();
+    let (rec, pred) = (arg(d, "r.csv"), arg(d, "p.npy"));
+    ok(&run("dem-eval", &["--sim", &sim, "--real", &real, "--pairs", &pairs, "--identity", "--records", &rec, "--emit-pred", &pred, "-o", "/dev/null"], None));
+    let half = |name: &str, rows: std::ops::Range<usize>| {
+        let text = std::fs::read_to_string(&rec).unwrap();
+        let lines: Vec<&str> = text.lines().collect();
+        let p = arg(d, name);
+        std::fs::write(&p, [&lines[..1], &lines[rows]].concat().join("\n") + "\n").unwrap();
+        p
+    };
+    let (a, b) = (half("a.csv", 1..4), half("b.csv", 4..7));
+    let csv = arg(d, "m.csv");
+    ok(&run("dem-eval", &["merge", &a, &b, "--name", "m", "--format", "csv", "-o", &csv], None));
+    let json = arg(d, "m.json");
+    let o = run("dem-eval", &["merge", &a, &b, "--name", "g", "--format", "json", "-o", &json, "--emitted-pred", &pred, "--real", &real, "--pairs", &pairs], None);
+    ok(&o);
+    let joined = String::from_utf8(ok(&run("dem-eval", &["join", &csv, &json, "--format", "csv"], None)).to_vec()).unwrap();
+    assert_eq!(joined.lines().count(), 3, "{joined}");
+    assert!(joined.lines().nth(1).unwrap().starts_with("m,all,6,"), "{joined}");
+}
