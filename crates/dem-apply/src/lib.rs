@@ -20,8 +20,10 @@
 use dem_core::format::Dem;
 use dem_core::{table, DemError};
 use dem_onnx::apply::{apply, ApplyStats, MaskSampling};
-use dem_onnx::{Heights, OnnxModel, HEIGHTS_KEY};
-use dem_sensor::SensorModel;
+use dem_core::npy::F32ArrayWriter;
+use dem_onnx::sensor::Stored;
+use dem_onnx::{Heights, OnnxModel};
+use rayon::prelude::*;
 
 pub use dem_onnx::export::RESIDUAL_KEY;
 
@@ -51,6 +53,9 @@ pub struct Config {
     pub seed: u64,
     /// Index of the input's first record in the whole data set (shards).
     pub first_index: u64,
+    /// Write each record's uniforms here (float32 `(N, K)`), the
+    /// `uniform` input of the model's graph.
+    pub emit_uniform: Option<String>,
 }
 
 /// What [`run`] did.
@@ -66,45 +71,30 @@ pub struct Report {
     pub notes: Vec<String>,
 }
 
-/// What an exported generator says dem-apply runs around its network.
-#[derive(Clone, Debug)]
-pub struct Stored {
-    /// The residual sensor model (`dem-train export --residual`), if any.
-    pub residual: Option<SensorModel>,
-    /// Where its valid cells take their heights from (`dem-train export
-    /// --heights`; a model without the key: the network's).
-    pub heights: Heights,
-}
-
 /// The residual model and heights source stored in the ONNX file at
 /// `path`, from one read of its metadata.
 pub fn stored(path: &str) -> Result<Stored, DemError> {
-    let info = dem_onnx::read_info(path)?;
-    let value = |key: &str| info.metadata.iter().find(|(k, _)| k == key).map(|(_, v)| v);
-    let residual = value(RESIDUAL_KEY)
-        .map(|json| SensorModel::from_json(json).map_err(|e| DemError::input(path, format!("its residual sensor model ({RESIDUAL_KEY}) is not valid: {e}"))))
-        .transpose()?;
-    let heights = match value(HEIGHTS_KEY) {
-        None => Heights::Network,
-        Some(v) => v.parse().map_err(|e| DemError::input(path, format!("its {HEIGHTS_KEY} is not valid: {e}")))?,
-    };
-    Ok(Stored { residual, heights })
+    Stored::from_info(&dem_onnx::read_info(path)?, path)
 }
 
 /// Run `model` (loaded from `c.model`) over `c.input` into `c.output`: the
-/// network, then holes drawn (`sample_masks`), then the input's heights
-/// under the holes (`heights`), then the residual sensor model unless
-/// `network_only`. `progress` gets the records done so far.
+/// network, then holes drawn (`sample_masks`), then the tail the model
+/// carries ([`Stored::finish`]: masks thresholded, the heights chosen, the
+/// residual sensor model unless `network_only`), each record with its
+/// uniforms drawn from the seed and its index in the whole data set.
+/// `progress` gets the records done so far.
 pub fn run(c: &Config, model: &OnnxModel, progress: impl FnMut(u64)) -> Result<Report, DemError> {
-    let stored = stored(&c.model)?;
-    let residual = if c.network_only { None } else { stored.residual };
-    let heights = c.heights.unwrap_or(stored.heights);
+    let file = stored(&c.model)?;
+    let tail = Stored {
+        residual: if c.network_only { None } else { file.residual.clone() },
+        heights: c.heights.unwrap_or(file.heights),
+    };
     let times = match &c.labels {
         Some(p) => Some((p.as_str(), table::times(&table::read_labels(p)?))),
         None => None,
     };
     let mut notes = Vec::new();
-    if let Some(r) = &residual {
+    if let Some(r) = &tail.residual {
         if times.is_none() && r.uses_time() {
             notes.push(
                 "note: the model's residual has `startup` but no --labels gave the records' times: \
@@ -113,18 +103,63 @@ pub fn run(c: &Config, model: &OnnxModel, progress: impl FnMut(u64)) -> Result<R
             );
         }
     }
+    if c.emit_uniform.is_some() && (c.sample_masks || tail != file) {
+        return Err(DemError::Usage(
+            "--emit-uniform gives the uniforms of the model's own graph: it does not combine with --sample-masks, \
+             --network-only or a --heights other than the model's"
+                .into(),
+        ));
+    }
+    let k = tail.draws();
+    let emit = match &c.emit_uniform {
+        Some(path) => Some(std::sync::Mutex::new(F32ArrayWriter::create(path, &[k as u64])?)),
+        None => None,
+    };
     let sample = c.sample_masks.then_some(MaskSampling { seed: c.seed, first_index: c.first_index });
+    let residual = tail.residual_or_empty();
     let finish = |inp: &[Dem], out: &mut [Dem], first: u64| -> Result<(), DemError> {
         if let Some(s) = &sample {
             s.draw(inp, out, first);
         }
-        inp.iter().zip(out.iter_mut()).for_each(|(x, y)| heights.apply(x, y));
-        if let Some(r) = &residual {
-            r.apply_chunk(out, c.seed, c.first_index, first, times.as_ref().map(|(p, t)| (*p, t.as_slice())))?;
+        let t = dem_sensor::chunk_times(times.as_ref().map(|(p, t)| (*p, t.as_slice())), first, out.len())?;
+        let mut u = vec![0.0f32; out.len() * k];
+        if k > 0 {
+            u.par_chunks_mut(k).enumerate().for_each(|(i, u)| residual.uniforms(c.seed, c.first_index + first + i as u64, u));
+        }
+        out.par_iter_mut().zip(inp).enumerate().for_each(|(i, (y, x))| {
+            let time = t.and_then(|t| t.get(i).copied()).filter(|t| t.is_finite());
+            tail.finish(x, y, &u[i * k..(i + 1) * k], time);
+        });
+        if let Some(w) = &emit {
+            w.lock().expect("one writer").write(&u)?;
         }
         Ok(())
     };
-    let any = sample.is_some() || residual.is_some() || heights == Heights::Input;
-    let stats = apply(model, &c.input, &c.output, c.batch, c.strict, any.then_some(&finish as _), progress)?;
-    Ok(Report { stats, residual: residual.map(|r| r.summary()), heights, notes })
+    let labels_cover = |records: u64| dem_sensor::labels_cover(times.as_ref().map(|(p, t)| (*p, t.len())), records);
+    let any = sample.is_some() || tail.has_tail();
+    let stats = apply(model, &c.input, &c.output, c.batch, c.strict, any.then_some(&finish as _), Some(&labels_cover), progress)?;
+    if let Some(w) = emit {
+        w.into_inner().expect("one writer").finish()?;
+    }
+    Ok(Report { stats, residual: tail.residual.map(|r| r.summary()), heights: tail.heights, notes })
+}
+
+/// `--info`'s line on what another runtime (onnxruntime, PyTorch) gets from
+/// the file at `path`, and its inputs.
+pub fn runtime_line(path: &str, info: &dem_onnx::ModelInfo) -> Result<String, DemError> {
+    let stored = Stored::from_info(info, path)?;
+    let whole = info.metadata.iter().any(|(k, v)| k == dem_onnx::sensor::GRAPH_KEY && v == dem_onnx::sensor::GRAPH_SENSOR);
+    let model = stored.residual_or_empty();
+    Ok(if whole {
+        format!(
+            "in another runtime: the whole virtual sensor, as dem-apply runs it; inputs: {}",
+            dem_sensor::graph::input_list(&model)
+        )
+    } else if stored.has_tail() {
+        "in another runtime: the network alone (raw masks, the network's heights); what dem-apply adds after it \
+         (dem.residual, dem.heights) is only in the metadata: re-export with dem-train export for one graph"
+            .to_string()
+    } else {
+        "in another runtime: the network alone, as dem-apply runs it (input dem float32 (N,21,5,2))".to_string()
+    })
 }

@@ -30,6 +30,7 @@ use dem_onnx::OnnxModel;
   dem-apply --model g_y.onnx --info                 # what it was trained on, how, its val table
   dem-apply --model g_y.onnx --sample-masks --seed 1 sim.npy -o realistic.npy   # holes drawn at the model's rate
   dem-apply --model g_y.onnx --labels sim_labels.csv --seed 1 sim.npy -o realistic.npy  # with its residual model, startup by time
+  dem-apply --model gy-sensor.onnx --labels l.csv --seed 1 --emit-uniform u.npy sim.npy -o out.npy   # onnxruntime fed u.npy gives out.npy
   dem-apply --model g_y.onnx --network-only sim.npy -o expected.npy    # the network alone
   dem-apply --model g_y.onnx --network-only --heights input sim.npy -o holes.npy   # its holes, the sim's heights
   dem-synth --out w --runs 20 --seed 3 && dem-apply --model g_y.onnx w/sim.npy | dem-render - -o fake.png
@@ -82,6 +83,12 @@ struct Args {
     /// the whole's.
     #[arg(long, default_value_t = 0)]
     first_index: u64,
+    /// Write each record's uniforms to this NPY file (float32 (N, K), K in
+    /// `--info`): fed as the graph's `uniform` input (with the labels'
+    /// `time`, NaN without --labels), onnxruntime or PyTorch computes the
+    /// same DEMs from the model file.
+    #[arg(long, value_name = "NPY")]
+    emit_uniform: Option<String>,
     /// Worker threads (default: one per core).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
     threads: Option<u32>,
@@ -100,7 +107,8 @@ fn main() -> ExitCode {
             return print_info(&a.model);
         }
         let inputs: Vec<&str> = [Some(&a.input), Some(&a.model), a.labels.as_ref()].into_iter().flatten().map(String::as_str).collect();
-        output::check_outputs(&inputs, &[&a.output])?;
+        let outputs: Vec<&str> = [Some(&a.output), a.emit_uniform.as_ref()].into_iter().flatten().map(String::as_str).collect();
+        output::check_outputs(&inputs, &outputs)?;
         let mut pool = rayon::ThreadPoolBuilder::new();
         if let Some(n) = a.threads {
             pool = pool.num_threads(n as usize);
@@ -121,6 +129,7 @@ fn main() -> ExitCode {
             labels: a.labels.clone(),
             seed: a.seed,
             first_index: a.first_index,
+            emit_uniform: a.emit_uniform.clone(),
         };
         let report = pool.install(|| {
             dem_apply::run(&config, &model, |done| {
@@ -160,6 +169,7 @@ fn print_info(path: &str) -> anyhow::Result<()> {
     for l in info.lines(path, &engine) {
         writeln!(out, "{l}")?;
     }
+    writeln!(out, "{}", dem_apply::runtime_line(path, &info)?)?;
     out.flush()?;
     Ok(())
 }

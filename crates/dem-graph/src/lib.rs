@@ -86,6 +86,11 @@ impl Builder {
         self.prefix = prefix.into();
     }
 
+    /// The current prefix.
+    pub fn prefix(&self) -> &str {
+        &self.prefix
+    }
+
     /// A fresh name under the current prefix.
     pub fn fresh(&mut self, what: &str) -> String {
         self.fresh += 1;
@@ -304,6 +309,11 @@ impl Builder {
             ..Default::default()
         }
     }
+}
+
+/// The bytes of an ONNX file holding `model`.
+pub fn encode(model: &pb::ModelProto) -> Vec<u8> {
+    model.encode_to_vec()
 }
 
 /// One named float32 input of a concrete shape.

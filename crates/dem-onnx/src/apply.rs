@@ -36,6 +36,8 @@ pub struct ApplyStats {
 /// each batch's checked outputs before they are written (holes drawn, a
 /// residual sensor model): it gets the batch's inputs, its outputs and the
 /// index of its first record in the input stream, batches in stream order.
+/// `at_end`, when given, gets the number of records before the output is
+/// completed, and when it refuses, a named output file is not written.
 pub fn apply(
     model: &OnnxModel,
     input: &str,
@@ -43,6 +45,7 @@ pub fn apply(
     batch: usize,
     strict: bool,
     finish: Option<Finish>,
+    at_end: Option<&dyn Fn(u64) -> Result<(), DemError>>,
     mut progress: impl FnMut(u64),
 ) -> Result<ApplyStats, DemError> {
     let mut attitude = AttitudeCheck::default();
@@ -64,6 +67,9 @@ pub fn apply(
         Ok::<_, DemError>(())
     })?;
     let records = writer.records_written();
+    if let Some(check) = at_end {
+        check(records)?;
+    }
     writer.finish()?;
     Ok(ApplyStats { records, attitude })
 }

@@ -25,23 +25,18 @@ use dem_core::{Dem, DemError};
 use dem_nn::weights::{Arch, CORRECTION_SCALE, GATE_SHARPNESS, Conv2d, GeneratorWeights, InstanceNorm, LEAK, NORM_EPS};
 use prost::Message;
 use std::io::Write;
+use dem_graph::{attr_float, attr_int, attr_ints, Builder};
 use tract_onnx::pb;
-use tract_onnx::pb::attribute_proto::AttributeType;
-use tract_onnx::pb::tensor_proto::DataType;
-use tract_onnx::pb::tensor_shape_proto::{dimension, Dimension};
 
 use crate::run::OnnxModel;
+use crate::sensor::Stored;
 
-/// The ONNX operator set the export declares.
-pub const OPSET: i64 = 17;
-/// The ONNX IR version the export declares (IR 8 goes with opsets 13..=17).
-pub const IR_VERSION: i64 = 8;
+pub use dem_graph::{IR_VERSION, OPSET};
 /// Name of the model's input.
 pub const INPUT: &str = "dem";
 /// Name of the model's output.
 pub const OUTPUT: &str = "dem_out";
-/// Name of the batch axis (a `dim_param`).
-pub const BATCH_AXIS: &str = "N";
+pub use dem_graph::BATCH_AXIS;
 /// Largest absolute difference, per output value, between the exported
 /// model and the trainer's forward pass that [`export_checked`] accepts.
 /// Both compute in `f32`; over ~15 layers with instance norms their rounding
@@ -60,89 +55,18 @@ pub struct ExportReport {
     pub records: usize,
     /// Largest `|tract - expected|` over every value of every check record.
     pub max_abs_diff: f32,
+    /// The check of the whole graph, for a virtual sensor.
+    pub tail: Option<TailCheck>,
 }
 
-/// A graph under construction: nodes in order, initializers, fresh names.
-struct Builder {
-    nodes: Vec<pb::NodeProto>,
-    inits: Vec<pb::TensorProto>,
+/// Generator layers on a [`Builder`].
+trait Layers {
+    fn conv(&mut self, x: &str, c: &Conv2d, name: &str) -> String;
+    fn norm(&mut self, x: &str, n: &InstanceNorm, name: &str) -> String;
+    fn leaky(&mut self, x: &str, name: &str) -> String;
 }
 
-fn attr_int(name: &str, i: i64) -> pb::AttributeProto {
-    pb::AttributeProto { name: name.into(), r#type: AttributeType::Int as i32, i, ..Default::default() }
-}
-
-fn attr_ints(name: &str, ints: &[i64]) -> pb::AttributeProto {
-    pb::AttributeProto { name: name.into(), r#type: AttributeType::Ints as i32, ints: ints.to_vec(), ..Default::default() }
-}
-
-fn attr_float(name: &str, f: f32) -> pb::AttributeProto {
-    pb::AttributeProto { name: name.into(), r#type: AttributeType::Float as i32, f, ..Default::default() }
-}
-
-/// `float32 (N, 21, 5, 2)` with `N` a named dynamic axis.
-fn dem_value(name: &str) -> pb::ValueInfoProto {
-    let dim = |v| Dimension { value: Some(v), ..Default::default() };
-    let mut dims = vec![dim(dimension::Value::DimParam(BATCH_AXIS.into()))];
-    dims.extend([21, 5, 2].map(|k| dim(dimension::Value::DimValue(k))));
-    pb::ValueInfoProto {
-        name: name.into(),
-        r#type: Some(pb::TypeProto {
-            value: Some(pb::type_proto::Value::TensorType(pb::type_proto::Tensor {
-                elem_type: DataType::Float as i32,
-                shape: Some(pb::TensorShapeProto { dim: dims }),
-            })),
-            ..Default::default()
-        }),
-        ..Default::default()
-    }
-}
-
-impl Builder {
-    fn f32s(&mut self, name: &str, dims: &[usize], data: &[f32]) -> String {
-        assert_eq!(dims.iter().product::<usize>(), data.len(), "{name}: shape and data disagree");
-        self.inits.push(pb::TensorProto {
-            name: name.into(),
-            dims: dims.iter().map(|&d| d as i64).collect(),
-            data_type: DataType::Float as i32,
-            float_data: data.to_vec(),
-            ..Default::default()
-        });
-        name.into()
-    }
-
-    fn i64s(&mut self, name: &str, data: &[i64]) -> String {
-        self.inits.push(pb::TensorProto {
-            name: name.into(),
-            dims: vec![data.len() as i64],
-            data_type: DataType::Int64 as i32,
-            int64_data: data.to_vec(),
-            ..Default::default()
-        });
-        name.into()
-    }
-
-    /// Append a node whose single output is named `out`.
-    fn node(&mut self, op: &str, inputs: &[&str], attrs: Vec<pb::AttributeProto>, out: &str) -> String {
-        self.nodes.push(pb::NodeProto {
-            input: inputs.iter().map(|s| s.to_string()).collect(),
-            output: vec![out.into()],
-            name: out.into(),
-            op_type: op.into(),
-            attribute: attrs,
-            ..Default::default()
-        });
-        out.into()
-    }
-
-    /// `Slice(x)[start..end]` on `axis`.
-    fn slice(&mut self, x: &str, axis: i64, start: i64, end: i64, out: &str) -> String {
-        let s = self.i64s(&format!("{out}.starts"), &[start]);
-        let e = self.i64s(&format!("{out}.ends"), &[end]);
-        let a = self.i64s(&format!("{out}.axes"), &[axis]);
-        self.node("Slice", &[x, &s, &e, &a], vec![], out)
-    }
-
+impl Layers for Builder {
     /// 3x3 conv, stride 1, pad 1: `(N, c_in, 20, 5) -> (N, c_out, 20, 5)`.
     fn conv(&mut self, x: &str, c: &Conv2d, name: &str) -> String {
         assert_eq!((c.k, c.stride), (3, 1), "{name}: the generator's convs are 3x3 stride 1");
@@ -169,12 +93,33 @@ impl Builder {
 /// for the graph. Panics if `w` is not shaped as `GeneratorWeights::init`
 /// makes it (3 encoder, 3 residual, 3 decoder 3x3 convs, a 210 -> 200 head).
 pub fn generator_model(w: &GeneratorWeights, name: &str) -> pb::ModelProto {
+    let mut g = Builder::new();
+    generator_nodes(&mut g, w, OUTPUT);
+    let doc = format!(
+        "Generator of docs/network.md, {} head, width {}: {INPUT} float32 (N,21,5,2) -> {OUTPUT} float32 (N,21,5,2), \
+         row 20 (attitude) passed through",
+        w.arch.name(),
+        w.width
+    );
+    model_proto(g, name, doc, vec![dem_graph::batch_value(INPUT, &[21, 5, 2])])
+}
+
+/// A model of graph `g` with output [`OUTPUT`] `(N, 21, 5, 2)`.
+pub(crate) fn model_proto(g: Builder, name: &str, doc: String, inputs: Vec<pb::ValueInfoProto>) -> pb::ModelProto {
+    let mut m = g.model(name, inputs, vec![dem_graph::batch_value(OUTPUT, &[21, 5, 2])], doc, &[]);
+    m.producer_name = "dem-onnx".into();
+    m
+}
+
+/// The generator's nodes on `g`, from the graph input [`INPUT`] to the
+/// tensor named `out` (`(N, 21, 5, 2)`); names are fixed (no fresh names),
+/// so what follows in `g` is named as in a graph of its own.
+pub fn generator_nodes(g: &mut Builder, w: &GeneratorWeights, out: &str) -> String {
     assert!(
         w.enc.len() == 3 && w.enc_norm.len() == 3 && w.dec.len() == 3 && w.dec_norm.len() == 2,
         "a generator has 3 encoder and 3 decoder convs"
     );
     assert_eq!((w.fc.n_in, w.fc.n_out), (RECORD_LEN, GRID_LEN), "the generator head is 210 -> 200");
-    let mut g = Builder { nodes: Vec::new(), inits: Vec::new() };
     let nchw = g.node("Transpose", &[INPUT], vec![attr_ints("perm", &[0, 3, 1, 2])], "nchw");
     let img = g.slice(&nchw, 2, 0, 20, "grid");
     let att = g.slice(&nchw, 2, 20, 21, "attitude");
@@ -230,28 +175,7 @@ pub fn generator_model(w: &GeneratorWeights, name: &str) -> pb::ModelProto {
     let shape = g.i64s("head.shape", &[-1, 2, 20, 5]);
     let o = g.node("Reshape", &[&o, &shape], vec![], "head_nchw");
     let o = g.node("Concat", &[&o, &att], vec![attr_int("axis", 2)], "out_nchw");
-    g.node("Transpose", &[&o], vec![attr_ints("perm", &[0, 2, 3, 1])], OUTPUT);
-    pb::ModelProto {
-        ir_version: IR_VERSION,
-        opset_import: vec![pb::OperatorSetIdProto { domain: String::new(), version: OPSET }],
-        producer_name: "dem-onnx".into(),
-        producer_version: env!("CARGO_PKG_VERSION").into(),
-        doc_string: format!(
-            "Generator of spec/network.md, {} head, width {}: {INPUT} float32 (N,21,5,2) -> {OUTPUT} float32 (N,21,5,2), \
-             row 20 (attitude) passed through",
-            w.arch.name(),
-            w.width
-        ),
-        graph: Some(pb::GraphProto {
-            node: g.nodes,
-            name: name.into(),
-            initializer: g.inits,
-            input: vec![dem_value(INPUT)],
-            output: vec![dem_value(OUTPUT)],
-            ..Default::default()
-        }),
-        ..Default::default()
-    }
+    g.node("Transpose", &[&o], vec![attr_ints("perm", &[0, 2, 3, 1])], out)
 }
 
 /// Export generator `w` to `path`, only if it reproduces `expected`.
@@ -282,6 +206,25 @@ pub fn export_checked_with(
     path: &str,
     metadata: &[(String, String)],
 ) -> Result<ExportReport, DemError> {
+    export_sensor_checked(w, &Stored::default(), check_inputs, expected, path, metadata)
+}
+
+/// [`export_checked_with`] for a virtual sensor: generator `w` and the tail
+/// `stored` describes as one graph ([`crate::sensor`]), when it has one.
+/// Checked twice before anything is written: tract's network against
+/// `expected` (within [`TOLERANCE`]), then tract's whole graph against the
+/// native tail ([`Stored::finish`]) on the trainer's outputs, fed the same
+/// uniforms and times (a fifth of them unknown): validity may differ on at
+/// most [`TAIL_VALIDITY`] of the cells (masks within rounding of 0), heights
+/// by [`TOLERANCE`] where both are valid, row 20 not at all.
+pub fn export_sensor_checked(
+    w: &GeneratorWeights,
+    stored: &Stored,
+    check_inputs: &[Dem],
+    expected: &[Dem],
+    path: &str,
+    metadata: &[(String, String)],
+) -> Result<ExportReport, DemError> {
     if check_inputs.is_empty() || check_inputs.len() != expected.len() {
         return Err(DemError::Usage(format!(
             "export to {path}: need check records and as many expected outputs (got {} and {})",
@@ -290,12 +233,44 @@ pub fn export_checked_with(
         )));
     }
     let name = std::path::Path::new(path).file_stem().map_or("generator".into(), |s| s.to_string_lossy().into_owned());
-    let mut proto = generator_model(w, &name);
-    proto.metadata_props =
-        metadata.iter().map(|(key, value)| pb::StringStringEntryProto { key: key.clone(), value: value.clone() }).collect();
-    let bytes = proto.encode_to_vec();
+    let network = generator_model(w, &name);
     // tract, not the native path: the file must be right for any runtime.
-    let model = OnnxModel::from_bytes(&bytes, path)?.on_tract();
+    let model = OnnxModel::from_proto(&network, path)?.on_tract();
+    let max_abs_diff = check_network(&model, check_inputs, expected, path)?;
+    let (mut proto, tail) = if stored.has_tail() {
+        let proto = crate::sensor::sensor_model(w, &name, stored);
+        let tail = check_tail(&proto, stored, check_inputs, expected, path)?;
+        (proto, Some(tail))
+    } else {
+        (network, None)
+    };
+    let extra = if stored.has_tail() { stored.metadata() } else { Vec::new() };
+    proto.metadata_props = metadata
+        .iter()
+        .chain(&extra)
+        .map(|(key, value)| pb::StringStringEntryProto { key: key.clone(), value: value.clone() })
+        .collect();
+    let bytes = proto.encode_to_vec();
+    write_atomic(path, |f| f.write_all(&bytes))?;
+    Ok(ExportReport { path: path.into(), bytes: bytes.len(), records: check_inputs.len(), max_abs_diff, tail })
+}
+
+/// Largest share of cells whose validity the whole graph and the native
+/// tail may disagree on in the export check: a network mask within float
+/// rounding of 0 can fall either side, and the effects after it follow.
+pub const TAIL_VALIDITY: f64 = 1e-3;
+
+/// What the check of a virtual sensor's whole graph found.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TailCheck {
+    /// Share of cells whose validity differs.
+    pub validity_differ: f64,
+    /// Largest height difference where both are valid.
+    pub max_height_diff: f32,
+}
+
+/// The largest `|tract - expected|` of the network, or the refusal.
+fn check_network(model: &OnnxModel, check_inputs: &[Dem], expected: &[Dem], path: &str) -> Result<f32, DemError> {
     let mut max_abs_diff = 0.0f32;
     let mut worst = (0, 0);
     let mut nan = None;
@@ -325,8 +300,54 @@ pub fn export_checked_with(
             ),
         ));
     }
-    write_atomic(path, |f| f.write_all(&bytes))?;
-    Ok(ExportReport { path: path.into(), bytes: bytes.len(), records: check_inputs.len(), max_abs_diff })
+    Ok(max_abs_diff)
+}
+
+/// Run the whole graph `proto` with tract and the native tail on the
+/// trainer's outputs; refuse beyond the tolerances of [`export_sensor_checked`].
+fn check_tail(proto: &pb::ModelProto, stored: &Stored, check_inputs: &[Dem], expected: &[Dem], path: &str) -> Result<TailCheck, DemError> {
+    let model = stored.residual_or_empty();
+    let k = model.draws();
+    let n = check_inputs.len();
+    let mut uniform = vec![0.0f32; n * k];
+    if k > 0 {
+        uniform.chunks_mut(k).enumerate().for_each(|(i, u)| model.uniforms(0, i as u64, u));
+    }
+    let times: Vec<f32> = (0..n).map(|i| if i % 5 == 0 { f32::NAN } else { 0.1 * (i % 40) as f32 }).collect();
+    let mut native = expected.to_vec();
+    for (i, (x, y)) in check_inputs.iter().zip(native.iter_mut()).enumerate() {
+        stored.finish(x, y, &uniform[i * k..(i + 1) * k], Some(f64::from(times[i])).filter(|t| t.is_finite()));
+    }
+    let got = dem_sensor::graph::run_tract(proto, &model, check_inputs, &uniform, &times)
+        .map_err(|e| DemError::input(path, format!("export check failed, nothing written: tract cannot run the whole graph: {e:#}")))?;
+    let (mut differ, mut worst) = (0usize, 0.0f32);
+    for (i, (a, b)) in native.iter().zip(&got).enumerate() {
+        if a[GRID_LEN..] != b[GRID_LEN..] {
+            return Err(DemError::input(path, format!("export check failed, nothing written: the whole graph changes row 20 of check record {i}")));
+        }
+        for j in 0..GRID_CELLS {
+            let (va, vb) = (a[2 * j + 1] > 0.0, b[2 * j + 1] > 0.0);
+            if va != vb {
+                differ += 1;
+            } else if va {
+                let d = (a[2 * j] - b[2 * j]).abs();
+                worst = if d.is_nan() { f32::INFINITY } else { worst.max(d) };
+            }
+        }
+    }
+    let validity_differ = differ as f64 / (n * GRID_CELLS) as f64;
+    if validity_differ > TAIL_VALIDITY || worst > TOLERANCE {
+        return Err(DemError::input(
+            path,
+            format!(
+                "export check failed, nothing written: tract's whole graph differs from dem-apply's tail on {:.3} % of the cells' \
+                 validity (tolerance {:.3} %) and by {worst:e} m in height (tolerance {TOLERANCE:e})",
+                100.0 * validity_differ,
+                100.0 * TAIL_VALIDITY
+            ),
+        ));
+    }
+    Ok(TailCheck { validity_differ, max_height_diff: worst })
 }
 
 /// The `metadata_props` key of a generator's residual sensor model: the
@@ -380,10 +401,17 @@ impl ModelInfo {
 pub fn read_info(path: &str) -> Result<ModelInfo, DemError> {
     let bytes = std::fs::read(path).map_err(|e| DemError::input(path, format!("cannot read: {e}")))?;
     let m = pb::ModelProto::decode(&bytes[..]).map_err(|e| DemError::input(path, format!("not an ONNX model: {e}")))?;
-    Ok(ModelInfo {
-        producer: format!("{} {}", m.producer_name, m.producer_version).trim().to_string(),
-        description: m.doc_string,
-        opset: m.opset_import.iter().find(|o| o.domain.is_empty() || o.domain == "ai.onnx").map(|o| o.version),
-        metadata: m.metadata_props.into_iter().map(|e| (e.key, e.value)).collect(),
-    })
+    Ok(ModelInfo::of(&m))
+}
+
+impl ModelInfo {
+    /// What model `m` says about itself.
+    pub fn of(m: &pb::ModelProto) -> ModelInfo {
+        ModelInfo {
+            producer: format!("{} {}", m.producer_name, m.producer_version).trim().to_string(),
+            description: m.doc_string.clone(),
+            opset: m.opset_import.iter().find(|o| o.domain.is_empty() || o.domain == "ai.onnx").map(|o| o.version),
+            metadata: m.metadata_props.iter().map(|e| (e.key.clone(), e.value.clone())).collect(),
+        }
+    }
 }

@@ -26,6 +26,7 @@ pub mod heights;
 pub mod masks;
 pub mod native;
 pub mod run;
+pub mod sensor;
 
 pub use heights::{Heights, HEIGHTS_KEY};
 pub use export::{export_checked, export_checked_with, generator_model, read_info, ExportReport, ModelInfo, TOLERANCE};

@@ -126,7 +126,11 @@ impl OnnxModel {
     pub fn from_bytes(bytes: &[u8], name: &str) -> Result<OnnxModel, DemError> {
         let proto = pb::ModelProto::decode(bytes)
             .map_err(|e| bad(name, format!("not an ONNX model (protobuf decoding failed: {e})")))?;
-        Self::from_proto(&proto, name)
+        // A virtual sensor's graph: its network runs here, the tail natively.
+        match crate::sensor::network_part(&proto, name)? {
+            Some((network, _)) => Self::from_proto(&network, name),
+            None => Self::from_proto(&proto, name),
+        }
     }
 
     /// Load a model from its protobuf message; `name` is used in errors.

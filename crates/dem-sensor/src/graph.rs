@@ -164,14 +164,16 @@ pub fn join_dem(b: &mut Builder, c: &Cells, row20: &str, out: &str) -> String {
 pub fn apply(b: &mut Builder, model: &SensorModel, cells: Cells, uniform: Option<&str>, time: Option<&str>) -> Cells {
     let mut at = 0;
     let mut c = cells;
+    let base = b.prefix().to_string();
     for (i, e) in model.effects.iter().enumerate() {
-        b.set_prefix(&format!("sensor.{i}.{}", e.name()));
+        let scope = format!("sensor.{i}.{}", e.name());
+        b.set_prefix(&if base.is_empty() { scope } else { format!("{base}.{scope}") });
         let n = e.draws();
         let u = (n > 0).then(|| uniforms(b, uniform.expect("a model with draws has a uniform input"), at, n, &[-1, n as i64]));
         c = effect(b, e, &c, u.as_deref(), time);
         at += n;
     }
-    b.set_prefix("");
+    b.set_prefix(&base);
     c
 }
 
@@ -326,9 +328,13 @@ fn occlusion(b: &mut Builder, c: &Cells, h: f64, x0: f64) -> Cells {
     let toward_ahead = b.gt_const(&toward_ahead, 0.5);
     let seen_face = per_row(b, |t| f64::from(u8::from((row_center_x(t) - x0).abs() > HALF)));
     let seen_face = b.gt_const(&seen_face, 0.5);
-    let (v_behind, z_behind) = neighbour(b, c, Side::Behind);
-    let (v_ahead, z_ahead) = neighbour(b, c, Side::Ahead);
+    // Selected as floats: onnxruntime's Where takes no booleans.
+    let v_behind = nb(b, &c.v, Side::Behind, 0.0);
+    let v_ahead = nb(b, &c.v, Side::Ahead, 0.0);
+    let z_behind = nb(b, &c.h, Side::Behind, 0.0);
+    let z_ahead = nb(b, &c.h, Side::Ahead, 0.0);
     let v_near = b.select(&toward_ahead, &v_ahead, &v_behind);
+    let v_near = is_valid(b, &v_near);
     let z_near = b.select(&toward_ahead, &z_ahead, &z_behind);
     let high = b.gt_const(&c.h, (h + tol) as f32);
     let floor = b.add_const(&c.h, -tol as f32);

@@ -15,6 +15,7 @@
 
 pub mod draws;
 pub mod effects;
+pub mod export;
 pub mod graph;
 
 use rand::SeedableRng;
@@ -192,16 +193,7 @@ impl SensorModel {
         first: u64,
         times: Option<(&str, &[f64])>,
     ) -> Result<()> {
-        let t = match times {
-            Some((path, t)) => {
-                let (a, b) = (first as usize, first as usize + records.len());
-                if b > t.len() {
-                    return Err(DemError::input(path, format!("{} labels, but the stream has more records ({b} so far)", t.len())));
-                }
-                Some(&t[a..b])
-            }
-            None => None,
-        };
+        let t = chunk_times(times, first, records.len())?;
         self.apply_all_at(records, seed, first_index + first, t);
         Ok(())
     }
@@ -218,6 +210,21 @@ impl SensorModel {
             return "none".into();
         }
         self.effects.iter().map(|e| e.to_string()).collect::<Vec<_>>().join(", ")
+    }
+}
+
+/// The times of records `first..first + n` of a stream from its labels
+/// (`(path, times)`); a stream longer than its labels is refused.
+pub fn chunk_times<'a>(times: Option<(&str, &'a [f64])>, first: u64, n: usize) -> Result<Option<&'a [f64]>> {
+    match times {
+        Some((path, t)) => {
+            let (a, b) = (first as usize, first as usize + n);
+            if b > t.len() {
+                return Err(DemError::input(path, format!("{} labels, but the stream has more records ({b} so far)", t.len())));
+            }
+            Ok(Some(&t[a..b]))
+        }
+        None => Ok(None),
     }
 }
 
@@ -266,16 +273,50 @@ pub fn apply_shard(
     times: Option<(&str, &[f64])>,
     progress: impl Fn(u64),
 ) -> Result<u64> {
+    apply_shard_emit(model, input, output, seed, first_index, times, None, progress)
+}
+
+/// [`apply_shard`], writing each record's uniforms (float32 `(N, K)`, the
+/// `uniform` input of the model's graph) to `emit_uniform` when given.
+#[allow(clippy::too_many_arguments)]
+pub fn apply_shard_emit(
+    model: &SensorModel,
+    input: &str,
+    output: &str,
+    seed: u64,
+    first_index: u64,
+    times: Option<(&str, &[f64])>,
+    emit_uniform: Option<&str>,
+    progress: impl Fn(u64),
+) -> Result<u64> {
+    let k = model.draws();
+    let mut emit = emit_uniform.map(|p| dem_core::npy::F32ArrayWriter::create(p, &[k as u64])).transpose()?;
     let (_, written) = transform_checked(
         input,
         output,
         |first, chunk| {
-            model.apply_chunk(chunk, seed, first_index, first, times)?;
+            match &mut emit {
+                None => model.apply_chunk(chunk, seed, first_index, first, times)?,
+                Some(w) => {
+                    let t = chunk_times(times, first, chunk.len())?;
+                    let mut u = vec![0.0f32; chunk.len() * k];
+                    if k > 0 {
+                        u.par_chunks_mut(k).enumerate().for_each(|(i, u)| model.uniforms(seed, first_index + first + i as u64, u));
+                    }
+                    chunk.par_iter_mut().enumerate().for_each(|(i, d)| {
+                        model.apply_drawn(d, &u[i * k..(i + 1) * k], t.and_then(|t| t.get(i).copied()));
+                    });
+                    w.write(&u)?;
+                }
+            }
             progress(chunk.len() as u64);
             Ok(())
         },
         |read| labels_cover(times.map(|(p, t)| (p, t.len())), read),
     )?;
+    if let Some(w) = emit {
+        w.finish()?;
+    }
     Ok(written)
 }
 

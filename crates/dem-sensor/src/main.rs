@@ -4,7 +4,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 use dem_core::cli;
-use dem_sensor::{apply_shard, SensorModel};
+use dem_sensor::{apply_shard_emit, SensorModel};
 
 /// Sensor models of named effects (noise, dropout, row-dropout, occlusion,
 /// fov, view-top, smoothing, bias, quantization, startup, patch-dropout,
@@ -19,6 +19,8 @@ use dem_sensor::{apply_shard, SensorModel};
   dem-apply --model gy.onnx sim.npy | dem-sensor apply --sensor gap/sensor.json --only startup \
       --labels sim_labels.csv -o realistic.npy
   dem-sensor show --sensor sensor.json        # the effects, one a line
+  dem-sensor export --sensor gap/sensor.json -o sensor.onnx   # one ONNX graph: dem, uniform, time -> dem_out
+  dem-sensor apply --sensor sensor.json --seed 1 --emit-uniform u.npy sim.npy -o out.npy   # sensor.onnx fed u.npy gives out.npy
   dem-split --shards 4 --out part sim.npy | tail -n +2 | while IFS=, read shard first n; do
       dem-sensor apply --sensor sensor.json --seed 1 --first-index $first $shard -o $shard.out; done
 
@@ -64,6 +66,33 @@ enum Command {
         /// cannot carry, since it depends on the frame's time in its run).
         #[arg(long, value_delimiter = ',')]
         only: Vec<String>,
+        /// Write each record's uniforms to this NPY file (float32 (N, K)):
+        /// fed to the model's ONNX graph (`dem-sensor export`) as its
+        /// `uniform` input, with the labels' `time` (NaN without --labels),
+        /// any runtime computes the same DEMs.
+        #[arg(long, value_name = "NPY")]
+        emit_uniform: Option<String>,
+    },
+    /// Write the model as one ONNX graph: a virtual sensor without a
+    /// network, for onnxruntime, PyTorch (onnx2torch) or dem-apply.
+    ///
+    /// Inputs: `dem` float32 (N, 21, 5, 2); `uniform` float32 (N, K) in
+    /// [0, 1), K = the model's draws per record (in the file's metadata,
+    /// `dem.uniform_count`), drawn fresh per call; `time` float32 (N),
+    /// seconds into the run, NaN where unknown (only with `startup`).
+    /// Output `dem_out` float32 (N, 21, 5, 2). Written only after tract,
+    /// fed the same uniforms, reproduces dem-sensor apply on check records.
+    Export {
+        /// The sensor model (JSON).
+        #[arg(long = "sensor", value_name = "JSON")]
+        model: String,
+        /// The ONNX file to write.
+        #[arg(short, long = "out")]
+        output: String,
+        /// Check on these records (an NPY stream) instead of built-in
+        /// terrain (flat, risers, drops, stairs, boxes, pits).
+        #[arg(long, value_name = "NPY")]
+        check: Option<String>,
     },
     /// Check a model and print its effects, one a line.
     Show {
@@ -75,9 +104,10 @@ enum Command {
 
 fn main() -> ExitCode {
     cli::run(|| match cli::parse::<Args>().command {
-        Command::Apply { model, input, output, seed, first_index, labels, only } => {
+        Command::Apply { model, input, output, seed, first_index, labels, only, emit_uniform } => {
             let inputs: Vec<&str> = [Some(&input), Some(&model), labels.as_ref()].into_iter().flatten().map(String::as_str).collect();
-            dem_core::output::check_outputs(&inputs, &[&output])?;
+            let outputs: Vec<&str> = [Some(&output), emit_uniform.as_ref()].into_iter().flatten().map(String::as_str).collect();
+            dem_core::output::check_outputs(&inputs, &outputs)?;
             let mut m = SensorModel::read(&model)?;
             if !only.is_empty() {
                 m = m.only(&only).map_err(|why| dem_core::DemError::input(model.as_str(), why))?;
@@ -88,9 +118,34 @@ fn main() -> ExitCode {
             };
             let bar = cli::progress(0, "records");
             let t = labels.as_deref().zip(times.as_deref());
-            let n = apply_shard(&m, &input, &output, seed, first_index, t, |k| bar.inc(k))?;
+            let n = apply_shard_emit(&m, &input, &output, seed, first_index, t, emit_uniform.as_deref(), |k| bar.inc(k))?;
             bar.finish_and_clear();
             cli::log(format_args!("{n} records through {}", m.summary()));
+            Ok(())
+        }
+        Command::Export { model, output, check } => {
+            let inputs: Vec<&str> = [Some(&model), check.as_ref()].into_iter().flatten().map(String::as_str).collect();
+            dem_core::output::check_outputs(&inputs, &[&output])?;
+            let m = SensorModel::read(&model)?;
+            let records = match &check {
+                Some(p) => dem_core::npy::read_all(p)?.into_iter().take(4096).collect(),
+                None => dem_sensor::export::probe_records(600, 1),
+            };
+            if records.is_empty() {
+                return Err(dem_core::DemError::input(check.as_deref().unwrap_or("-"), "no records to check the graph on").into());
+            }
+            let source = vec![("dem.residual.source".to_string(), model.clone())];
+            let r = dem_sensor::export::export(&m, &records, &output, &source)?;
+            cli::log(format_args!(
+                "wrote {output} ({} bytes): {}; inputs: {}; tract reproduces dem-sensor on {} check records \
+                 (validity {:.4} % of cells apart, heights {:.1e} m)",
+                r.bytes,
+                m.summary(),
+                dem_sensor::graph::input_list(&m),
+                r.records,
+                100.0 * r.validity_differ,
+                r.max_height_diff
+            ));
             Ok(())
         }
         Command::Show { model } => {

@@ -190,16 +190,22 @@ pub fn export(run: &str, out: &str, y: bool, residual: Option<&str>, heights: He
     if heights != Heights::Network {
         metadata.push((HEIGHTS_KEY.into(), heights.to_string()));
     }
-    let report = dem_onnx::export::export_checked_with(&gan.generator_weights(y), &check, &expected, out, &metadata)?;
+    let stored = dem_onnx::sensor::Stored { residual: residual.as_ref().map(|(_, m)| m.clone()), heights };
+    let report = dem_onnx::export::export_sensor_checked(&gan.generator_weights(y), &stored, &check, &expected, out, &metadata)?;
     cli::log(format!(
-        "wrote {} ({} bytes): G_{} of {run}, tract reproduces the trainer on {} check records (max |diff| {:.2e}){}{}",
+        "wrote {} ({} bytes): G_{} of {run}, tract reproduces the trainer on {} check records (max |diff| {:.2e}){}{}{}",
         report.path,
         report.bytes,
         which.to_uppercase(),
         report.records,
         report.max_abs_diff,
         residual.map_or(String::new(), |(_, m)| format!(", with the residual sensor model {}", m.summary())),
-        if heights == Heights::Input { ", heights from the input under its holes" } else { "" }
+        if heights == Heights::Input { ", heights from the input under its holes" } else { "" },
+        report.tail.map_or(String::new(), |t| format!(
+            "; one graph: tract's whole virtual sensor matches dem-apply's (validity {:.4} % of cells apart, heights {:.1e} m)",
+            100.0 * t.validity_differ,
+            t.max_height_diff
+        ))
     ));
     Ok(())
 }

@@ -156,7 +156,9 @@ struct ExportArgs {
     /// A sensor model JSON that dem-gap fitted between the network's
     /// output and the measured DEMs (what a deterministic network cannot
     /// write: per-record noise, startup rows by time). It is stored in the
-    /// model (`dem.residual`), and dem-apply applies it after the network.
+    /// model (`dem.residual`) and in its graph, after the network: the file
+    /// is then the whole virtual sensor, with inputs `dem`, `uniform` and
+    /// `time`, in dem-apply, onnxruntime or PyTorch alike.
     #[arg(long)]
     residual: Option<String>,
     /// Where the model's valid cells take their heights from when dem-apply
