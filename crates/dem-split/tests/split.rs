@@ -495,3 +495,29 @@ fn labels_keep_their_columns_and_bytes_but_the_index() {
     assert!(stderr(&o).contains("l.csv: line 6: unbalanced quotes"), "{}", stderr(&o));
     assert!(!Path::new(&arg(d, "q-00000.npy")).exists());
 }
+
+/// Through a pipe the shards are in place before the manifest names them:
+/// a reader that starts on each row as it comes finds its shard whole.
+#[test]
+fn a_pipe_reader_finds_every_shard_the_manifest_names() {
+    use std::io::BufRead;
+    let dir = tempdir();
+    let prefix = arg(dir.path(), "part");
+    let mut child = Command::new(bin("dem-split"))
+        .args(["--records", "500", "--out", &prefix, &td("sim.npy")])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let lines = std::io::BufReader::new(child.stdout.take().unwrap()).lines();
+    let mut n = 0;
+    for line in lines.skip(1) {
+        let line = line.unwrap();
+        let (shard, rest) = line.split_once(',').unwrap();
+        let records: u64 = rest.rsplit(',').next().unwrap().parse().unwrap();
+        assert_eq!(fs::metadata(shard).unwrap().len(), 128 + records * 840, "{shard} whole when its row is read");
+        n += 1;
+    }
+    assert!(child.wait().unwrap().success());
+    assert_eq!(n, 7);
+}
