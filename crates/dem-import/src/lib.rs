@@ -498,7 +498,7 @@ fn usable(dem: &Dem) -> Result<(), String> {
             if dem.is_valid(r, c) && !(h.is_finite() && h.abs() <= MAX_HEIGHT) {
                 return Err(format!(
                     "height {} m at DEM row {r}, column {c} (the map's height minus the robot's z) is beyond {} m",
-                    msg::num(f64::from(h)),
+                    msg::num(h),
                     msg::num(f64::from(MAX_HEIGHT))
                 ));
             }

@@ -16,7 +16,7 @@ pub const MAX_COORDINATE: f64 = 1e9;
 
 /// A number for a message: as written when it is short, else in `{:e}`
 /// form (`1e300`, not 301 digits).
-pub fn num(v: f64) -> String {
+pub fn num<T: std::fmt::Display + std::fmt::LowerExp>(v: T) -> String {
     let plain = format!("{v}");
     if plain.len() <= 12 {
         plain
