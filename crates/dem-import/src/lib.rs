@@ -323,7 +323,10 @@ fn import_one(cfg: &ImportConfig, path: &Path, seq: u64, tick: &(dyn Fn(u64) + S
                             }
                         }
                         "sensor_msgs/JointState" if msg::strip_slash(&conn.topic) == joint_topic => match msg::decode_joint_state(data, conn.encoding) {
-                            Ok(js) => {
+                            Ok(mut js) => {
+                                // Only the flippers are looked up: the other joints are not kept.
+                                let kept = js.names.iter().zip(&js.positions).filter(|(n, _)| cfg.flippers.contains(n));
+                                (js.names, js.positions) = kept.map(|(n, p)| (n.clone(), *p)).unzip();
                                 for (name, p) in joints.insert(&js) {
                                     if cfg.flippers.contains(&name) {
                                         rec.skip(SkipKind::Damaged, format!("{}: flipper joint {name} at {} rad is not an angle", at(), msg::num(p)));
