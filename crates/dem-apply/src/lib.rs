@@ -131,7 +131,12 @@ pub fn run(c: &Config, model: &OnnxModel, progress: impl FnMut(u64)) -> Result<R
             tail.finish(x, y, &u[i * k..(i + 1) * k], time);
         });
         if let Some(w) = &emit {
-            w.lock().expect("one writer").write(&u)?;
+            let mut w = w.lock().expect("one writer");
+            if k > 0 {
+                w.write(&u)?;
+            } else {
+                w.write_empty(out.len() as u64);
+            }
         }
         Ok(())
     };

@@ -122,10 +122,17 @@ impl Stored {
         )
     }
 
-    /// The metadata keys the tail adds (besides `dem.residual` and
-    /// `dem.heights`, which the caller stores).
+    /// The metadata keys of a file with this tail: the residual's JSON,
+    /// the heights source, what the graph holds and its inputs.
     pub fn metadata(&self) -> Vec<(String, String)> {
-        let mut m = vec![(GRAPH_KEY.to_string(), GRAPH_SENSOR.to_string())];
+        let mut m = Vec::new();
+        if let Some(r) = &self.residual {
+            m.push((RESIDUAL_KEY.to_string(), serde_json::to_string(r).expect("a model serialises")));
+        }
+        if self.heights != Heights::Network {
+            m.push((HEIGHTS_KEY.to_string(), self.heights.to_string()));
+        }
+        m.push((GRAPH_KEY.to_string(), GRAPH_SENSOR.to_string()));
         m.extend(sensor_graph::io_metadata(&self.residual_or_empty()));
         m
     }

@@ -16,7 +16,7 @@
 //! | `view-top` | cells whose height lies above the line z = h - t x (the upper edge of the camera's vertical field of view) missing |
 //! | `smoothing` | h = (w h + (1-w)/8 sum of valid 3x3 neighbours) / (w + (1-w)/8 n_valid) |
 //! | `bias` | h += b + t x |
-//! | `quantization` | h = q floor(h / q + 1/2) |
+//! | `quantization` | h = q floor(h / q + [`ROUND_UP_FROM`]) (half steps round up, the same in every runtime) |
 //! | `startup` | rows whose centre x < e missing: e = x0 - v t for a record t seconds into its run (labels' `time`, v > 0); without a time, with probability p the record is a startup frame and e = x0 - u (x0 + 0.6), u uniform |
 //! | `patch-dropout` | blobs: each of [`PATCH_SLOTS`] slots holds a blob with probability n / slots, centred uniformly over the grid widened by r; of each cell's four quarter-cell centres (x +- 2.5 cm, y +- 2.5 cm) those within r of a blob centre are covered; three or four covered: the cell is missing (the map needs two of four); one or two: h += a (h_low - h), h_low the lowest of h and its x-neighbours left valid (the points a patch takes from a cell beside a step are those that lifted it) |
 //! | `edge-holes` | a valid cell whose valid 4-neighbour is higher by more than g is missing with probability p (the foot of a height jump) |
@@ -24,9 +24,9 @@
 //! | `drop-holes` | at a drop along x (valid cells of rows r and r + 1, row r + 1 lower by more than [`MIXED_JUMP`]), with probability p the cell that holds the edge is missing: the lip (row r) or the floor (row r + 1), one of the two with equal chance (the edge lies anywhere between their centres): the map cells over a drop edge get points from the lip and, as the view moves, from the floor below it, outliers of the older ones; their variance grows past the map's threshold |
 //! | `hole-growth` | a valid cell with k missing 4-neighbours (inside the grid) is missing with probability 1 - (1 - p)^k (the edge of a hole, where a 10 cm cell holds fewer seen map cells than the two of four the map needs) |
 //! | `pit-fill` | a valid cell lower by more than g than both valid neighbours of a line through it (rows r +- 1, or columns c +- 1) reads the lower of the two with probability p |
-//! | `drop-blend` | at a drop along x (valid cells of rows r and r + 1, row r + 1 lower by more than [`MIXED_JUMP`]), each of the two cells reads, with probability p, h + u a (h_n - h), u uniform, h_n the other cell (a cell between two drops takes the larger): the stereo window straddles the jump in range at a drop edge and its mean range puts the cell's points part of the way to the other surface |
+//! | `drop-blend` | at a drop along x (valid cells of rows r and r + 1, row r + 1 lower by more than [`MIXED_JUMP`]), each of the two cells reads, with probability p, h + u a (h_n - h), u uniform, h_n the other cell (a cell between two drops takes the larger; the one behind only when larger by more than [`TIE_MARGIN`]): the stereo window straddles the jump in range at a drop edge and its mean range puts the cell's points part of the way to the other surface |
 //! | `floor-lift` | in rows whose centre x < `x`, a valid cell whose valid neighbour behind (row r - 1) is higher by more than [`MIXED_JUMP`] (the ground just beyond a drop edge) reads, with probability p, h + min(1, u a) (h_n - h), u uniform, h_n that neighbour: the edge hides the floor nearest it, and the cell keeps points lifted toward the edge (x past the grid: every row; x at the cone's lowest ray: the rows where the map keeps that grazing view) |
-//! | `riser-blend` | at a riser along x (valid cells of rows r and r + 1, row r + 1 higher by more than [`MIXED_JUMP`]), the cell at its foot reads h + u `foot` (h_n - h) and the cell on its top h + u `top` (h_n - h), u uniform per cell, h_n the other cell (a cell beside two risers takes the larger step); `foot`, `top` in [-1, 1], negative: away from the other surface: the stereo window over a riser's corners moves the points there along their rays, up or down the step as the view angle gives |
+//! | `riser-blend` | at a riser along x (valid cells of rows r and r + 1, row r + 1 higher by more than [`MIXED_JUMP`]), the cell at its foot reads h + u `foot` (h_n - h) and the cell on its top h + u `top` (h_n - h), u uniform per cell, h_n the other cell (a cell beside two risers takes the larger step; the one behind only when larger by more than [`TIE_MARGIN`]); `foot`, `top` in [-1, 1], negative: away from the other surface: the stereo window over a riser's corners moves the points there along their rays, up or down the step as the view angle gives |
 //! | `mixed-cells` | a cell is the mean of its two half cells along x; at a jump of more than [`MIXED_JUMP`] between valid x-neighbours the step lies at s, uniform over the 10 cm between their centres (one draw per row boundary), and the higher surface reaches e = u r past it into the lower cell (u uniform per cell; r = `up` when the higher cell lies ahead, `down` when it lies behind, i.e. beyond a drop): a half of the lower cell whose centre the higher surface reaches reads the higher height, a half of the higher cell the lower surface reaches (the step lies in it, deeper than e) reads the lower height |
 
 use rand::RngCore;
@@ -55,6 +55,17 @@ pub const MAX_PARAM: f64 = 10.0;
 /// any depth camera resolves at a metre, and large enough that h / q stays
 /// far from float32's range.
 pub const MIN_QUANTUM: f64 = 1e-4;
+/// `quantization` rounds h / q up from this fraction of a step, not from
+/// exactly a half: sim heights often lie on half steps, and there a
+/// rounding error of 1e-7 would decide the step, differently in each
+/// runtime. A thousandth of a step is far beyond rounding and far below
+/// anything a sensor shows.
+pub const ROUND_UP_FROM: f64 = 0.501;
+/// A cell between two jumps (`drop-blend`, `riser-blend`) takes the one
+/// behind only when its step is larger by more than this (m): a cell made
+/// the mean of its neighbours (`mixed-cells`, `smoothing`) lies exactly
+/// between two equal steps, where rounding alone would choose.
+pub const TIE_MARGIN: f64 = 1e-5;
 /// Half the edge of a grid cell (m).
 const HALF: f64 = 0.05;
 /// Blob slots per record of `patch-dropout`: at most this many blobs.
@@ -530,7 +541,7 @@ impl Effect {
                         if d.is_valid(r, c) {
                             // In float32, the graph's arithmetic: the same rounding everywhere.
                             let (h, q) = (d.height(r, c), q as f32);
-                            d.set_valid(r, c, q * (h / q + 0.5).floor());
+                            d.set_valid(r, c, q * (h / q + ROUND_UP_FROM as f32).floor());
                         }
                     }
                 }
@@ -780,7 +791,7 @@ fn blend_drops(d: &mut Dem, rng: &mut Draws, p: f64, a: f64) {
                 ((if ahead { zc - zn } else { zn - zc }) > MIXED_JUMP).then_some(zn - zc)
             };
             let step = match (across(r + 1, true), across(r.wrapping_sub(1), false)) {
-                (Some(f), Some(b)) => Some(if b.abs() > f.abs() { b } else { f }),
+                (Some(f), Some(b)) => Some(if b.abs() > f.abs() + TIE_MARGIN { b } else { f }),
                 (f, b) => f.or(b),
             };
             if let (Some(s), true) = (step, u < p) {
@@ -824,7 +835,7 @@ fn blend_risers(d: &mut Dem, rng: &mut Draws, foot: f64, top: f64) {
                 riser.then_some((step, share))
             };
             let moved = match (across(r + 1, foot), across(r.wrapping_sub(1), top)) {
-                (Some(f), Some(b)) => Some(if b.0.abs() > f.0.abs() { b } else { f }),
+                (Some(f), Some(b)) => Some(if b.0.abs() > f.0.abs() + TIE_MARGIN { b } else { f }),
                 (f, b) => f.or(b),
             };
             if let Some((step, share)) = moved {

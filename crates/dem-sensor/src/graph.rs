@@ -216,7 +216,7 @@ fn effect(b: &mut Builder, e: &Effect, c: &Cells, u: Option<&str>, time: Option<
         Effect::Quantization { q } => {
             let q = b.scalar(q as f32);
             let x = b.bin("Div", &c.h, &q);
-            let x = b.add_const(&x, 0.5);
+            let x = b.add_const(&x, crate::effects::ROUND_UP_FROM as f32);
             let x = b.un("Floor", &x);
             let x = b.bin("Mul", &q, &x);
             let valid = is_valid(b, &c.v);
@@ -560,6 +560,7 @@ fn pit_fill(b: &mut Builder, c: &Cells, u: &str, g: f64, p: f64) -> Cells {
 /// is larger in magnitude or there is none ahead.
 fn larger_step(b: &mut Builder, ahead: (&str, &str), behind: (&str, &str)) -> (String, String, String) {
     let fa = b.un("Abs", ahead.1);
+    let fa = b.add_const(&fa, crate::effects::TIE_MARGIN as f32);
     let ba = b.un("Abs", behind.1);
     let bigger = b.bin("Greater", &ba, &fa);
     let no_ahead = b.un("Not", ahead.0);

@@ -306,7 +306,11 @@ pub fn apply_shard_emit(
                     chunk.par_iter_mut().enumerate().for_each(|(i, d)| {
                         model.apply_drawn(d, &u[i * k..(i + 1) * k], t.and_then(|t| t.get(i).copied()));
                     });
-                    w.write(&u)?;
+                    if k > 0 {
+                        w.write(&u)?;
+                    } else {
+                        w.write_empty(chunk.len() as u64);
+                    }
                 }
             }
             progress(chunk.len() as u64);

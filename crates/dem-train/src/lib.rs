@@ -21,7 +21,7 @@ use std::path::Path;
 use anyhow::Result;
 use dem_core::{cli, npy, output, table, DemError};
 use dem_onnx::export::RESIDUAL_KEY;
-use dem_onnx::{Heights, HEIGHTS_KEY};
+use dem_onnx::Heights;
 use dem_nn::train::checkpoint;
 use dem_nn::train::{CycleGan, Sampler, TrainData};
 use dem_sensor::SensorModel;
@@ -183,12 +183,8 @@ pub fn export(run: &str, out: &str, y: bool, residual: Option<&str>, heights: He
     let check = npy::read_all(&run_file(run, if y { "check_sim.npy" } else { "check_real.npy" }))?;
     let expected = gan.generate(y, &check);
     let mut metadata = provenance::export_metadata(&meta, which, std::fs::read_to_string(run_file(run, "val.csv")).ok());
-    if let Some((path, model)) = &residual {
-        metadata.push((RESIDUAL_KEY.into(), serde_json::to_string(model)?));
+    if let Some((path, _)) = &residual {
         metadata.push((format!("{RESIDUAL_KEY}.source"), format!("{path}, sha256 {}", provenance::sha256_file(path)?)));
-    }
-    if heights != Heights::Network {
-        metadata.push((HEIGHTS_KEY.into(), heights.to_string()));
     }
     let stored = dem_onnx::sensor::Stored { residual: residual.as_ref().map(|(_, m)| m.clone()), heights };
     let report = dem_onnx::export::export_sensor_checked(&gan.generator_weights(y), &stored, &check, &expected, out, &metadata)?;

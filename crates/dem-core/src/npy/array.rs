@@ -64,6 +64,13 @@ impl F32ArrayWriter {
         Ok(())
     }
 
+    /// Count `n` records of an empty record shape (a zero in it): the array
+    /// `(n, ..., 0, ...)` has no values to write.
+    pub fn write_empty(&mut self, n: u64) {
+        assert_eq!(self.record_len, 0, "records of {} values are not empty", self.record_len);
+        self.records += n;
+    }
+
     /// Patch the record count into the header, flush, and move the file
     /// into place.
     pub fn finish(self) -> Result<()> {

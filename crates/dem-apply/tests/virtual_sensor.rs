@@ -1,0 +1,146 @@
+//! The virtual sensor as one ONNX file behaves the same in every runtime:
+//! dem-apply (native network, native tail) and onnxruntime (the whole graph,
+//! through `demstream.sensor.VirtualSensor`) fed the uniforms dem-apply drew
+//! (`--emit-uniform`) and the labels' times give the same DEMs.
+
+use dem_core::{npy, Dem};
+use dem_nn::reference;
+use dem_nn::weights::GeneratorWeights;
+use dem_onnx::export::export_sensor_checked;
+use dem_onnx::sensor::Stored;
+use dem_onnx::Heights;
+use dem_sensor::SensorModel;
+use dem_testkit::{arg, ok, py, run, stderr, tempdir, testdata};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+fn td(name: &str) -> String {
+    testdata(name).to_string_lossy().into_owned()
+}
+
+/// A residual of several effects, startup by time among them.
+const RESIDUAL: &str = r#"{"effects": [
+    {"effect": "startup", "params": {"x0": 0.35, "v": 0.3, "p": 0.2}},
+    {"effect": "occlusion", "params": {"h": 0.45, "x0": 0.15}},
+    {"effect": "drop-blend", "params": {"p": 0.5, "a": 0.6}},
+    {"effect": "floor-lift", "params": {"x": 2.0, "p": 0.4, "a": 1.3}},
+    {"effect": "noise", "params": {"sigma0": 0.003, "k": 0.01}},
+    {"effect": "patch-dropout", "params": {"n": 1.5, "r": 0.09, "a": 0.5}},
+    {"effect": "hole-growth", "params": {"p": 0.15}}
+]}"#;
+
+/// Export a random width-4 generator with `stored`'s tail to `path`.
+fn export(path: &str, stored: &Stored) {
+    let w = GeneratorWeights::init(&mut ChaCha8Rng::seed_from_u64(7), 4);
+    let sim = npy::read_all(&td("sim.npy")).unwrap();
+    let check: Vec<Dem> = sim.iter().step_by(97).copied().collect();
+    let want: Vec<Dem> = check.iter().map(|d| reference::generator(&w, d)).collect();
+    let report = export_sensor_checked(&w, stored, &check, &want, path, &[]).unwrap();
+    assert!(report.tail.is_some() == stored.has_tail());
+}
+
+/// dem-apply's output and onnxruntime's on the same uniforms: (share of
+/// cells whose validity differs, largest height difference where both are
+/// valid, row 20 equal).
+fn compare_with_onnxruntime(dir: &std::path::Path, model: &str, out: &str, uniform: Option<&str>) -> (f64, f64, bool) {
+    let uniform = uniform.map_or("None".to_string(), |u| format!("np.load('{u}')"));
+    let said = py(
+        dir,
+        &format!(
+            r#"
+import csv, numpy as np
+from demstream.sensor import VirtualSensor
+s = VirtualSensor("{model}")
+dem = np.load("{sim}")
+t = np.array([float(r["time"]) for r in csv.DictReader(open("{labels}"))], dtype=np.float32)
+got = np.concatenate([s(dem[i:i + 1000], time=t[i:i + 1000], uniform=None if {uniform} is None else {uniform}[i:i + 1000]) for i in range(0, len(dem), 1000)])
+want = np.load("{out}")
+va, vb = want[:, :20, :, 1] > 0, got[:, :20, :, 1] > 0
+both = va & vb
+print((va != vb).mean(), np.abs(np.where(both, want[:, :20, :, 0] - got[:, :20, :, 0], 0)).max(), np.array_equal(want[:, 20], got[:, 20]))
+"#,
+            sim = td("sim.npy"),
+            labels = td("sim_labels.csv"),
+        ),
+    );
+    let v: Vec<&str> = said.split_whitespace().collect();
+    (v[0].parse().unwrap(), v[1].parse().unwrap(), v[2] == "True")
+}
+
+#[test]
+fn the_whole_graph_in_onnxruntime_gives_dem_apply_s_output() {
+    let dir = tempdir();
+    let residual = SensorModel::from_json(RESIDUAL).unwrap();
+    for heights in [Heights::Input, Heights::Network] {
+        let model = arg(dir.path(), &format!("gy-{heights}.onnx"));
+        export(&model, &Stored { residual: Some(residual.clone()), heights });
+        let (out, u) = (arg(dir.path(), "out.npy"), arg(dir.path(), "u.npy"));
+        let o = run(
+            "dem-apply",
+            &["--model", &model, "--labels", &td("sim_labels.csv"), "--seed", "5", "--emit-uniform", &u, &td("sim.npy"), "-o", &out],
+            None,
+        );
+        ok(&o);
+        let k: usize = residual.draws();
+        assert_eq!(npy_shape(dir.path(), &u), format!("(3025, {k})"));
+        let (differ, worst, row20) = compare_with_onnxruntime(dir.path(), &model, &out, Some(&u));
+        assert!(differ <= 1e-4, "{heights}: {:.4} % of cells differ in validity", 100.0 * differ);
+        assert!(worst <= 1e-5, "{heights}: heights differ by {worst:e} m");
+        assert!(row20, "{heights}: row 20 untouched");
+        // What the file says about itself.
+        let info = String::from_utf8(ok(&run("dem-apply", &["--model", &model, "--info"], None)).to_vec()).unwrap();
+        assert!(info.contains(&format!("in another runtime: the whole virtual sensor, as dem-apply runs it; inputs: dem float32 (N,21,5,2); uniform float32 (N,{k})")), "{info}");
+        assert!(info.contains("dem.graph: network+sensor") && info.contains(&format!("dem.uniform_count: {k}")), "{info}");
+        assert!(info.contains("description: dem-tools virtual sensor, one graph: G_Y"), "{info}");
+    }
+}
+
+fn npy_shape(dir: &std::path::Path, path: &str) -> String {
+    py(dir, &format!("import numpy as np; print(np.load('{path}').shape)")).trim().replace(' ', "")
+        .replace(",", ", ")
+}
+
+#[test]
+fn a_changed_tail_is_refused_and_a_network_alone_says_so() {
+    let dir = tempdir();
+    let model = arg(dir.path(), "gy.onnx");
+    let residual = SensorModel::from_json(RESIDUAL).unwrap();
+    export(&model, &Stored { residual: Some(residual), heights: Heights::Input });
+    // The metadata says one model, the graph holds another.
+    let tampered = arg(dir.path(), "tampered.onnx");
+    py(
+        dir.path(),
+        &format!(
+            r#"
+import onnx
+m = onnx.load("{model}")
+for p in m.metadata_props:
+    if p.key == "dem.residual":
+        p.value = p.value.replace('"p":0.15', '"p":0.5')
+onnx.save(m, "{tampered}")
+"#
+        ),
+    );
+    let o = run("dem-apply", &["--model", &tampered, &td("sim.npy")], None);
+    assert_eq!(o.status.code(), Some(2));
+    let err = stderr(&o);
+    assert!(err.contains("not what its metadata") && err.contains("tampered.onnx"), "{err}");
+    // A network alone says what another runtime gets.
+    let plain = arg(dir.path(), "g.onnx");
+    export(&plain, &Stored::default());
+    let info = String::from_utf8(ok(&run("dem-apply", &["--model", &plain, "--info"], None)).to_vec()).unwrap();
+    assert!(info.contains("in another runtime: the network alone, as dem-apply runs it"), "{info}");
+    // --emit-uniform with a tail other than the file's is refused.
+    let o = run("dem-apply", &["--model", &model, "--network-only", "--emit-uniform", &arg(dir.path(), "u.npy"), &td("sim.npy")], None);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    // Labels one row longer than the stream: refused, no output.
+    let labels = arg(dir.path(), "labels.csv");
+    let mut text = std::fs::read_to_string(td("sim_labels.csv")).unwrap();
+    text.push_str("3025,flat,0,0,0,999,1.0\n");
+    std::fs::write(&labels, text).unwrap();
+    let out = arg(dir.path(), "o.npy");
+    let o = run("dem-apply", &["--model", &model, "--labels", &labels, &td("sim.npy"), "-o", &out], None);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("3026 labels for a stream of 3025 records"), "{}", stderr(&o));
+    assert!(!std::path::Path::new(&out).exists());
+}
