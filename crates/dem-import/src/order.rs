@@ -94,6 +94,9 @@ pub const FAN_IN: usize = 64;
 /// Records read ahead per run while merging.
 const READ_AHEAD: usize = 32;
 
+/// Where a run's records go as it is written.
+type Sink<'a, T> = dyn FnMut(&T) -> io::Result<()> + 'a;
+
 /// A sorted run: `len` records at byte `offset` of `file`; `level` is the
 /// number of merges that made it.
 struct Run {
@@ -252,8 +255,9 @@ impl<T: Record> StampOrder<T> {
         }
     }
 
-    /// Append `n` records from `fill` as one run of the current file.
-    fn append_run(&mut self, n: u64, level: u32, fill: &mut dyn FnMut(&mut dyn FnMut(&T) -> io::Result<()>) -> io::Result<()>) -> io::Result<Run> {
+    /// Append `n` records from `fill` (which hands each to the sink it is
+    /// given, in order) as one run of the current file.
+    fn append_run(&mut self, n: u64, level: u32, fill: &mut dyn FnMut(&mut Sink<'_, T>) -> io::Result<()>) -> io::Result<Run> {
         let (file, start) = match self.current.take() {
             Some(c) => c,
             None => (Rc::new(tempfile::tempfile_in(&self.dir)?), 0),

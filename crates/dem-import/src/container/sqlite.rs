@@ -154,7 +154,7 @@ pub fn read(path: &Path, on_event: &mut dyn FnMut(Event<'_>), on_bytes: &mut dyn
     let mut seen = 0u64;
     while let Some(r) = rows.next().map_err(refused)? {
         seen += 1;
-        if seen % 1024 == 0 {
+        if seen.is_multiple_of(1024) {
             on_bytes((size as u128 * u128::from(seen) / (last_row.max(1) as u128)).min(u128::from(size)) as u64);
         }
         let int = |k: usize, what: &str| match r.get_ref(k) {
