@@ -11,7 +11,7 @@
 //! tract, PyTorch through onnx2torch): arithmetic, `Where`, comparisons,
 //! `And`/`Or`/`Not`, `Cast`, `Slice`, `Pad`, `Concat`, `Reshape`,
 //! `Reduce*` with an `axes` attribute (opset [`OPSET`]), `Gather`, `Conv`,
-//! `Floor`, `Sqrt`, `Log`, `Cos`, `Sin`.
+//! `Floor`, `Sqrt`, `Log`, `Cos`, `Sin` (no `LessOrEqual`: onnx2torch has none).
 
 use prost::Message;
 use tract_onnx::pb;
@@ -268,14 +268,16 @@ impl Builder {
         acc
     }
 
-    /// `Reduce{Max,Sum,Min}` over `axes`, dropping them. At opset 17,
-    /// `ReduceSum` takes its axes as an input, the others as an attribute.
+    /// `Reduce{Max,Sum,Min}` over `axes`, kept as axes of length 1 (a
+    /// `Reshape` after it drops them: onnx2torch keeps reduced axes of a
+    /// `ReduceSum` whatever `keepdims` says). At opset 17, `ReduceSum` takes
+    /// its axes as an input, the others as an attribute.
     pub fn reduce(&mut self, op: &str, x: &str, axes: &[i64]) -> String {
         if op == "ReduceSum" {
             let a = self.ints(axes);
-            self.op(op, &[x, &a], vec![attr_int("keepdims", 0)])
+            self.op(op, &[x, &a], vec![attr_int("keepdims", 1)])
         } else {
-            self.op(op, &[x], vec![attr_ints("axes", axes), attr_int("keepdims", 0)])
+            self.op(op, &[x], vec![attr_ints("axes", axes), attr_int("keepdims", 1)])
         }
     }
 

@@ -321,6 +321,7 @@ fn occlusion(b: &mut Builder, c: &Cells, h: f64, x0: f64) -> Cells {
     let blocked = b.all(&[&pair, &vt_ok, &vb_ok, &over]);
     let blocked = b.to_float(&blocked);
     let blocked = b.reduce("ReduceMax", &blocked, &[2]);
+    let blocked = b.reshape(&blocked, &[-1, rows as i64, cols as i64]);
     let by_line = b.gt_const(&blocked, 0.5);
     // A top above the sensor facing away: its near neighbour (toward the
     // sensor) is valid and not more than the tolerance lower.
@@ -432,11 +433,14 @@ fn patches(b: &mut Builder, c: &Cells, u: &str, n: f64, radius: f64, a: f64) -> 
     let dy2 = b.bin("Mul", &dy, &dy);
     let d2 = b.bin("Add", &dx2, &dy2);
     let r2 = b.scalar((radius * radius) as f32);
-    let inside = b.bin("LessOrEqual", &d2, &r2);
+    // Not(Greater): onnx2torch has no LessOrEqual.
+    let outside = b.bin("Greater", &d2, &r2);
+    let inside = b.un("Not", &outside);
     let covered = b.all(&[&inside, &present]);
     let covered = b.to_float(&covered);
     let covered = b.reduce("ReduceMax", &covered, &[1]);
-    let covered = b.reduce("ReduceSum", &covered, &[3]);
+    let covered = b.reduce("ReduceSum", &covered, &[4]);
+    let covered = b.reshape(&covered, &[-1, rows as i64, cols as i64]);
     // Seen quarters: 4 - covered; a cell needs two.
     let valid = is_valid(b, &c.v);
     let enough = b.lt_const(&covered, 2.5);
@@ -510,7 +514,7 @@ fn drop_holes(b: &mut Builder, c: &Cells, u: &str, p: f64) -> Cells {
 
 /// `hole-growth`: k missing 4-neighbours inside the grid lose the cell with
 /// probability 1 - (1 - p)^k (a table of k = 0..4, computed as the native
-/// code does).
+/// code does, selected by k).
 fn hole_growth(b: &mut Builder, c: &Cells, u: &str, p: f64) -> Cells {
     let u = b.reshape(u, &[-1, GRID_ROWS as i64, COLS as i64]);
     let mut k = b.scalar(0.0);
@@ -521,10 +525,14 @@ fn hole_growth(b: &mut Builder, c: &Cells, u: &str, p: f64) -> Cells {
         let missing = b.bin("Sub", &one, &vn);
         k = b.bin("Add", &k, &missing);
     }
-    let table: Vec<f32> = (0..5).map(|k| crate::effects::growth_threshold(p, k)).collect();
-    let table = b.constant(&[5], &table);
-    let idx = b.op("Cast", &[&k], vec![dem_graph::attr_int("to", dem_graph::proto::tensor_proto::DataType::Int64 as i64)]);
-    let thr = b.op("Gather", &[&table, &idx], vec![dem_graph::attr_int("axis", 0)]);
+    // The table as a chain of selections (onnx2torch's Gather cannot take it).
+    let mut thr = b.scalar(crate::effects::growth_threshold(p, 0));
+    for n in 1..=4 {
+        let is_n = b.lt_const(&k, n as f32 - 0.5);
+        let not_below = b.un("Not", &is_n);
+        let t = b.scalar(crate::effects::growth_threshold(p, n));
+        thr = b.select(&not_below, &t, &thr);
+    }
     let hit = b.bin("Less", &u, &thr);
     let valid = is_valid(b, &c.v);
     let miss = b.all(&[&valid, &hit]);
