@@ -8,7 +8,7 @@ PY := $(VENV)/bin/python
 BIN := target/release
 OUT := out
 
-.PHONY: all build install venv venv-torch test readme-check demo bench clean testdata eval-ci eval-baseline thesis-table fuzz
+.PHONY: all build install venv venv-torch torch-check test readme-check demo bench clean testdata eval-ci eval-baseline thesis-table fuzz
 
 all: build
 
@@ -50,13 +50,15 @@ readme-check: venv
 	DEM_PYTHON=$(abspath $(PY)) $(CARGO) test -p dem-testkit --test as_written
 
 # Longer runs of the readers' property tests, then the cargo-fuzz targets in
-# fuzz/ (nightly toolchain; cargo-fuzz is installed if missing).
+# fuzz/ (nightly toolchain; cargo-fuzz is installed if missing); the
+# container readers' corpora are seeded from maps_to_bag.py recordings.
 FUZZ_SECONDS ?= 60
-FUZZ_TARGETS := npy_reader csv_tables sensor_json
-fuzz:
-	PROPTEST_CASES=20000 $(CARGO) test --release -p dem-core -p dem-sensor --test properties
+FUZZ_TARGETS := npy_reader csv_tables sensor_json mcap_reader ros1_reader
+fuzz: venv
+	PROPTEST_CASES=20000 $(CARGO) test --release -p dem-core -p dem-sensor -p dem-import --test properties
+	$(CARGO) build --release -p dem-synth && bash fuzz/seed_corpus.sh $(abspath $(PY)) $(abspath target/release)
 	command -v cargo-fuzz >/dev/null || $(CARGO) install cargo-fuzz --locked
-	for t in $(FUZZ_TARGETS); do $(CARGO) +nightly fuzz run $$t -- -max_total_time=$(FUZZ_SECONDS) || exit 1; done
+	for t in $(FUZZ_TARGETS); do $(CARGO) +nightly fuzz run $$t -- -max_total_time=$(FUZZ_SECONDS) -malloc_limit_mb=64 || exit 1; done
 
 # PyTorch (CPU) for the training benchmark only: large, kept out of the tests.
 TORCH_VENV := .venv-torch
@@ -64,8 +66,14 @@ venv-torch: $(TORCH_VENV)/.stamp
 $(TORCH_VENV)/.stamp:
 	$(PYTHON) -m venv $(TORCH_VENV)
 	$(TORCH_VENV)/bin/pip install -q --upgrade pip
-	$(TORCH_VENV)/bin/pip install -q torch onnx numpy
+	$(TORCH_VENV)/bin/pip install -q torch onnx numpy onnx2torch
 	touch $@
+
+# The virtual sensor's graphs through PyTorch (onnx2torch), against the
+# tools' own outputs on the same uniforms (heavy: torch; not in make test).
+torch-check: build venv-torch
+	$(CARGO) build --release -p dem-onnx --example export_random
+	TORCH_PY=$(TORCH_VENV)/bin/python BIN=$(BIN) OUT=.bench bash scripts/torch_sensor_check.sh
 
 # The validation error table against testdata/eval_baseline.csv (exit 1 when worse).
 eval-ci: build
@@ -86,6 +94,7 @@ bench: build venv
 	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench_prep.sh
 	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench_gap.sh
 	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench_apply.sh
+	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench_sensor.sh
 	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench_memory.sh
 	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench_import.sh
 	$(MAKE) venv-torch
@@ -93,7 +102,8 @@ bench: build venv
 	MODEL=.bench/apply_torch_w32.onnx REPORT=apply_torch.txt PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench_apply.sh
 	$(CARGO) build --release -p dem-nn --example step_speed
 	TORCH_PY=$(TORCH_VENV)/bin/python BIN=$(BIN) OUT=.bench bash scripts/bench_train.sh
-	@echo "Reports: .bench/npy.txt .bench/synth.txt .bench/prep.txt .bench/gap.txt .bench/apply.txt .bench/apply_torch.txt .bench/import.txt .bench/train.txt"
+	TORCH_PY=$(TORCH_VENV)/bin/python BIN=$(BIN) OUT=.bench bash scripts/torch_sensor_check.sh > .bench/torch_sensor.txt
+	@echo "Reports: .bench/npy.txt .bench/synth.txt .bench/prep.txt .bench/gap.txt .bench/apply.txt .bench/sensor.txt .bench/torch_sensor.txt .bench/apply_torch.txt .bench/import.txt .bench/train.txt"
 
 TD := testdata
 # Epochs of the demo's G_Y; empty: dem-train's default (30 on testdata, ~3 s

@@ -3,6 +3,7 @@
 //! times, gives dem-sensor's output for every effect of the vocabulary
 //! alone and for a model of several.
 
+use dem_sensor::SensorModel;
 use dem_testkit::{arg, ok, py, run, stderr, tempdir, testdata};
 
 fn td(name: &str) -> String {
@@ -10,57 +11,27 @@ fn td(name: &str) -> String {
 }
 
 /// One model per effect (at parameters where it acts on the bundled
-/// data), and one of several.
-const MODELS: &[&str] = &[
-    r#"{"effect": "noise", "params": {"sigma0": 0.01, "k": 0.02}}"#,
-    r#"{"effect": "dropout", "params": {"p": 0.3}}"#,
-    r#"{"effect": "row-dropout", "params": {"p": 0.2}}"#,
-    r#"{"effect": "occlusion", "params": {"h": 0.45, "x0": 0.15}}"#,
-    r#"{"effect": "fov", "params": {"x_min": -0.33, "x_max": 0.97}}"#,
-    r#"{"effect": "view-top", "params": {"h": 0.3, "t": 0.3}}"#,
-    r#"{"effect": "smoothing", "params": {"w": 0.4}}"#,
-    r#"{"effect": "bias", "params": {"b": 0.02, "t": -0.03}}"#,
-    r#"{"effect": "quantization", "params": {"q": 0.02}}"#,
-    r#"{"effect": "startup", "params": {"x0": 0.4, "v": 0.3, "p": 0.4}}"#,
-    r#"{"effect": "patch-dropout", "params": {"n": 3.0, "r": 0.12, "a": 0.5}}"#,
-    r#"{"effect": "edge-holes", "params": {"g": 0.05, "p": 0.6}}"#,
-    r#"{"effect": "rim-holes", "params": {"g": 0.05, "p": 0.6}}"#,
-    r#"{"effect": "drop-holes", "params": {"p": 0.7}}"#,
-    r#"{"effect": "hole-growth", "params": {"p": 0.3}}"#,
-    r#"{"effect": "pit-fill", "params": {"g": 0.02, "p": 0.8}}"#,
-    r#"{"effect": "drop-blend", "params": {"p": 0.6, "a": 0.8}}"#,
-    r#"{"effect": "floor-lift", "params": {"x": 0.6, "p": 0.7, "a": 1.5}}"#,
-    r#"{"effect": "riser-blend", "params": {"foot": 0.4, "top": -0.3}}"#,
-    r#"{"effect": "mixed-cells", "params": {"up": 0.04, "down": 0.06}}"#,
-    r#"{"effect": "fov", "params": {"x_min": -0.45, "x_max": 1.2}},
-       {"effect": "startup", "params": {"x0": 0.3, "v": 0.25, "p": 0.3}},
-       {"effect": "occlusion", "params": {"h": 0.42, "x0": 0.12}},
-       {"effect": "drop-holes", "params": {"p": 0.3}},
-       {"effect": "pit-fill", "params": {"g": 0.03, "p": 0.5}},
-       {"effect": "mixed-cells", "params": {"up": 0.03, "down": 0.05}},
-       {"effect": "riser-blend", "params": {"foot": 0.2, "top": 0.1}},
-       {"effect": "smoothing", "params": {"w": 0.7}},
-       {"effect": "bias", "params": {"b": 0.01, "t": 0.01}},
-       {"effect": "noise", "params": {"sigma0": 0.004, "k": 0.01}},
-       {"effect": "quantization", "params": {"q": 0.005}},
-       {"effect": "dropout", "params": {"p": 0.05}},
-       {"effect": "patch-dropout", "params": {"n": 1.0, "r": 0.08, "a": 0.3}},
-       {"effect": "hole-growth", "params": {"p": 0.2}},
-       {"effect": "row-dropout", "params": {"p": 0.02}}"#,
-];
+/// data), then one of several: `testdata/effects.json`, which the PyTorch
+/// check (`scripts/torch_sensor_check.sh`) reads too.
+fn models() -> Vec<String> {
+    let text = std::fs::read_to_string(td("effects.json")).unwrap();
+    let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let mut out: Vec<String> = v["every_effect"].as_array().unwrap().iter().map(|e| format!(r#"{{"effects": [{e}]}}"#)).collect();
+    out.push(format!(r#"{{"effects": {}}}"#, v["several"]));
+    out
+}
 
 #[test]
 fn onnxruntime_fed_dem_sensor_s_uniforms_gives_its_output_for_every_effect() {
     let dir = tempdir();
-    let names: std::collections::BTreeSet<String> = MODELS[..20]
-        .iter()
-        .map(|m| m.split('"').nth(3).unwrap().to_string())
-        .collect();
+    let models = models();
+    let names: std::collections::BTreeSet<String> =
+        models[..models.len() - 1].iter().map(|m| SensorModel::from_json(m).unwrap().effects[0].name().to_string()).collect();
     assert_eq!(names.len(), dem_sensor::effects::NAMES.len(), "every effect of the vocabulary");
     let mut cases = Vec::new();
-    for (i, effects) in MODELS.iter().enumerate() {
+    for (i, model) in models.iter().enumerate() {
         let json = arg(dir.path(), &format!("m{i}.json"));
-        std::fs::write(&json, format!(r#"{{"effects": [{effects}]}}"#)).unwrap();
+        std::fs::write(&json, model).unwrap();
         let (onnx, out, u) = (arg(dir.path(), &format!("m{i}.onnx")), arg(dir.path(), &format!("o{i}.npy")), arg(dir.path(), &format!("u{i}.npy")));
         let o = run("dem-sensor", &["export", "--sensor", &json, "-o", &onnx], None);
         ok(&o);
@@ -97,7 +68,7 @@ for i, model, out, u in [{cases}]:
             cases = cases.join(", ")
         ),
     );
-    assert_eq!(said.lines().count(), MODELS.len(), "{said}");
+    assert_eq!(said.lines().count(), models.len(), "{said}");
 }
 
 #[test]
