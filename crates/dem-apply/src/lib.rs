@@ -153,7 +153,8 @@ pub fn run(c: &Config, model: &OnnxModel, progress: impl FnMut(u64)) -> Result<R
 /// the file at `path`, and its inputs.
 pub fn runtime_line(path: &str, info: &dem_onnx::ModelInfo) -> Result<String, DemError> {
     let stored = Stored::from_info(info, path)?;
-    let whole = info.metadata.iter().any(|(k, v)| k == dem_onnx::sensor::GRAPH_KEY && v == dem_onnx::sensor::GRAPH_SENSOR);
+    use dem_onnx::sensor::{GRAPH_KEY, GRAPH_SENSOR, GRAPH_SENSOR_ONLY};
+    let whole = info.metadata.iter().any(|(k, v)| k == GRAPH_KEY && (v == GRAPH_SENSOR || v == GRAPH_SENSOR_ONLY));
     let model = stored.residual_or_empty();
     Ok(if whole {
         format!(

@@ -219,3 +219,24 @@ fn the_example_training_loop_applies_the_sensor_every_step() {
         assert!(v[1] > 0.9, "{line}");
     }
 }
+
+/// A sensor model alone (`dem-sensor export`) runs in dem-apply as it does
+/// in dem-sensor: the same bytes and the same uniforms.
+#[test]
+fn a_sensor_model_alone_runs_in_dem_apply_as_in_dem_sensor() {
+    let dir = tempdir();
+    let json = arg(dir.path(), "s.json");
+    std::fs::write(&json, RESIDUAL).unwrap();
+    let onnx = arg(dir.path(), "s.onnx");
+    ok(&run("dem-sensor", &["export", "--sensor", &json, "-o", &onnx], None));
+    let files: Vec<String> = ["a.npy", "ua.npy", "b.npy", "ub.npy"].iter().map(|f| arg(dir.path(), f)).collect();
+    let labels = td("sim_labels.csv");
+    let o = run("dem-apply", &["--model", &onnx, "--labels", &labels, "--seed", "4", "--emit-uniform", &files[1], &td("sim.npy"), "-o", &files[0]], None);
+    ok(&o);
+    assert!(!stderr(&o).contains("runs on tract"), "{}", stderr(&o));
+    let args = ["apply", "--sensor", &json, "--labels", &labels, "--seed", "4", "--emit-uniform", &files[3], &td("sim.npy"), "-o", &files[2]];
+    ok(&run("dem-sensor", &args, None));
+    for (a, b) in [(0, 2), (1, 3)] {
+        assert!(std::fs::read(&files[a]).unwrap() == std::fs::read(&files[b]).unwrap(), "{} and {} differ", files[a], files[b]);
+    }
+}

@@ -128,7 +128,14 @@ impl OnnxModel {
             .map_err(|e| bad(name, format!("not an ONNX model (protobuf decoding failed: {e})")))?;
         // A virtual sensor's graph: its network runs here, the tail natively.
         match crate::sensor::network_part(&proto, name)? {
-            Some((network, _)) => Self::from_proto(&network, name),
+            Some((network, stored)) => {
+                let mut m = Self::from_proto(&network, name)?;
+                if stored.heights == crate::Heights::Network && network.graph.as_ref().is_some_and(|g| g.node.len() == 1) {
+                    // A sensor model alone: its "network" is the identity.
+                    m.note = None;
+                }
+                Ok(m)
+            }
             None => Self::from_proto(&proto, name),
         }
     }

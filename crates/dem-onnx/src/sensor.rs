@@ -35,10 +35,7 @@ use tract_onnx::pb;
 use crate::export::{generator_nodes, model_proto, ModelInfo, INPUT, OUTPUT, RESIDUAL_KEY};
 use crate::heights::{Heights, HEIGHTS_KEY};
 
-/// The `metadata_props` key that says what the graph holds.
-pub const GRAPH_KEY: &str = "dem.graph";
-/// [`GRAPH_KEY`]'s value for a generator followed by its sensor tail.
-pub const GRAPH_SENSOR: &str = "network+sensor";
+pub use dem_sensor::graph::{GRAPH_KEY, GRAPH_NETWORK_SENSOR as GRAPH_SENSOR, GRAPH_SENSOR_ONLY};
 /// The tensor between the generator and the tail.
 pub const NETWORK_OUT: &str = "network_out";
 
@@ -200,7 +197,13 @@ pub fn network_part(proto: &pb::ModelProto, name: &str) -> Result<Option<(pb::Mo
     match marked.as_slice() {
         [] => return Ok(None),
         [GRAPH_SENSOR] => {}
-        other => return Err(DemError::input(name, format!("its {GRAPH_KEY} is {other:?}; this version reads \"{GRAPH_SENSOR}\""))),
+        [GRAPH_SENSOR_ONLY] => return sensor_alone(proto, &info, name).map(Some),
+        other => {
+            return Err(DemError::input(
+                name,
+                format!("its {GRAPH_KEY} is {other:?}; this version reads \"{GRAPH_SENSOR}\" and \"{GRAPH_SENSOR_ONLY}\""),
+            ))
+        }
     }
     let stored = Stored::from_info(&info, name)?;
     let graph = proto.graph.as_ref().ok_or_else(|| DemError::input(name, "not an ONNX model (no graph)"))?;
@@ -234,4 +237,26 @@ pub fn network_part(proto: &pb::ModelProto, name: &str) -> Result<Option<(pb::Mo
         ..proto.clone()
     };
     Ok(Some((network, stored)))
+}
+
+/// A sensor model alone (`dem-sensor export`): checked to be exactly the
+/// graph its `dem.residual` builds, it runs as an identity network followed
+/// by that model (masks thresholded, the input's heights).
+fn sensor_alone(proto: &pb::ModelProto, info: &ModelInfo, name: &str) -> Result<(pb::ModelProto, Stored), DemError> {
+    let stored = Stored::from_info(info, name)?;
+    let model = stored.residual.clone().ok_or_else(|| DemError::input(name, format!("its {GRAPH_KEY} says a sensor model, but it has no {RESIDUAL_KEY}")))?;
+    let rebuilt = sensor_graph::sensor_model(&model, "check", &[]).graph.expect("a graph");
+    let graph = proto.graph.as_ref().ok_or_else(|| DemError::input(name, "not an ONNX model (no graph)"))?;
+    if graph.node != rebuilt.node || graph.initializer != rebuilt.initializer {
+        return Err(DemError::input(
+            name,
+            "its graph is not what its metadata (dem.residual) builds: the file was changed after export; re-export it with dem-sensor export",
+        ));
+    }
+    let mut g = Builder::new();
+    g.node("Identity", &[INPUT], vec![], NETWORK_OUT);
+    let identity = model_proto(g, &graph.name, String::new(), vec![dem_graph::batch_value(INPUT, &[21, 5, 2])]);
+    let mut identity = identity;
+    identity.graph.as_mut().expect("a graph").output = vec![dem_graph::batch_value(NETWORK_OUT, &[21, 5, 2])];
+    Ok((identity, Stored { residual: Some(model), heights: Heights::Network }))
 }

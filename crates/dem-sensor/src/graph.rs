@@ -743,7 +743,8 @@ pub fn sensor_model(model: &SensorModel, name: &str, extra_metadata: &[(String, 
     let time = model.uses_time().then_some(TIME);
     let cells = apply(&mut b, model, cells, uniform, time);
     join_dem(&mut b, &cells, &row20, OUTPUT);
-    let mut metadata = io_metadata(model);
+    let mut metadata = vec![(GRAPH_KEY.to_string(), GRAPH_SENSOR_ONLY.to_string())];
+    metadata.extend(io_metadata(model));
     metadata.push((RESIDUAL_JSON_KEY.into(), serde_json::to_string(model).expect("a model serialises")));
     metadata.extend_from_slice(extra_metadata);
     let doc = format!(
@@ -754,6 +755,13 @@ pub fn sensor_model(model: &SensorModel, name: &str, extra_metadata: &[(String, 
     );
     b.model(name, graph_inputs(model), vec![dem_graph::batch_value(OUTPUT, &[21, 5, 2])], doc, &metadata)
 }
+
+/// The `metadata_props` key that says what a dem-tools graph holds.
+pub const GRAPH_KEY: &str = "dem.graph";
+/// [`GRAPH_KEY`]'s value for a sensor model alone (`dem-sensor export`).
+pub const GRAPH_SENSOR_ONLY: &str = "sensor";
+/// [`GRAPH_KEY`]'s value for a generator followed by its sensor tail.
+pub const GRAPH_NETWORK_SENSOR: &str = "network+sensor";
 
 /// The `metadata_props` key holding the sensor model's JSON.
 pub const RESIDUAL_JSON_KEY: &str = "dem.residual";

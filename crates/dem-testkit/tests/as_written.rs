@@ -165,6 +165,7 @@ dem-synth --out no_fov --runs 6 --real-runs 6 --seed 1 --no-fov 2>/dev/null
 for m in g_y gy g; do cp "$ROOT/testdata/torch_gen_w4.onnx" $m.onnx; done
 echo '{"effects": [{"effect": "noise", "params": {"sigma0": 0.002, "k": 0.01}}, {"effect": "startup", "params": {"x0": 0.45, "v": 0.2, "p": 0.25}}]}' > sensor.json
 cp sensor.json s.json
+dem-sensor export --sensor sensor.json -o gy-sensor.onnx 2>/dev/null
 cp sensor.json start.json
 dem-cat sim.npy -o part1.npy
 dem-cat real.npy -o part2.npy
