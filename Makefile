@@ -33,7 +33,7 @@ install: build
 
 # numpy (and later onnxruntime) for the peer checks in the tests.
 venv: $(VENV)/.stamp
-$(VENV)/.stamp: scripts/requirements.txt python/pyproject.toml python/demstream/__init__.py
+$(VENV)/.stamp: scripts/requirements.txt python/pyproject.toml $(wildcard python/demstream/*.py)
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
 	$(PY) -m pip install -q -r scripts/requirements.txt

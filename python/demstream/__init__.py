@@ -1,7 +1,7 @@
 """Read and write the DEM streams of the dem-* tools with numpy.
 
 A stream is one or more complete ``.npy`` arrays of shape ``(n, 21, 5, 2)``
-written back to back (``../shared/spec/dem-format.md``). ``numpy.load``
+written back to back (``docs/format.md``). ``numpy.load``
 reads only the first array, silently: a tool writing to a pipe
 (``dem-cat run/sim.npy | cat > x.npy``) writes one array per 4,096 records,
 so ``np.load('x.npy')`` returns 4,096 of them. This module reads them all.

@@ -24,7 +24,7 @@
 //! part ([`network_part`]) only after checking that the rest of the graph is
 //! exactly what the metadata builds.
 
-use dem_core::format::{Dem, DemCells, COLS, GRID_ROWS};
+use dem_core::format::Dem;
 use dem_core::DemError;
 use dem_graph::Builder;
 use dem_nn::weights::GeneratorWeights;
@@ -96,9 +96,8 @@ impl Stored {
     pub fn finish(&self, input: &Dem, out: &mut Dem, u: &[f32], time: Option<f64>) {
         if self.heights == Heights::Input {
             crate::heights::input_heights(input, out);
-        } else if self.residual.is_some() {
-            threshold(out);
         }
+        // The residual thresholds the masks first (SensorModel::apply_drawn).
         if let Some(r) = &self.residual {
             r.apply_drawn(out, u, time);
         }
@@ -132,20 +131,6 @@ impl Stored {
         m.push((GRAPH_KEY.to_string(), GRAPH_SENSOR.to_string()));
         m.extend(sensor_graph::io_metadata(&self.residual_or_empty()));
         m
-    }
-}
-
-/// Masks to the contract: a cell with mask > 0 becomes valid (mask +1, its
-/// height kept), any other missing (height 0, mask -1). Row 20 untouched.
-pub fn threshold(d: &mut Dem) {
-    for r in 0..GRID_ROWS {
-        for c in 0..COLS {
-            if d.is_valid(r, c) {
-                d.set_valid(r, c, d.height(r, c));
-            } else {
-                d.set_missing(r, c);
-            }
-        }
     }
 }
 

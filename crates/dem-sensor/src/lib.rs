@@ -147,8 +147,11 @@ impl SensorModel {
     /// Apply every effect to `d` with the record's uniforms `u` (laid out
     /// as [`SensorModel::uniforms`] writes them) and its time in its run
     /// when known (finite; `startup` uses it): what the ONNX graph computes.
+    /// The masks are first made the contract's ([`threshold`]; a contract
+    /// DEM is left as it is), so a generator's raw masks come out +-1.
     pub fn apply_drawn(&self, d: &mut Dem, u: &[f32], time: Option<f64>) {
         assert_eq!(u.len(), self.draws(), "apply_drawn: wrong number of uniforms");
+        threshold(d);
         let time = time.filter(|t| t.is_finite());
         let mut at = 0;
         for e in &self.effects {
@@ -210,6 +213,21 @@ impl SensorModel {
             return "none".into();
         }
         self.effects.iter().map(|e| e.to_string()).collect::<Vec<_>>().join(", ")
+    }
+}
+
+/// Masks to the contract: a cell with mask > 0 becomes valid (mask +1, its
+/// height kept), any other missing (height 0, mask -1). Row 20 untouched.
+pub fn threshold(d: &mut Dem) {
+    use dem_core::format::{DemCells, COLS, GRID_ROWS};
+    for r in 0..GRID_ROWS {
+        for c in 0..COLS {
+            if d.is_valid(r, c) {
+                d.set_valid(r, c, d.height(r, c));
+            } else {
+                d.set_missing(r, c);
+            }
+        }
     }
 }
 
