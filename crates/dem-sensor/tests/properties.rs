@@ -58,3 +58,59 @@ proptest! {
         }
     }
 }
+
+/// One effect at parameters anywhere in its box (a, b in [0, 1], s a sign).
+fn extreme(effect: &str, a: f64, b: f64, s: f64) -> String {
+    let p = match effect {
+        "noise" => format!(r#"{{"sigma0":{},"k":{}}}"#, 10.0 * a, 10.0 * b),
+        "dropout" | "row-dropout" | "hole-growth" | "drop-holes" => format!(r#"{{"p":{a}}}"#),
+        "occlusion" => format!(r#"{{"h":{},"x0":{}}}"#, 1e-3 + 9.99 * a, s * 10.0 * b),
+        "fov" => format!(r#"{{"x_min":{},"x_max":{}}}"#, -10.0 * a, 10.0 * b + 1e-3),
+        "smoothing" => format!(r#"{{"w":{}}}"#, 1e-3 + 0.999 * a),
+        "bias" => format!(r#"{{"b":{},"t":{}}}"#, s * 10.0 * a, -s * 10.0 * b),
+        "quantization" => format!(r#"{{"q":{}}}"#, 1e-4 + 9.9999 * a * a * a),
+        "startup" => format!(r#"{{"x0":{},"v":{},"p":{b}}}"#, s * 10.0 * a, 10.0 * b),
+        "patch-dropout" => format!(r#"{{"n":{},"r":{},"a":{b}}}"#, 8.0 * a, 10.0 * b),
+        "edge-holes" | "rim-holes" | "pit-fill" => format!(r#"{{"g":{},"p":{b}}}"#, 1e-3 + 9.99 * a),
+        "mixed-cells" => format!(r#"{{"up":{},"down":{}}}"#, 10.0 * a, 10.0 * b),
+        "drop-blend" => format!(r#"{{"p":{a},"a":{b}}}"#),
+        "riser-blend" => format!(r#"{{"foot":{},"top":{}}}"#, s * a, -s * b),
+        "floor-lift" => format!(r#"{{"x":{},"p":{a},"a":{}}}"#, s * 10.0 * b, 10.0 * b),
+        "view-top" => format!(r#"{{"h":{},"t":{}}}"#, s * 10.0 * a, 10.0 * b),
+        other => unreachable!("{other}"),
+    };
+    format!(r#"{{"effect":"{effect}","params":{p}}}"#)
+}
+
+proptest! {
+    #![proptest_config(config())]
+
+    /// Stacks of up to 64 effects anywhere in their boxes, on heights up to
+    /// 1e30 m either way, write only finite values.
+    #[test]
+    fn every_accepted_stack_writes_only_finite_values(
+        picks in proptest::collection::vec((prop::sample::select(dem_sensor::effects::NAMES.to_vec()), 0.0f64..=1.0, 0.0f64..=1.0, any::<bool>()), 1..=64),
+        scale in prop::sample::select(vec![1.0f32, 1e10, 1e30]),
+        heights in proptest::collection::vec(-3.0f32..3.0, 100),
+        seed in any::<u64>(),
+    ) {
+        let effects: Vec<String> = picks.iter().map(|(e, a, b, s)| extreme(e, *a, *b, if *s { 1.0 } else { -1.0 })).collect();
+        let json = format!(r#"{{"effects":[{}]}}"#, effects.join(","));
+        let m = SensorModel::from_json(&json).map_err(|e| TestCaseError::fail(format!("{json}: {e}")))?;
+        let mut d = empty_dem();
+        for (i, h) in heights.iter().enumerate() {
+            d.set_valid(i / 5, i % 5, *h * scale);
+        }
+        m.apply_at(&mut d, seed, 3, Some(1.5));
+        prop_assert!(d.iter().all(|v| v.is_finite()), "{json} on heights x {scale} wrote a non-finite value");
+    }
+}
+
+#[test]
+fn a_model_of_more_than_64_effects_is_refused() {
+    let one = r#"{"effect":"dropout","params":{"p":0.1}}"#;
+    let json = format!(r#"{{"effects":[{}]}}"#, vec![one; 65].join(","));
+    let e = SensorModel::from_json(&json).unwrap_err();
+    assert!(e.contains("65 effects: a sensor model has at most 64"), "{e}");
+    assert!(SensorModel::from_json(&format!(r#"{{"effects":[{}]}}"#, vec![one; 64].join(","))).is_ok());
+}
