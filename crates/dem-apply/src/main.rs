@@ -104,6 +104,7 @@ fn main() -> ExitCode {
     cli::run(|| {
         let a: Args = cli::parse();
         if a.info {
+            output::check_outputs(&[&a.model], &["-"])?;
             return print_info(&a.model);
         }
         let inputs: Vec<&str> = [Some(&a.input), Some(&a.model), a.labels.as_ref()].into_iter().flatten().map(String::as_str).collect();

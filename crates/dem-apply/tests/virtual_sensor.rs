@@ -125,6 +125,29 @@ onnx.save(m, "{tampered}")
     assert_eq!(o.status.code(), Some(2));
     let err = stderr(&o);
     assert!(err.contains("not what its metadata") && err.contains("tampered.onnx"), "{err}");
+    // A key twice: which residual runs would be a guess.
+    let twice = arg(dir.path(), "twice.onnx");
+    py(
+        dir.path(),
+        &format!(
+            r#"
+import onnx
+m = onnx.load("{model}")
+r = [p for p in m.metadata_props if p.key == "dem.residual"][0]
+e = m.metadata_props.add(); e.key = r.key; e.value = r.value
+onnx.save(m, "{twice}")
+"#
+        ),
+    );
+    let o = run("dem-apply", &["--model", &twice, &td("sim.npy")], None);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("dem.residual twice"), "{}", stderr(&o));
+    // --info never appends to the model (`>> model`).
+    let o = dem_testkit::run_cmd(
+        std::process::Command::new("bash").args(["-c", &format!("{} --model {model} --info >> {model}", dem_testkit::bin("dem-apply").display())]),
+        None,
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     // A network alone says what another runtime gets.
     let plain = arg(dir.path(), "g.onnx");
     export(&plain, &Stored::default());

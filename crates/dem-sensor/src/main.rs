@@ -149,6 +149,7 @@ fn main() -> ExitCode {
             Ok(())
         }
         Command::Show { model } => {
+            dem_core::output::check_outputs(&[&model], &["-"])?;
             let m = SensorModel::read(&model)?;
             use std::io::Write;
             let mut out = std::io::stdout().lock();

@@ -103,6 +103,20 @@ fn bad_models_exit_2_naming_the_file() {
     }
     let o = run("dem-sensor", &["apply", "--model", "missing.json", &td("sim.npy")], None);
     assert_eq!(o.status.code(), Some(2));
+    // Values a model writes as infinities, and a show that would append to its model.
+    let model = arg(dir.path(), "m.json");
+    std::fs::write(&model, r#"{"effects": [{"effect": "quantization", "params": {"q": 1e-310}}]}"#).unwrap();
+    let o = run("dem-sensor", &["show", "--sensor", &model], None);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("q = 1e-310 must be >= 1e-4 m"), "{}", stderr(&o));
+    std::fs::write(&model, r#"{"effects": [{"effect": "quantization", "params": {"q": 0.0002}}]}"#).unwrap();
+    let o = run("dem-sensor", &["show", "--sensor", &model], None);
+    assert_eq!(String::from_utf8_lossy(ok(&o)).trim(), "quantization(q=2.000e-4)");
+    let before = std::fs::read(&model).unwrap();
+    let shell = format!("{} show --sensor {model} >> {model}", dem_testkit::bin("dem-sensor").display());
+    let o = dem_testkit::run_cmd(std::process::Command::new("bash").args(["-c", &shell]), None);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert_eq!(std::fs::read(&model).unwrap(), before, "the model is untouched");
 }
 
 #[test]
