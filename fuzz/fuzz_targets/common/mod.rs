@@ -4,7 +4,8 @@ use std::io::Cursor;
 use dem_import::container::{mcap, ros1, Event, StopError};
 use dem_import::msg;
 
-/// Which reader.
+/// Which reader (each target uses one).
+#[allow(dead_code)]
 pub enum Kind {
     Mcap,
     Ros1,
