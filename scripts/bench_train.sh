@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Training speed against the PyTorch peer (shared/reference/torch_cyclegan.py,
+# Training speed against the PyTorch peer (scripts/torch_cyclegan.py,
 # the thesis network and losses): samples/s of the full step (both
 # generators, both discriminators, paired term) at width 32, batch 64,
 # measured in the same run, alternating the two so machine noise hits both,
@@ -15,7 +15,7 @@ set -euo pipefail
 BIN=${BIN:-target/release}
 OUT=${OUT:-.bench}
 TORCH_PY=${TORCH_PY:-.venv-torch/bin/python}
-REF=${REF:-../shared/reference/torch_cyclegan.py}
+REF=${REF:-scripts/torch_cyclegan.py}
 WIDTH=${WIDTH:-32}
 BATCH=${BATCH:-64}
 STEPS=${STEPS:-20}

@@ -1,5 +1,5 @@
 """Make "real" data in which known measurement effects are hidden: apply the
-effects of spec/dem-format.md to sim DEMs, implemented here from the spec's
+effects of docs/format.md to sim DEMs, implemented here from the spec's
 formulas with numpy, independently of the Rust sensor/fitting code (its own
 random draws, its own loops), so dem-gap's tests check the fitter against
 data it did not make.

@@ -103,7 +103,7 @@ model_row() {
 }
 echo "== models" >&2
 model_row paired-data PAIRED_MODEL "$DATA/sim.npy" "$DATA/sim.npy" "$DATA/real.npy"
-# The thesis's own network and losses (spec/network.md), for its row.
+# The thesis's own network and losses (docs/network.md), for its row.
 TRAIN_ARGS="$TRAIN_ARGS --arch thesis" model_row paired-data-thesis THESIS_MODEL "$DATA/sim.npy" "$DATA/sim.npy" "$DATA/real.npy"
 model_row fixing-pallet PALLET_MODEL "$DATA/sim_clean.npy" "$DATA/sim_clean.npy" "$DATA/real.npy"
 model_row removing-nans NANS_MODEL "$DATA/sim_clean.npy" "$DATA/sim_clean.npy" "$DATA/real_filled.npy"

@@ -3,7 +3,7 @@ full Cycle GAN + paired step (2 G, 2 D) on random batches, samples/s.
 
     python scripts/torch_residual_step.py [WIDTH] [BATCH] [STEPS]
 
-shared/reference/torch_cyclegan.py builds the thesis network; since issue 11
+scripts/torch_cyclegan.py builds the thesis network; since issue 11
 dem-train's default differs in the generator's head and the paired losses
 (docs/training.md, "A generator that keeps the terrain"):
 

@@ -1,6 +1,6 @@
 //! dem-apply on the bundled test data, the way users run it, against the slow
 //! f64 reference forward of the exported generator (tolerance 1e-4 per
-//! value, spec/network.md: tract computes in f32, the reference in f64).
+//! value, docs/network.md: tract computes in f32, the reference in f64).
 
 use std::process::Command;
 

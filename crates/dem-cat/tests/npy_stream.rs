@@ -1,4 +1,4 @@
-//! NPY stream I/O as `spec/dem-format.md` states it, through the real
+//! NPY stream I/O as `docs/format.md` states it, through the real
 //! `dem-cat` binary, against numpy as the peer: numpy writes every input (in
 //! the test's temp dir) and checks what we wrote.
 //!

@@ -8,7 +8,7 @@ use dem_core::npy::transform_checked;
 use dem_core::cli::{self, value};
 use dem_core::{output, table, DemError, Terrain};
 
-/// Make sim pallets solid (the thesis's section 6.3): a simulated pallet
+/// Make sim pallets solid (the thesis's pallet cleaning): a simulated pallet
 /// sampled at cell centres shows the gaps between its top boards as stripes
 /// of low cells, which a real depth sensor never shows. Each gap cell (lower
 /// than the two level boards before and after it along x) is filled with

@@ -713,7 +713,7 @@ mod tests {
         assert_eq!(select(&pairs, None), vec![(3, 0), (5, 1), (5, 2)]);
     }
 
-    // The worked checks of spec/dem-format.md through evaluate: the best of
+    // The worked checks of docs/format.md through evaluate: the best of
     // the paired real records is taken, before any mask threshold.
     #[test]
     fn evaluate_takes_the_best_pair_and_the_raw_mask() {

@@ -1,4 +1,4 @@
-//! The DEM record of `spec/dem-format.md`: `float32` of shape `(21, 5, 2)`.
+//! The DEM record of `docs/format.md`: `float32` of shape `(21, 5, 2)`.
 //!
 //! A record is stored flat in C order, so cell `(row, col, channel)` sits at
 //! `(row * 5 + col) * 2 + channel`. Rows `0..20` are the grid (row 0 is 0.6 m

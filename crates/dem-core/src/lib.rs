@@ -1,6 +1,6 @@
 //! Core of the dem-* tools for virtual depth sensors on tracked robots.
 //!
-//! - [`format`](mod@format): the DEM record of `spec/dem-format.md` (shape, cells,
+//! - [`format`](mod@format): the DEM record of `docs/format.md` (shape, cells,
 //!   terrains) and the NaN rule.
 //! - [`npy`]: NPY stream reader and writer (concatenated arrays, stdin/stdout,
 //!   atomic files, numpy-identical bytes).

@@ -57,7 +57,7 @@ mod tests {
         d
     }
 
-    // The worked checks of spec/dem-format.md: whole DEMs differing in one cell.
+    // The worked checks of docs/format.md: whole DEMs differing in one cell.
     #[test]
     fn worked_check_mask_half_against_valid() {
         let y = flat();

@@ -10,7 +10,7 @@ use dem_core::eval::forms::Format;
 use dem_eval::{compare, evaluate, join, merge, transfer};
 
 /// Score predictions of real DEMs for the sim records of a pairs CSV: each
-/// sim record's pair error is the smallest equation 7.1 error of its
+/// sim record's pair error is the smallest DEM error (docs/format.md) of its
 /// prediction against the real records paired with it (raw predicted mask,
 /// no threshold). Prints the table: count, lowest, highest, mean and median,
 /// and the measures that see heights: height_cm (mean abs height error
@@ -82,7 +82,7 @@ enum Cmd {
     ///
     /// Rows match by (method, terrain). A row is worse when CURRENT's mean or
     /// median pair error exceeds BASELINE's by more than --tolerance, an
-    /// absolute difference in equation 7.1 units; when height_cm grows by
+    /// absolute difference in pair error units; when height_cm grows by
     /// more than --height-tolerance (cm); when the roughness's distance from
     /// the real one, |rough - real_rough| across or along, grows by more than
     /// --rough-tolerance (cm); or when gap grows by more than

@@ -10,7 +10,7 @@ use dem_core::cli::{self, value};
 use dem_core::output;
 
 /// Fill the missing cells of records with a large missing area (the thesis's
-/// section 6.4): such records (a run's first frames, before the map has seen
+/// NaN removal): such records (a run's first frames, before the map has seen
 /// the rows behind the robot) are kept as they are for --keep of them, and
 /// in the others every missing cell gets a height drawn at random from the
 /// same record's valid cells and is marked valid. Records with a smaller

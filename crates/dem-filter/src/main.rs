@@ -37,7 +37,7 @@ struct Args {
     /// Keep only these terrains (comma-separated).
     #[arg(long, value_delimiter = ',')]
     terrain: Option<Vec<Terrain>>,
-    /// Drop records labelled `other` (section 5.1).
+    /// Drop records labelled `other` (ramps, rubble: not flat, stairs or pallet).
     #[arg(long)]
     drop_other: bool,
     /// Keep records at most this many seconds into their run (the labels'

@@ -1,4 +1,4 @@
-//! The Cycle GAN with paired data of `spec/network.md`, trained on the CPU
+//! The Cycle GAN with paired data of `docs/network.md`, trained on the CPU
 //! with kernels of our own over rayon and a packed GEMM.
 //!
 //! - [`weights`]: the parameters, in PyTorch's layout (checkpoints, export).

@@ -1,5 +1,5 @@
 //! A slow, obviously correct forward pass of both networks, one sample at a
-//! time in f64, straight from `spec/network.md` (and the PyTorch peer). The
+//! time in f64, straight from `docs/network.md` (and the PyTorch peer). The
 //! fast kernels, the export and the ONNX runners are all tested against it.
 
 use dem_core::Dem;

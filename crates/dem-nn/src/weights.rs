@@ -1,5 +1,5 @@
-//! The parameters of the networks of `spec/network.md`, in PyTorch's layout
-//! (the layout of `shared/reference/torch_cyclegan.py` and of ONNX), so a
+//! The parameters of the networks of `docs/network.md`, in PyTorch's layout
+//! (the layout of `scripts/torch_cyclegan.py` and of ONNX), so a
 //! checkpoint, an export and the reference all name the same numbers.
 //!
 //! Feature orders fixed by the spec (NCHW inside the network):
@@ -86,7 +86,7 @@ pub const GATE_SHARPNESS: f32 = 20.0;
 /// `o = (o_h, o_m)` become the output grid (`x_h` is the input's height
 /// channel, `m` the output mask).
 ///
-/// - [`Arch::Thesis`] (`spec/network.md`): `h = o_h`, `m = tanh(o_m)`. The
+/// - [`Arch::Thesis`] (`docs/network.md`): `h = o_h`, `m = tanh(o_m)`. The
 ///   head must produce every height from scratch, and nothing in the losses
 ///   weighs a height error of centimetres against a mask error (equation 7.1
 ///   prices 10 cm at 1e-4): its heights come out as +-20 cm speckle.
@@ -121,7 +121,7 @@ impl Arch {
     }
 }
 
-/// Generator G_X or G_Y of width w: see the module docs and `spec/network.md`.
+/// Generator G_X or G_Y of width w: see the module docs and `docs/network.md`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct GeneratorWeights {
     /// Width w (channels of the first conv).
@@ -143,7 +143,7 @@ pub struct GeneratorWeights {
     pub fc: Linear,
 }
 
-/// Discriminator D_X or D_Y: see the module docs and `spec/network.md`.
+/// Discriminator D_X or D_Y: see the module docs and `docs/network.md`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct DiscriminatorWeights {
     /// 4x4 stride 2, 2 -> 64.

@@ -98,7 +98,7 @@ impl MaskSampling {
     }
 }
 
-/// What a model did with row 20 (the attitude, which spec/network.md says
+/// What a model did with row 20 (the attitude, which docs/network.md says
 /// passes through): how many records it changed, and the first.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct AttitudeCheck {

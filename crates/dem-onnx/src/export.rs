@@ -1,4 +1,4 @@
-//! Export a generator (`spec/network.md`) to ONNX, built from tract's
+//! Export a generator (`docs/network.md`) to ONNX, built from tract's
 //! protobuf types and encoded with `prost`.
 //!
 //! The graph, opset [`OPSET`], `N` the dynamic batch axis:
@@ -41,7 +41,7 @@ pub use dem_graph::BATCH_AXIS;
 /// model and the trainer's forward pass that [`export_checked`] accepts.
 /// Both compute in `f32`; over ~15 layers with instance norms their rounding
 /// differs by ~1e-6 for values of order 1, so 1e-4 leaves room for that and
-/// nothing else (`spec/network.md` fixes this number).
+/// nothing else (`docs/network.md` fixes this number).
 pub const TOLERANCE: f32 = 1e-4;
 
 /// What [`export_checked`] did.

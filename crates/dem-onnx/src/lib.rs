@@ -1,5 +1,5 @@
 //! ONNX for the dem-* tools: run any model that maps DEM batches to DEM
-//! batches, and export the generator of `spec/network.md` to such a model.
+//! batches, and export the generator of `docs/network.md` to such a model.
 //!
 //! - [`run`]: [`OnnxModel`], a tract plan optimised once with a symbolic
 //!   batch axis `N`: `(N, 21, 5, 2) float32 -> (N, 21, 5, 2) float32`, any
@@ -16,7 +16,7 @@
 //! - [`masks`] and [`heights`]: what dem-apply can do to a generator's
 //!   output: holes drawn from its masks, the input's heights under its holes.
 //!
-//! Both sides of a model use the file layout of `spec/dem-format.md`: input
+//! Both sides of a model use the file layout of `docs/format.md`: input
 //! `dem`, output `dem_out`, so a saved NPY goes straight in.
 #![deny(missing_docs)]
 

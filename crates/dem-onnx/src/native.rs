@@ -1,4 +1,4 @@
-//! Recognise a generator of `spec/network.md` in an ONNX graph and read its
+//! Recognise a generator of `docs/network.md` in an ONNX graph and read its
 //! weights back, so [`crate::OnnxModel`] can run it on dem-nn's inference
 //! kernels ([`dem_nn::net::GeneratorInference`]) instead of tract.
 //!
@@ -109,7 +109,7 @@ pub fn recognise(proto: &pb::ModelProto) -> Result<GeneratorWeights, String> {
                 let plain = int(n, "transA", 0) == 0 && float(n, "alpha", 1.0) == 1.0 && float(n, "beta", 1.0) == 1.0;
                 let (dims, w) = weights(n, 1)?;
                 let bias = if n.input.len() > 2 { weights(n, 2)?.1 } else { Vec::new() };
-                // The head of spec/network.md: the record (210 values) in, the grid (200) out.
+                // The head of docs/network.md: the record (210 values) in, the grid (200) out.
                 const IN: i64 = RECORD_LEN as i64;
                 const OUT: i64 = GRID_LEN as i64;
                 let weight = match (int(n, "transB", 0), dims.as_slice()) {

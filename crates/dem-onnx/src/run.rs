@@ -1,7 +1,7 @@
 //! Run an ONNX model over batches of DEMs with tract.
 //!
 //! A conforming model has one input and one output, both `float32` of shape
-//! `(N, 21, 5, 2)` (the file layout of `spec/dem-format.md`, `N` the batch
+//! `(N, 21, 5, 2)` (the file layout of `docs/format.md`, `N` the batch
 //! axis). The names do not matter (an export names them `dem` and
 //! `dem_out`).
 //!
@@ -19,7 +19,7 @@
 //! should; otherwise the batch plan is. Runs share the plans and each gets
 //! its own state, so threads may call [`OnnxModel::run`] at the same time.
 //!
-//! **The native path.** A model that is a generator of `spec/network.md`
+//! **The native path.** A model that is a generator of `docs/network.md`
 //! (dem-train's export or PyTorch's of the same network, recognised from its
 //! graph and weights by [`crate::native`]) runs on dem-nn's inference
 //! kernels instead ([`GeneratorInference`]: Winograd convolutions over blocks

@@ -1,7 +1,7 @@
 //! The export and the tract runner against the slow f64 reference forward
 //! (`dem_nn::reference::generator`) and onnxruntime, on the bundled records.
 //!
-//! Tolerance: 1e-4 absolute per value (spec/network.md). tract and
+//! Tolerance: 1e-4 absolute per value (docs/network.md). tract and
 //! onnxruntime compute in f32, the reference in f64; for random generators
 //! of PyTorch's initialisation the outputs are of order 1 and the f32
 //! rounding over the ~20 layers stays around 1e-6.

@@ -17,7 +17,7 @@ enum Method {
     Content,
 }
 
-/// Build the pairs CSV of sim keys to real records (the thesis's section 5.2):
+/// Build the pairs CSV of sim keys to real records (the thesis's paired data):
 /// one sim key to one or many real records, deduplicated (identical sim
 /// records are one key: the first), split into train and val by key.
 ///
@@ -59,7 +59,7 @@ struct Args {
     /// Content: sim keys per real record.
     #[arg(long, default_value_t = 1, value_parser = value::at_least_one::<usize>)]
     k: usize,
-    /// Content: largest distance (equation 7.1 height part; default: no limit).
+    /// Content: largest distance (the pair error's height part; default: no limit).
     #[arg(long = "max-error", alias = "max-distance", value_name = "ERROR", value_parser = value::non_negative::<f64>)]
     max_distance: Option<f64>,
     /// Fraction of sim keys in the val split.

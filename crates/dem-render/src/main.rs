@@ -73,7 +73,7 @@ struct Args {
     #[arg(long, value_delimiter = ',', requires = "compare")]
     row_labels: Vec<String>,
     /// With --compare: "R,P" (1-based rows) prints under each column "e=" and
-    /// the equation 7.1 error of row P's record (the prediction) against row
+    /// the DEM error (docs/format.md) of row P's record (the prediction) against row
     /// R's (the measured DEM).
     #[arg(long, value_name = "R,P", value_delimiter = ',', requires = "compare", conflicts_with = "captions")]
     error_rows: Option<Vec<usize>>,

@@ -1,4 +1,4 @@
-//! The measurement effects of `spec/dem-format.md`, each on one DEM.
+//! The measurement effects of `docs/format.md`, each on one DEM.
 //!
 //! Coordinates: row `r` of the grid is centred at x = -0.55 + 0.1 r m from
 //! the robot centre C (forward), column `c` at y = (2 - c) 0.1 m; heights

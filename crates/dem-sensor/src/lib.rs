@@ -1,5 +1,5 @@
 //! A sensor model of named effects: an ordered list of measurement effects
-//! from the vocabulary of `spec/dem-format.md`, each with its parameters,
+//! from the vocabulary of `docs/format.md`, each with its parameters,
 //! stored as JSON and applied to DEM streams.
 //!
 //! ```text

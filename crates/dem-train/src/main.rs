@@ -9,7 +9,7 @@ use dem_core::cli::{self, value};
 use dem_nn::weights::Arch;
 use dem_train::{RunOptions, Settings, TrainConfig};
 
-/// Train the virtual sensor network of spec/network.md: G_Y turns sim DEMs
+/// Train the virtual sensor network of docs/network.md: G_Y turns sim DEMs
 /// into the DEMs a real sensor + elevation mapping gives, learned from many
 /// sims, few reals and (optionally) pairs of the same pose.
 ///
@@ -85,7 +85,7 @@ struct TrainArgs {
     width: Option<usize>,
     /// Generator head: `residual` predicts a height correction over the sim
     /// input and is trained with the paired height term; `thesis` is
-    /// spec/network.md's network and losses, to reproduce the thesis's rows
+    /// docs/network.md's network and losses, to reproduce the thesis's rows
     /// [default: residual].
     #[arg(long, value_enum)]
     arch: Option<ArchArg>,

@@ -1,4 +1,4 @@
-//! The discriminator of `spec/network.md` on a batch, forward and backward.
+//! The discriminator of `docs/network.md` on a batch, forward and backward.
 //!
 //! Grid `[n, 20, 5, 2]` -> conv 4x4/2 (64, leaky) -> `[n, 10, 3, 64]` ->
 //! conv 4x4/2 + IN + leaky -> `[n, 5, 2, 128]` -> conv 4x4/1 + IN + leaky ->

@@ -1,4 +1,4 @@
-//! The generator of `spec/network.md` on a batch, forward and backward.
+//! The generator of `docs/network.md` on a batch, forward and backward.
 //!
 //! Input: the grid `[n, 20, 5, 2]` (rows 0..19 of each record, which is
 //! already channels-last) and the attitude `[n, 10]` (row 20, in record

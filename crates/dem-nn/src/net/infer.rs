@@ -1,4 +1,4 @@
-//! The generator of `spec/network.md` for inference only: no tape, weights
+//! The generator of `docs/network.md` for inference only: no tape, weights
 //! prepared once, records run in blocks of a fixed size.
 //!
 //! Per block of `B` records (`x [B, 100, c]` channels-last, 100 = 20x5

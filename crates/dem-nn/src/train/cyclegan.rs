@@ -1,4 +1,4 @@
-//! One training step of the Cycle GAN with paired data (`spec/network.md`).
+//! One training step of the Cycle GAN with paired data (`docs/network.md`).
 //!
 //! Generators' update, on a batch of sims x and reals y (the first P rows
 //! of each may be a pair: x_i is a sim key, y_i one of its reals):
@@ -72,7 +72,7 @@ impl Default for GanConfig {
 }
 
 impl GanConfig {
-    /// The thesis's network and losses (`spec/network.md`).
+    /// The thesis's network and losses (`docs/network.md`).
     pub fn thesis() -> Self {
         GanConfig {
             width: 32,

@@ -1,4 +1,4 @@
-//! The losses of `spec/network.md`, each returning its value and writing
+//! The losses of `docs/network.md`, each returning its value and writing
 //! (adding) its gradient.
 //!
 //! - BCE on logits with a constant target t, mean over all decisions:
@@ -7,7 +7,7 @@
 //!   through the generators, so it adds nothing but the count):
 //!   gradient `sign(a - b) / (n * 210)`.
 //! - Paired G_Y term: mean over paired sims of `min_i e(y_i, G_Y(x))`, the
-//!   equation 7.1 error of `spec/dem-format.md` (height error only where y_i
+//!   equation 7.1 error of `docs/format.md` (height error only where y_i
 //!   is valid, mask error everywhere, sum over the 100 cells / 100).
 //! - Paired height term: `H(y, p) = mean over cells valid in y of
 //!   |y_h - p_h| / 0.01 m`, the mean absolute height error in centimetres;
