@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# dem-gap end to end on 20,000 sim and 1,000 real records (issue 7: under 2
+# dem-gap end to end on 20,000 sim and 1,000 real records (goal: under 2
 # minutes on this machine). The data is made by dem-synth (400 runs, the
 # first 21 measured); the run is unpaired with labels, so every sim record
 # is compared, and the loop fits every effect of the vocabulary at every step.

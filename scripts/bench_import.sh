@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# dem-import speed and memory (issue 13), against rosbags in the same run.
+# dem-import speed and memory, against rosbags in the same run.
 # Goals: (a) >= 2,000 map messages per second per core for 200 x 200 maps;
 # (b) a 1 GB recording imported in under a minute on 2 cores; (c) memory
 # bounded by one chunk of messages, not by the recording.
@@ -162,7 +162,7 @@ peer_rate=$(rate "$maps" "$(best peer)")
 grow=$(echo "$(rss_mb bag1) $(rss_mb half1) $maps $maps_half1" | awk '{printf "%.2f", ($1 - $2) * 1000 / ($3 - $4)}')
 msg_kb=$(echo "$bag_mb $maps" | awk '{printf "%.0f", $1 * 1000 / $2}')
 {
-  echo "dem-import (issue 13): $maps map messages of $PAD x $PAD cells (2 float32 layers: $((8 * PAD * PAD / 1000)) kB a map; $msg_kb kB of bag per map with its TF and joint states)"
+  echo "dem-import: $maps map messages of $PAD x $PAD cells (2 float32 layers: $((8 * PAD * PAD / 1000)) kB a map; $msg_kb kB of bag per map with its TF and joint states)"
   echo "    machine: $(nproc) cores ($(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ *//')), load average $load at the start; REPEAT=$REPEAT runs each (best, median, all)"
   echo "    data: dem-synth --runs $RUNS --real-runs $RUNS --seed $SEED --emit-maps; maps_to_bag.py --pad-to $PAD:"
   echo "        full.bag: ROS 1, uncompressed chunks, $bag_mb MB; full_mcap: ROS 2 MCAP, zstd chunks, $(mb "$data/full_mcap") MB;"

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Memory (issue 16): peak resident memory of dem-eval and dem-filter as the
+# Memory: peak resident memory of dem-eval and dem-filter as the
 # stream grows (k copies of testdata's 3,025 sim records), so "bounded" is a
 # measured claim. Each row: tool, records, peak MB (the process's max RSS,
 # measured by Python's resource module, so no /usr/bin/time is needed).

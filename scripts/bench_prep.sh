@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Data preparation speed (issue 4 goals): dem-filter, dem-clean-pallet and
+# Data preparation speed: dem-filter, dem-clean-pallet and
 # dem-fill-nans streaming 1 million records (goal: >= 1M records a minute),
 # and dem-pair by content with 200,000 sim and ~1,000 real records (goal:
 # under a minute). All data made by dem-synth; timings are wall seconds of

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The CI guard of the validation error table (issue 6):
+# The CI guard of the validation error table:
 #   prepare testdata/ (dem-filter, dem-pair with a val split)
 #   -> train a tiny generator and export it (dem-train; skipped until it is built)
 #   -> dem-eval on the val split, one CSV row per method (pair error, height

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# dem-gap against the physical emulator, leave one stage out (issue 12):
+# dem-gap against the physical emulator, leave one stage out:
 # for every stage dem-synth can switch off, the "simulation" is the measured
 # DEMs of `dem-synth --no-<stage>` and "real" is the measured DEMs with all
 # stages, the same seed and so the same poses (the first RUNS runs), compared
@@ -71,7 +71,7 @@ for case, label, st in cases:
     except FileNotFoundError:
         print(f"| {label} | (no report) | | | | | | | |")
         continue
-    # A step tied with a rival (report.json's tied_with, from 2026-11-27)
+    # A step tied with a rival (report.json's tied_with; older reports lack it)
     # names one of two effects the data does not tell apart.
     ties = lambda s: [t["effect"] for t in s.get("tied_with", [])]
     tie_note = lambda s: f" [tied with {', '.join(ties(s))}]" if ties(s) else ""
@@ -86,7 +86,7 @@ for case, label, st in cases:
     share = lambda g: f"{100 * (1 - g / g0) if g0 else 0:.0f}%"
     # A gap below the start model's sampling floor may be sampling (dem-gap
     # warns): marked, so a reader sees which misses sit at the floor.
-    floor = r.get("sampling_floor_initial")  # absent in reports before 2026-11-27
+    floor = r.get("sampling_floor_initial")  # absent in older reports
     fl = "-" if floor is None else f"{floor:.2f}" + (" (**above the gap**)" if g0 < floor else "")
     print(f"| {label} | {named} | {right} | {edges} | {g0:.2f} | {fl} | {g1:.2f} | {share(g1)} | {share(gu)} |")
 PYEOF

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# dem-import on recordings as a robot leaves them (issue 13): the emulator's
+# dem-import on recordings as a robot leaves them: the emulator's
 # 5 cm elevation maps of two measured runs (dem-synth --emit-maps) written
 # by the rosbags package as a ROS 1 bag (lz4) and a ROS 2 MCAP bag (zstd),
 # with TF (odom -> base_footprint -> base_link) and flipper joint states;

@@ -3,8 +3,8 @@ full Cycle GAN + paired step (2 G, 2 D) on random batches, samples/s.
 
     python scripts/torch_residual_step.py [WIDTH] [BATCH] [STEPS]
 
-scripts/torch_cyclegan.py builds the thesis network; since issue 11
-dem-train's default differs in the generator's head and the paired losses
+scripts/torch_cyclegan.py builds the thesis network; dem-train's default
+(`--arch residual`) differs in the generator's head and the paired losses
 (docs/training.md, "A generator that keeps the terrain"):
 
     heights = (x_h + 0.1 o_h) * sigmoid(20 o_m), masks = tanh(o_m)

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The downstream transfer test (issue 11): does a policy-like model trained on
+# The downstream transfer test: does a policy-like model trained on
 # G_Y(sim) do better on measured DEMs than one trained on sim?
 #
 #   measured runs are split: TEST_RUNS (held out, the test set) and the rest

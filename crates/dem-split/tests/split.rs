@@ -1,4 +1,4 @@
-//! Shards equal the whole (issue 14): `dem-split -> tool per shard with
+//! Shards equal the whole: `dem-split -> tool per shard with
 //! --first-index -> dem-cat` gives the bytes of one run on the whole stream,
 //! for every tool that draws per record, run by hand, with xargs and with
 //! GNU parallel (the recipe of docs/scale-out.md).

@@ -60,7 +60,7 @@ fn hiding_one_stage_keeps_the_sim_and_changes_the_measured() {
 }
 
 /// With noise off, every stage alone changes the measured data against all
-/// stages off (issue 12: smoothing, dropout and holes alone used to give
+/// stages off (smoothing, dropout and holes alone once gave
 /// the all-off bytes).
 #[test]
 fn every_stage_alone_changes_the_data() {

@@ -43,7 +43,7 @@ const POS: usize = GRID_CELLS;
 /// 2w x 2w weights, few enough that a block's transformed activations
 /// (160 x 30 x 2w floats, 1.2 MB at w = 32) stay near the core's L2 cache. On
 /// the width-32 generator, one thread: blocks of 8, 16, 32 ran 1,600, 1,740,
-/// 1,410 records/s (2026-11-24, shared machine).
+/// 1,410 records/s (a shared 2-core machine).
 pub const DEFAULT_BLOCK: usize = 16;
 
 /// PyTorch layout -> kernel layout `[(ky, kx, ci), co]` (through the
