@@ -48,7 +48,7 @@ DST = os.environ.get("NPY_OUT_DIR", OUT)
 MB = float(os.environ.get("NPY_MB", "500"))
 RUNS = int(os.environ.get("RUNS", "7"))
 DEM_CAT = os.path.join(BIN, "dem-cat")
-LIMIT_MB = 100  # streaming goal of the issue: a filter holds a chunk, not the file
+LIMIT_MB = 100  # streaming goal: a filter holds a chunk, not the file
 
 NUMPY_SNIPPET = """
 import sys, time
