@@ -1,4 +1,4 @@
-//! Pairs of sim keys and real records (the thesis's section 5.2): one sim
+//! Pairs of sim keys and real records (the thesis's paired data): one sim
 //! key to one or many real records, found by pose (labels) or by content
 //! (the nearest sim DEMs), then split into train and val by key.
 //!
