@@ -8,7 +8,7 @@ PY := $(VENV)/bin/python
 BIN := target/release
 OUT := out
 
-.PHONY: all build install venv venv-torch torch-check test readme-check demo bench clean testdata eval-ci eval-baseline thesis-table fuzz
+.PHONY: all build install venv venv-torch torch-check test readme-check demo tour bench clean testdata eval-ci eval-baseline thesis-table fuzz
 
 all: build
 
@@ -24,12 +24,12 @@ install: build
 	    $(PREFIX)/share/zsh/site-functions $(PREFIX)/share/fish/vendor_completions.d
 	for t in $(TOOLS); do \
 	    install -m 755 $(BIN)/$$t $(PREFIX)/bin/$$t; \
-	    $(BIN)/$$t --generate man > $(PREFIX)/share/man/man1/$$t.1; \
+	    $(BIN)/$$t --generate man --out-dir $(PREFIX)/share/man/man1; \
 	    $(BIN)/$$t --generate bash > $(PREFIX)/share/bash-completion/completions/$$t; \
 	    $(BIN)/$$t --generate zsh > $(PREFIX)/share/zsh/site-functions/_$$t; \
 	    $(BIN)/$$t --generate fish > $(PREFIX)/share/fish/vendor_completions.d/$$t.fish; \
 	done
-	@echo "installed $(words $(TOOLS)) tools under $(PREFIX) (bin, man pages, bash/zsh/fish completions)"
+	@echo "installed $(words $(TOOLS)) tools under $(PREFIX) (bin, man pages of each tool and subcommand, bash/zsh/fish completions)"
 
 # numpy (and later onnxruntime) for the peer checks in the tests.
 venv: $(VENV)/.stamp
@@ -110,9 +110,18 @@ TD := testdata
 # an epoch on 2 cores; fewer on a large TD, which the 1,500-step budget cuts).
 DEMO_EPOCHS ?=
 
-# The steps are named in scripts/demo.sh; `bash scripts/demo.sh train` reruns one.
+# The main job on the bundled data in a few minutes: a world, preparation, a
+# short G_Y, the virtual sensor, the validation table, dem-gap naming an
+# effect, dem-import of two recordings, the pictures. Steps are named in
+# scripts/demo_fast.sh; `bash scripts/demo_fast.sh train` reruns one.
 demo: build venv
-	BIN=$(BIN) OUT=$(OUT) PY=$(PY) TD=$(TD) DEMO_EPOCHS=$(DEMO_EPOCHS) bash scripts/demo.sh
+	BIN=$(BIN) OUT=$(OUT) PY=$(PY) TD=$(TD) bash scripts/demo_fast.sh
+
+# The long tour (about half an hour on 2 cores): a full G_Y, the transfer
+# test, the virtual sensor on the val split, dem-gap with each emulator stage
+# left out. Steps are named in scripts/demo.sh.
+tour: build venv
+	BIN=$(BIN) OUT=$(OUT)/tour PY=$(PY) TD=$(TD) DEMO_EPOCHS=$(DEMO_EPOCHS) bash scripts/demo.sh
 
 # The committed test data set (see testdata/README.md).
 testdata: build
