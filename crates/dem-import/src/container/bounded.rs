@@ -23,7 +23,7 @@ pub const ZSTD_WINDOW_LOG_MAX: u32 = 24;
 
 /// `n` bytes in words: "33554432 bytes (32 MiB)".
 pub fn bytes(n: u64) -> String {
-    if n >= 1 << 20 && n % (1 << 20) == 0 {
+    if n >= 1 << 20 && n.is_multiple_of(1 << 20) {
         format!("{n} bytes ({} MiB)", n >> 20)
     } else {
         format!("{n} bytes")
