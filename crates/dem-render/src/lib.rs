@@ -211,13 +211,27 @@ pub fn build_figure(cfg: &RenderConfig) -> Result<Figure> {
         picked.push(p);
     }
     // Files may differ in length (a sim file often begins with the records
-    // paired with a shorter real file). Explicit indices are in every file
-    // (reading refuses one past the end); a range is cut to the shortest
-    // file, as `head` would.
-    let shortest = picked.iter().map(|p| p.indices.len()).min().unwrap_or(0);
-    for p in &mut picked {
-        p.indices.truncate(shortest);
-        p.records.truncate(shortest);
+    // paired with a shorter real file), but every file holds every record
+    // drawn: explicit indices are refused past a file's end when read, and a
+    // range that one file cuts shorter than another is refused here (a range
+    // past the end of files of equal length is cut, as for one file).
+    let drawn = |k: usize| picked[k].indices.len();
+    let short = (0..picked.len()).min_by_key(|&k| drawn(k)).unwrap_or(0);
+    let long = (0..picked.len()).max_by_key(|&k| drawn(k)).unwrap_or(0);
+    let name = |k: usize| if cfg.inputs[k] == "-" { "stdin" } else { cfg.inputs[k].as_str() };
+    if drawn(short) != drawn(long) {
+        let range = match &selection {
+            Selection::Range { start, count } => format!("--start {start} --count {count}"),
+            Selection::Indices(_) => "the records asked for".into(),
+        };
+        return Err(usage(format!(
+            "--compare draws the same records from every file, but {} holds {} records and {} holds {}: {range} runs past the end of {}",
+            name(short),
+            picked[short].total,
+            name(long),
+            picked[long].total,
+            name(short)
+        )));
     }
     let indices = picked[0].indices.clone();
     let mut caption_label = None;

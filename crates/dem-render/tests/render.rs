@@ -317,13 +317,27 @@ fn captions_from_a_csv_and_the_help_example() {
 }
 
 #[test]
-fn compare_cuts_a_range_to_the_shortest_file() {
+fn compare_draws_a_range_every_file_holds_and_refuses_one_past_a_shorter_file() {
     let dir = tempdir();
     let d = dir.path();
     let four = write(d, "four.npy", &[flat(0.0); 4]);
     let six = write(d, "six.npy", &[flat(0.0); 6]);
     let out = arg(d, "out.png");
-    let res = run("dem-render", &["--compare", &six, &four, "--start", "1", "--count", "5", "-o", &out], None);
+    // Files of unequal length: a range inside both is drawn whole ...
+    let res = run("dem-render", &["--compare", &six, &four, "--start", "1", "--count", "3", "-o", &out], None);
     ok(&res);
     assert!(stderr(&res).contains("2 files x 3 records"), "{}", stderr(&res));
+    std::fs::remove_file(&out).unwrap();
+    // ... one past the shorter file's end is refused, naming both files and
+    // their lengths, where it once drew fewer records than asked.
+    let res = run("dem-render", &["--compare", &six, &four, "--start", "1", "--count", "5", "-o", &out], None);
+    assert_eq!(res.status.code(), Some(2), "{}", stderr(&res));
+    let e = stderr(&res);
+    assert!(e.lines().count() == 1 && e.contains("four.npy holds 4 records") && e.contains("six.npy holds 6"), "{e}");
+    assert!(e.contains("--start 1 --count 5"), "{e}");
+    assert!(!Path::new(&out).exists());
+    // Files of equal length: a range past their end is cut, as for one file.
+    let res = run("dem-render", &["--compare", &four, &four, "--start", "2", "--count", "5", "-o", &out], None);
+    ok(&res);
+    assert!(stderr(&res).contains("2 files x 2 records"), "{}", stderr(&res));
 }
