@@ -25,8 +25,10 @@ use dem_core::cli::{self, value};
   dem-render --compare in.npy closest.npy <(dem-apply --model g.onnx in.npy) --row-labels input,closest,generated -o fig.png
   dem-cat big.npy | dem-render - --start 100 --count 48 --columns 16 > page.png
 
---compare needs files of equal length: with --runs equal to --real-runs (20 by
-default), dem-synth's sim.npy and real.npy pair record for record.")]
+--compare draws the same records from every file. Files may differ in length,
+but a range that runs past the end of one file and not another is refused
+(exit 2), as is an index past any file's end. With --runs equal to --real-runs
+(20 by default), dem-synth's sim.npy and real.npy pair record for record.")]
 struct Args {
     /// NPY file(s); `-` is stdin (the default). Several need --compare.
     inputs: Vec<String>,
