@@ -59,7 +59,7 @@ eval_row() {
     shift 2
     "$BIN/dem-eval" --sim "$sim" --real "$DATA/real.npy" --pairs "$DATA/pairs.csv" --split val \
         --sim-labels "$DATA/sim_labels.csv" --name "$(row_label "$name")" --format csv -o "$ROWS/$name.csv" \
-        --records "$ROWS/$name.records.csv" --emit-input "$ROWS/$name.input.npy" \
+        --emit-records "$ROWS/$name.records.csv" --emit-input "$ROWS/$name.input.npy" \
         --emit-pred "$ROWS/$name.pred.npy" --emit-closest "$ROWS/$name.closest.npy" ${EVAL_BY:+--by "$EVAL_BY"} "$@"
 }
 

@@ -41,7 +41,7 @@ struct Args {
     #[arg(default_value = "-")]
     input: String,
     /// Output NPY stream (`-` for stdout).
-    #[arg(short, long = "out", alias = "output", default_value = "-")]
+    #[arg(short, long = "out", default_value = "-")]
     output: String,
     /// The ONNX model: float32 (N, 21, 5, 2) in and out.
     #[arg(short, long)]
@@ -73,7 +73,7 @@ struct Args {
     /// Labels CSV of the input's records: their `time` in the run places
     /// the residual model's startup rows (without it, startup frames are
     /// drawn at the model's rate).
-    #[arg(long)]
+    #[arg(long, value_name = "CSV")]
     labels: Option<String>,
     /// Seed of every draw: --sample-masks and the residual sensor model.
     #[arg(long, default_value_t = 0)]

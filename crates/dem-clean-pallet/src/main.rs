@@ -26,10 +26,10 @@ struct Args {
     #[arg(default_value = "-")]
     input: String,
     /// Output NPY stream (`-` for stdout).
-    #[arg(short, long = "out", alias = "output", default_value = "-")]
+    #[arg(short, long = "out", default_value = "-")]
     output: String,
     /// Labels CSV of the input: clean the records labelled `pallet`.
-    #[arg(long)]
+    #[arg(long, value_name = "CSV")]
     labels: Option<String>,
     /// Boards either side of a gap differ by at most this (m).
     #[arg(long, default_value_t = 0.02, value_parser = value::non_negative::<f32>)]

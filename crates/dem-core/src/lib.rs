@@ -4,7 +4,8 @@
 //!   terrains) and the NaN rule.
 //! - [`npy`]: NPY stream reader and writer (concatenated arrays, stdin/stdout,
 //!   atomic files, numpy-identical bytes).
-//! - [`table`]: labels, pairs and index CSVs.
+//! - [`table`]: labels, pairs and index CSVs; [`raw_labels`]: a labels CSV
+//!   re-indexed a row at a time, every other byte kept.
 //! - [`metric`]: the thesis's equation 7.1 error and the pair error.
 //! - [`eval`]: validation tables of the pair error (count, lowest, highest,
 //!   mean, median; by terrain) and their comparison against a baseline.
@@ -12,6 +13,7 @@
 //! - [`distribution`]: the distribution gap between two sets of DEMs (what
 //!   dem-gap fits and dem-eval's `gap` column reports).
 //! - [`output`]: atomic output files.
+//! - [`swap`]: the warning when `--sim` and `--real` look swapped.
 //! - [`cli`]: exit codes, error printing, logs and progress for the binaries.
 //! - [`error`]: the typed errors everything returns.
 #![deny(missing_docs)]
@@ -24,7 +26,9 @@ pub mod format;
 pub mod metric;
 pub mod npy;
 pub mod output;
+pub mod raw_labels;
 pub mod seeded;
+pub mod swap;
 pub mod table;
 
 pub use error::{DemError, Result};

@@ -37,15 +37,15 @@ pub struct EvalArgs {
     /// Name of the table row [default: identity, or the --pred / --model file stem].
     #[arg(long)]
     name: Option<String>,
-    /// Labels CSV of the sim file: terrain of each record (--records, --by terrain).
-    #[arg(long = "sim-labels", alias = "labels-sim", value_name = "CSV")]
+    /// Labels CSV of the sim file: terrain of each record (--emit-records, --by terrain).
+    #[arg(long = "sim-labels", value_name = "CSV")]
     labels_sim: Option<String>,
     #[command(flatten)]
     table: TableOut,
     /// Write per-record results here: sim_index,real_index (the best pair),error,terrain,height_cm.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long = "emit-records", value_name = "FILE")]
     records: Option<String>,
-    /// Write the sim record of each evaluated record (the --records rows, in order) to this NPY.
+    /// Write the sim record of each evaluated record (the --emit-records rows, in order) to this NPY.
     #[arg(long, value_name = "FILE")]
     emit_input: Option<String>,
     /// Write the prediction of each evaluated record to this NPY.
@@ -71,9 +71,13 @@ pub struct EvalArgs {
     /// Index of the sim file's first record in the whole data set, when it
     /// is a shard (`dem-split` prints it): the pairs keep the whole set's
     /// indices and only this shard's sims are scored; `dem-eval merge` joins
-    /// the shards' --records (and --emit-pred) into the whole table.
+    /// the shards' --emit-records (and --emit-pred) into the whole table.
     #[arg(long)]
     first_index: Option<u64>,
+    /// Do not warn when --sim misses clearly more cells than --real (the
+    /// sign of swapped inputs: measured DEMs have holes, sim DEMs few).
+    #[arg(long)]
+    no_swap_check: bool,
     /// Records per model call with --model.
     #[arg(long, default_value_t = 512, value_parser = cli::value::at_least_one::<usize>)]
     batch: usize,
@@ -90,7 +94,7 @@ pub(crate) struct TableOut {
     #[arg(long, value_enum, default_value = "text")]
     pub(crate) format: Format,
     /// Table output (`-` for stdout).
-    #[arg(short, long = "out", alias = "output", default_value = "-")]
+    #[arg(short, long = "out", default_value = "-")]
     pub(crate) output: String,
 }
 
@@ -137,6 +141,9 @@ pub fn run(a: EvalArgs) -> anyhow::Result<()> {
         .collect();
     let outputs: Vec<&str> = to_stdout.into_iter().flatten().map(String::as_str).collect();
     dem_core::output::check_outputs(&inputs, &outputs)?;
+    if let (Some(sim), Some(real)) = (&a.sim, &a.real) {
+        dem_core::swap::check_files(sim, real, a.no_swap_check);
+    }
     let q = Request {
         sim: need(a.sim, "--sim")?,
         real: need(a.real, "--real")?,

@@ -167,7 +167,7 @@ fn in_sample(i: u64, j: u64, n: u64) -> bool {
     n <= GAP_SAMPLE || (sample_hash(i, j) as f64) < GAP_SAMPLE as f64 / n as f64 * u64::MAX as f64
 }
 
-/// The writers of --records and --emit-input, --emit-pred, --emit-closest:
+/// The writers of --emit-records and --emit-input, --emit-pred, --emit-closest:
 /// each gets a block's rows as it finishes; files appear only on success.
 struct Emit {
     records: Option<crate::records::RecordsWriter>,

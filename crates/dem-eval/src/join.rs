@@ -28,7 +28,7 @@ pub struct JoinArgs {
     #[arg(long, value_delimiter = ',', value_parser = measure)]
     pub pivot: Vec<Measure>,
     /// Output file (`-` for stdout).
-    #[arg(short, long = "out", alias = "output", default_value = "-")]
+    #[arg(short, long = "out", default_value = "-")]
     pub output: String,
 }
 

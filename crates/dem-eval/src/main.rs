@@ -27,9 +27,9 @@ use dem_eval::{compare, evaluate, join, merge, transfer};
 #[command(version, args_conflicts_with_subcommands = true, after_long_help = "Examples:
   dem-eval --sim sim.npy --real real.npy --pairs pairs.csv --split val --identity
   dem-eval --sim sim.npy --real real.npy --pairs pairs.csv --split val --model g.onnx \\
-      --sim-labels sim_labels.csv --by terrain --records per_record.csv --format md
+      --sim-labels sim_labels.csv --by terrain --emit-records per_record.csv --format md
   dem-apply --model g.onnx sim.npy -o gen.npy && dem-eval --sim sim.npy --real real.npy --pairs pairs.csv --pred gen.npy
-  dem-eval --sim sim.npy --real real.npy --pairs pairs.csv --identity --records r.csv \\
+  dem-eval --sim sim.npy --real real.npy --pairs pairs.csv --identity --emit-records r.csv \\
       --emit-input in.npy --emit-closest closest.npy && \\
       dem-render --compare in.npy closest.npy --row-labels input,closest --error-rows 2,1 -o fig.png
   dem-eval join identity.csv model.csv -o table.csv    # one table, one header
@@ -39,6 +39,9 @@ struct Args {
     cmd: Option<Cmd>,
     #[command(flatten)]
     eval: evaluate::EvalArgs,
+    /// Worker threads (default: all cores).
+    #[arg(long, global = true, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    threads: Option<u32>,
 }
 
 #[derive(Subcommand)]
@@ -56,7 +59,7 @@ enum Cmd {
   scripts/transfer.sh                                  # the whole test on testdata/")]
     Transfer(transfer::TransferArgs),
     /// The table of the whole from shards: each shard evaluated with
-    /// `--first-index N --records FILE --emit-pred FILE` (the pairs and real
+    /// `--first-index N --emit-records FILE --emit-pred FILE` (the pairs and real
     /// file of the whole), then the records files merged in shard order, and
     /// the predictions joined for the gap. The table equals one run's on
     /// the whole, bit for bit.
@@ -64,7 +67,7 @@ enum Cmd {
   dem-split --shards 4 --labels sim_labels.csv --out part sim.npy > shards.csv
   parallel --will-cite --colsep , --header : dem-eval --sim {shard} --sim-labels {labels} \\
       --first-index {first_index} --real real.npy --pairs pairs.csv --split val --model gy.onnx \\
-      --records {shard}.rec.csv --emit-pred {shard}.pred.npy -o /dev/null :::: shards.csv
+      --emit-records {shard}.rec.csv --emit-pred {shard}.pred.npy -o /dev/null :::: shards.csv
   dem-cat part-*.npy.pred.npy | dem-eval merge part-*.npy.rec.csv --name gy --by terrain \\
       --emitted-pred - --real real.npy --pairs pairs.csv --split val --format csv")]
     Merge(merge::MergeArgs),
@@ -124,6 +127,9 @@ enum Cmd {
 fn main() -> ExitCode {
     cli::run(|| {
         let a: Args = cli::parse();
+        if let Some(n) = a.threads {
+            rayon::ThreadPoolBuilder::new().num_threads(n as usize).build_global()?;
+        }
         match a.cmd {
             Some(Cmd::Compare { baseline, current, tolerance, height_tolerance, rough_tolerance, gap_tolerance, format }) => {
                 dem_core::output::check_outputs(&[&baseline, &current], &["-"])?;

@@ -1,6 +1,6 @@
 //! `dem-eval merge`: the table of the whole from the shards' per-record
 //! results. Medians and the gap do not merge from shard tables, so a shard
-//! run keeps what they are made of: its `--records` CSV (errors and the
+//! run keeps what they are made of: its `--emit-records` CSV (errors and the
 //! exact height and roughness sums) and, for the gap, its `--emit-pred`
 //! records. Added in index order, they give the one-run table bit for bit.
 
@@ -19,7 +19,7 @@ use dem_core::npy::ByIndex;
 /// The arguments of `dem-eval merge`.
 #[derive(ClapArgs)]
 pub struct MergeArgs {
-    /// The shards' per-record results (`dem-eval --first-index N --records
+    /// The shards' per-record results (`dem-eval --first-index N --emit-records
     /// FILE`), in shard order.
     #[arg(required = true, value_name = "RECORDS")]
     records: Vec<String>,

@@ -1,4 +1,4 @@
-//! The per-record results CSV (`--records`), written a row at a time and
+//! The per-record results CSV (`--emit-records`), written a row at a time and
 //! read back by `dem-eval merge`.
 //!
 //! A row carries everything a table row is made of: the pair error, the
@@ -168,7 +168,7 @@ pub fn read(path: &str) -> anyhow::Result<Vec<RecordResult>> {
     .map_err(|e| match e {
         DemError::Table { line: 1, .. } => DemError::input(
             path,
-            "is not a per-record results CSV of this dem-eval (its header must be that of --records; \
+            "is not a per-record results CSV of this dem-eval (its header must be that of --emit-records; \
              files of older versions lack the sums a merge needs: run the shard again)",
         ),
         e => e,

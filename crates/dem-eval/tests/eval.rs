@@ -149,7 +149,7 @@ print(json.dumps(out))
     for (method, flag) in [("pred", vec!["--pred".to_string(), arg(d, "pred.npy")]), ("identity", vec!["--identity".into()])] {
         let rec = arg(d, &format!("{method}_records.csv"));
         let labels = arg(d, "labels.csv");
-        let mut a = eval_args(d, &["--split", "val", "--labels-sim", &labels, "--by", "terrain", "--format", "json", "--records", &rec]);
+        let mut a = eval_args(d, &["--split", "val", "--sim-labels", &labels, "--by", "terrain", "--format", "json", "--emit-records", &rec]);
         a.extend(flag);
         let o = dem_eval(&a);
         let got: Value = serde_json::from_slice(ok(&o)).unwrap();
@@ -204,7 +204,7 @@ open("pairs.csv", "w").write("sim_index,real_index\n0,0\n1,1\n2,2\n")
 "#,
     );
     let rec = arg(dir.path(), "r.csv");
-    ok(&dem_eval(&eval_args(dir.path(), &["--identity", "--records", &rec])));
+    ok(&dem_eval(&eval_args(dir.path(), &["--identity", "--emit-records", &rec])));
     let rows: Vec<(u64, f64)> = std::fs::read_to_string(&rec)
         .unwrap()
         .lines()
@@ -231,7 +231,7 @@ fn identity_on_the_bundled_true_pairs_by_terrain() {
         "dem-eval",
         &[
             "--sim", &td("sim.npy"), "--real", &td("real.npy"), "--pairs", &td("pairs.csv"), "--identity",
-            "--labels-sim", &td("sim_labels.csv"), "--by", "terrain", "--format", "json", "--records", &rec,
+            "--sim-labels", &td("sim_labels.csv"), "--by", "terrain", "--format", "json", "--emit-records", &rec,
             "--emit-input", &arg(dir.path(), "in.npy"), "--emit-pred", &arg(dir.path(), "pred.npy"),
             "--emit-closest", &arg(dir.path(), "closest.npy"),
         ],
@@ -289,7 +289,7 @@ print(json.dumps(evaluate(sim, real, pairs, None, terrain)[1]))
         "dem-eval",
         &[
             "--sim", &td("sim.npy"), "--real", &td("real.npy"), "--pairs", &td("pairs.csv"), "--identity",
-            "--labels-sim", &td("sim_labels.csv"), "--by", "terrain", "--format", "json",
+            "--sim-labels", &td("sim_labels.csv"), "--by", "terrain", "--format", "json",
         ],
         None,
     );
@@ -608,7 +608,7 @@ fn bad_inputs_exit_2_with_one_clear_line() {
         (base(&td("pairs.csv")), "choose what to evaluate"),
         ([base(&td("pairs.csv")), vec!["--identity".into(), "--by".into(), "terrain".into()]].concat(), "--by terrain needs --sim-labels"),
         ([base(&td("pairs.csv")), vec!["--identity".into(), "--split".into(), "val".into()]].concat(), "no split column"),
-        ([base(&td("pairs.csv")), vec!["--identity".into(), "--labels-sim".into(), td("real_labels.csv")]].concat(), "has 966 rows but"),
+        ([base(&td("pairs.csv")), vec!["--identity".into(), "--sim-labels".into(), td("real_labels.csv")]].concat(), "has 966 rows but"),
         (vec!["--real".into(), td("real.npy"), "--pairs".into(), td("pairs.csv"), "--identity".into()], "--sim is required"),
         ([base(&arg(d, "nope.csv")), vec!["--identity".into()]].concat(), "failed to open"),
     ];
@@ -639,7 +639,7 @@ fn the_table_goes_to_a_file_atomically_and_stdout_may_close_early() {
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     // Per-record results on stdout, closed after a few bytes (`| head`).
     let mut cmd = std::process::Command::new(dem_testkit::bin("dem-eval"));
-    cmd.args(a).args(["--records", "-", "-o", &out]).stdout(std::process::Stdio::piped()).stderr(std::process::Stdio::piped());
+    cmd.args(a).args(["--emit-records", "-", "-o", &out]).stdout(std::process::Stdio::piped()).stderr(std::process::Stdio::piped());
     let mut child = cmd.spawn().unwrap();
     let mut first = [0u8; 10];
     std::io::Read::read_exact(child.stdout.as_mut().unwrap(), &mut first).unwrap();
@@ -649,17 +649,17 @@ fn the_table_goes_to_a_file_atomically_and_stdout_may_close_early() {
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     assert!(o.stderr.is_empty(), "{}", stderr(&o));
     // Two outputs on stdout: refused.
-    let o = run("dem-eval", &[&a[..], &["--records", "-"]].concat(), None);
+    let o = run("dem-eval", &[&a[..], &["--emit-records", "-"]].concat(), None);
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("only one output can be `-`"));
 }
 
-/// A records file of three sims, as `dem-eval --records` writes it.
+/// A records file of three sims, as `dem-eval --emit-records` writes it.
 fn records_csv(d: &Path) -> String {
     let pairs = arg(d, "three.csv");
     std::fs::write(&pairs, "sim_index,real_index\n0,0\n1,1\n2,2\n").unwrap();
     let rec = arg(d, "r.csv");
-    ok(&run("dem-eval", &["--sim", &td("sim.npy"), "--real", &td("real.npy"), "--pairs", &pairs, "--identity", "--records", &rec, "-o", "/dev/null"], None));
+    ok(&run("dem-eval", &["--sim", &td("sim.npy"), "--real", &td("real.npy"), "--pairs", &pairs, "--identity", "--emit-records", &rec, "-o", "/dev/null"], None));
     rec
 }
 
@@ -758,7 +758,7 @@ fn the_contract_s_extremes_are_written_and_read_back() {
     npy::write_all(&real, &dem(-1.0)).unwrap();
     std::fs::write(&pairs, "sim_index,real_index\n0,0\n1,1\n2,2\n3,3\n4,4\n5,5\n").unwrap();
     let (rec, pred) = (arg(d, "r.csv"), arg(d, "p.npy"));
-    ok(&run("dem-eval", &["--sim", &sim, "--real", &real, "--pairs", &pairs, "--identity", "--records", &rec, "--emit-pred", &pred, "-o", "/dev/null"], None));
+    ok(&run("dem-eval", &["--sim", &sim, "--real", &real, "--pairs", &pairs, "--identity", "--emit-records", &rec, "--emit-pred", &pred, "-o", "/dev/null"], None));
     let half = |name: &str, rows: std::ops::Range<usize>| {
         let text = std::fs::read_to_string(&rec).unwrap();
         let lines: Vec<&str> = text.lines().collect();

@@ -28,7 +28,7 @@ struct Args {
     #[arg(default_value = "-")]
     input: String,
     /// Output NPY stream (`-` for stdout).
-    #[arg(short, long = "out", alias = "output", default_value = "-")]
+    #[arg(short, long = "out", default_value = "-")]
     output: String,
     /// A record has a large missing area when at least this fraction of its
     /// 100 grid cells is missing.

@@ -29,10 +29,10 @@ struct Args {
     #[arg(default_value = "-")]
     input: String,
     /// Output NPY stream (`-` for stdout).
-    #[arg(short, long = "out", alias = "output", default_value = "-")]
+    #[arg(short, long = "out", default_value = "-")]
     output: String,
     /// Labels CSV of the input (index,terrain,...), for the terrain rules.
-    #[arg(long)]
+    #[arg(long, value_name = "CSV")]
     labels: Option<String>,
     /// Keep only these terrains (comma-separated).
     #[arg(long, value_delimiter = ',')]
@@ -52,7 +52,7 @@ struct Args {
     #[arg(long, value_delimiter = ',', conflicts_with = "runs")]
     except_runs: Option<Vec<u64>>,
     /// Keep only the records listed in this index CSV (header `index`).
-    #[arg(long)]
+    #[arg(long, value_name = "CSV")]
     index: Option<String>,
     /// With --index: keep the records NOT listed.
     #[arg(long, requires = "index")]
@@ -73,7 +73,7 @@ struct Args {
     #[arg(long)]
     emit_index: Option<String>,
     /// Write the labels of kept records (re-indexed from 0) to this CSV.
-    #[arg(long, requires = "labels")]
+    #[arg(long, value_name = "CSV", requires = "labels")]
     emit_labels: Option<String>,
 }
 

@@ -44,13 +44,13 @@ struct Args {
     #[arg(long)]
     pairs: Option<String>,
     /// Labels CSV of the sim file (per-terrain tables).
-    #[arg(long = "sim-labels", alias = "labels-sim", value_name = "CSV")]
+    #[arg(long = "sim-labels", value_name = "CSV")]
     labels_sim: Option<String>,
     /// Labels CSV of the real file.
-    #[arg(long = "real-labels", alias = "labels-real", value_name = "CSV")]
+    #[arg(long = "real-labels", value_name = "CSV")]
     labels_real: Option<String>,
     /// Sensor model to start from (JSON); default: no effects.
-    #[arg(long = "sensor", alias = "model", value_name = "JSON")]
+    #[arg(long = "sensor", value_name = "JSON")]
     model: Option<String>,
     /// Output folder.
     #[arg(short, long)]
@@ -81,11 +81,21 @@ struct Args {
     /// terrain mix, which the unique records would not.
     #[arg(long)]
     unpaired: bool,
+    /// Worker threads (default: all cores).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    threads: Option<u32>,
+    /// Do not warn when --sim misses clearly more cells than --real (the
+    /// sign of swapped inputs: measured DEMs have holes, sim DEMs few).
+    #[arg(long)]
+    no_swap_check: bool,
 }
 
 fn main() -> ExitCode {
     cli::run(|| {
         let a: Args = cli::parse();
+        if let Some(n) = a.threads {
+            rayon::ThreadPoolBuilder::new().num_threads(n as usize).build_global()?;
+        }
         if a.min_gain >= 1.0 {
             return Err(cli::usage("--min-gain must be a fraction in 0..1 (below 1)"));
         }
@@ -122,6 +132,7 @@ fn main() -> ExitCode {
             let _ = std::fs::remove_dir(&a.out);
         }
         checked?;
+        dem_core::swap::check_files(&a.sim, &a.real, a.no_swap_check);
         let start = a.model.as_deref().map(SensorModel::read).transpose()?.unwrap_or_default();
         let cfg = GapConfig {
             sim: a.sim,

@@ -313,7 +313,7 @@ fn no_model_hides_far_more_than_real_misses() {
     let real = hide(dir.path(), &sim, "real.npy", &["startup:x0=0.45,p=0.25", "noise:sigma0=0.004,k=0.01"]);
     let r = gap(dir.path(), &sim, &real, None, &[], "unpaired");
     let model = arg(dir.path(), "unpaired/sensor.json");
-    let o = run("dem-sensor", &["apply", "--model", &model, "--seed", "1", &sim], None);
+    let o = run("dem-sensor", &["apply", "--sensor", &model, "--seed", "1", &sim], None);
     let out = dem_core::npy::NpyReader::new(ok(&o), "stdout", None).read_to_end().unwrap();
     let theirs = dem_core::npy::read_all(&real).unwrap();
     use dem_core::format::DemCells;
@@ -394,7 +394,7 @@ fn nothing_hidden_names_nothing() {
     let start = arg(dir.path(), "start.json");
     std::fs::write(&start, r#"{"effects": [{"effect": "noise", "params": {"sigma0": 0.004, "k": 0.01}}]}"#).unwrap();
     for (pairs, out) in [(Some(pairs.as_str()), "paired"), (None, "unpaired")] {
-        let r = gap(dir.path(), &sim, &real, pairs, &["--model", &start], out);
+        let r = gap(dir.path(), &sim, &real, pairs, &["--sensor", &start], out);
         assert!(names(&r).is_empty(), "{out}: named {:?}", names(&r));
         assert_eq!(r["gap_initial"], r["gap_final"]);
         let md = std::fs::read_to_string(dir.path().join(out).join("report.md")).unwrap();
@@ -442,7 +442,7 @@ fn the_report_has_the_schema_pictures_and_a_usable_model() {
     }
     // The model applies, and the result has the hidden rows missing.
     let model = arg(dir.path(), "out/sensor.json");
-    let o = run("dem-sensor", &["apply", "--model", &model, &sim], None);
+    let o = run("dem-sensor", &["apply", "--sensor", &model, &sim], None);
     let out = dem_core::npy::NpyReader::new(ok(&o), "stdout", None).read_to_end().unwrap();
     use dem_core::format::DemCells;
     assert!(out.iter().all(|d| (0..5).all(|c| !d.is_valid(3, c) && !d.is_valid(19, c))));
@@ -532,7 +532,7 @@ fn leave_one_stage_out_on_other_camera_mounts() {
         let hidden = synth(&format!("no-{stage}-{h}"), &[&flag]);
         let f = |d: &str, n: &str| format!("{d}/{n}");
         let pairs = f(&all, "pairs.csv");
-        let labels = ["--labels-sim".to_string(), f(&hidden, "real_labels.csv"), "--labels-real".into(), f(&all, "real_labels.csv")];
+        let labels = ["--sim-labels".to_string(), f(&hidden, "real_labels.csv"), "--real-labels".into(), f(&all, "real_labels.csv")];
         let extra: Vec<&str> = labels.iter().map(String::as_str).chain(["--max-steps", "3"]).collect();
         let name = format!("gap-{stage}-{h}-{paired}");
         let r = gap(dir.path(), &f(&hidden, "real.npy"), &f(&all, "real.npy"), paired.then_some(pairs.as_str()), &extra, &name);

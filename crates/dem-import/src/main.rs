@@ -53,7 +53,7 @@ struct Args {
     #[arg(long, default_value = "/joint_states")]
     joint_topic: String,
     /// Flipper joint names: front-left, front-right, rear-left, rear-right.
-    #[arg(long, value_delimiter = ',', num_args = 4,
+    #[arg(long, value_name = "FL,FR,RL,RR", value_delimiter = ',',
           default_value = "front_left_flipper_j,front_right_flipper_j,rear_left_flipper_j,rear_right_flipper_j")]
     flippers: Vec<String>,
     /// Keep a map only DT seconds or more after the last one kept.
@@ -70,7 +70,7 @@ struct Args {
     variance_layer: String,
     /// Share of a DEM cell's sample points (at a 5 cm map: its 4 quarter
     /// centres) that must fall on valid map cells.
-    #[arg(long, default_value_t = 0.5, value_parser = value::fraction::<f64>)]
+    #[arg(long = "min-valid-points", value_name = "SHARE", default_value_t = 0.5, value_parser = value::fraction::<f64>)]
     min_valid: f64,
     /// Exit 0 even when messages or recordings were skipped.
     #[arg(long)]
@@ -85,7 +85,7 @@ fn main() -> ExitCode {
     cli::run(|| {
         let a: Args = cli::parse();
         if a.min_valid <= 0.0 {
-            return Err(cli::usage("--min-valid must be > 0"));
+            return Err(cli::usage("--min-valid-points must be > 0"));
         }
         if let Some(n) = a.threads {
             // One recording per thread: more threads than recordings would idle.

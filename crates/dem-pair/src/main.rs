@@ -7,6 +7,7 @@ use clap::{Parser, Subcommand, ValueEnum};
 use dem_pair::{by_content, by_pose, counts, first_occurrence, pair_rows, PoseRule};
 use dem_core::table::{self, Pair};
 use dem_core::cli::{self, value};
+use dem_core::swap::{self, MissingCells};
 use dem_core::{npy, output, DemError};
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -33,7 +34,7 @@ struct Args {
     #[command(subcommand)]
     cmd: Option<Cmd>,
     /// How to pair.
-    #[arg(long = "match", alias = "by", value_name = "METHOD", value_enum, required = true)]
+    #[arg(long = "match", value_name = "METHOD", value_enum, required = true)]
     by: Option<Method>,
     /// Sim NPY (needed by content; used to deduplicate keys by pose too).
     #[arg(long)]
@@ -42,13 +43,13 @@ struct Args {
     #[arg(long)]
     real: Option<String>,
     /// Labels CSV of the sim records (needed by pose).
-    #[arg(long)]
+    #[arg(long, value_name = "CSV")]
     sim_labels: Option<String>,
     /// Labels CSV of the real records (needed by pose).
-    #[arg(long)]
+    #[arg(long, value_name = "CSV")]
     real_labels: Option<String>,
     /// Pose: largest position distance (m).
-    #[arg(long = "max-offset", alias = "max-dist", value_name = "METRES", default_value_t = 0.05, value_parser = value::non_negative::<f64>)]
+    #[arg(long = "max-offset", value_name = "METRES", default_value_t = 0.05, value_parser = value::non_negative::<f64>)]
     max_dist: f64,
     /// Pose: largest heading difference (rad).
     #[arg(long, default_value_t = 0.1, value_parser = value::non_negative::<f64>)]
@@ -60,7 +61,7 @@ struct Args {
     #[arg(long, default_value_t = 1, value_parser = value::at_least_one::<usize>)]
     k: usize,
     /// Content: largest distance (the pair error's height part; default: no limit).
-    #[arg(long = "max-error", alias = "max-distance", value_name = "ERROR", value_parser = value::non_negative::<f64>)]
+    #[arg(long = "max-error", value_name = "ERROR", value_parser = value::non_negative::<f64>)]
     max_distance: Option<f64>,
     /// Fraction of sim keys in the val split.
     #[arg(long, default_value_t = 0.5, value_parser = value::fraction::<f64>)]
@@ -69,8 +70,12 @@ struct Args {
     #[arg(long, default_value_t = 0)]
     seed: u64,
     /// Output pairs CSV (`-` for stdout).
-    #[arg(short, long = "out", alias = "output", default_value = "-")]
+    #[arg(short, long = "out", default_value = "-")]
     output: String,
+    /// Do not warn when --sim misses clearly more cells than --real (the
+    /// sign of swapped inputs: measured DEMs have holes, sim DEMs few).
+    #[arg(long)]
+    no_swap_check: bool,
 }
 
 #[derive(Subcommand)]
@@ -109,8 +114,12 @@ enum Cmd {
         #[arg(long, value_enum)]
         split: Option<table::Split>,
         /// Output folder (sim.npy, real.npy, pairs.csv, and with labels sim_labels.csv, real_labels.csv).
-        #[arg(long)]
+        #[arg(short, long)]
         out: String,
+        /// Do not warn when --sim misses clearly more cells than --real (the
+        /// sign of swapped inputs: measured DEMs have holes, sim DEMs few).
+        #[arg(long)]
+        no_swap_check: bool,
     },
 }
 
@@ -151,7 +160,8 @@ fn need<'a>(v: &'a Option<String>, flag: &str, by: &str) -> anyhow::Result<&'a s
 fn main() -> ExitCode {
     cli::run(|| {
         let a: Args = cli::parse();
-        if let Some(Cmd::Expand { pairs, sim, real, sim_labels, real_labels, split, out }) = a.cmd {
+        if let Some(Cmd::Expand { pairs, sim, real, sim_labels, real_labels, split, out, no_swap_check }) = a.cmd {
+            dem_core::swap::check_files(&sim, &real, no_swap_check);
             return expand(dem_pair::expand::ExpandConfig { pairs, sim, real, sim_labels, real_labels, split, out });
         }
         let by = a.by.expect("clap requires --match without a subcommand");
@@ -167,6 +177,9 @@ fn main() -> ExitCode {
         let found = match by {
             Method::Pose => {
                 let (s, r) = (need(&a.sim_labels, "--sim-labels", "pose")?, need(&a.real_labels, "--real-labels", "pose")?);
+                if let (Some(s), Some(r)) = (&a.sim, &a.real) {
+                    swap::check_files(s, r, a.no_swap_check);
+                }
                 let rule = PoseRule { max_dist: a.max_dist, max_yaw: a.max_yaw, same_sequence: a.same_sequence };
                 let (sl, rl) = (sim_labels.as_deref().unwrap_or_default(), real_labels.as_deref().unwrap_or_default());
                 by_pose(sl, rl, rule).map_err(|e| DemError::input(format!("{s}, {r}"), e))?
@@ -175,6 +188,8 @@ fn main() -> ExitCode {
                 let (sim, keys) = (sim.as_deref().ok_or_else(|| cli::usage("--match content needs --sim"))?, keys.as_deref().unwrap_or_default());
                 let real_path = need(&a.real, "--real", "content")?;
                 let real = npy::read_all(real_path)?;
+                let sim_path = need(&a.sim, "--sim", "content")?;
+                swap::check(sim_path, MissingCells::of(sim), real_path, MissingCells::of(&real), a.no_swap_check);
                 for (path, n) in [(need(&a.sim, "--sim", "content")?, sim.len()), (real_path, real.len())] {
                     if n == 0 {
                         return Err(DemError::input(path, "holds no records: --match content needs records to pair").into());

@@ -18,7 +18,7 @@ fn pose_pairing_recovers_the_true_pairs() {
     let out = arg(dir.path(), "p.csv");
     let o = run(
         "dem-pair",
-        &["--by", "pose", "--sim-labels", &td("sim_labels.csv"), "--real-labels", &td("real_labels.csv"), "--same-sequence", "--max-dist", "0.03", "-o", &out],
+        &["--match", "pose", "--sim-labels", &td("sim_labels.csv"), "--real-labels", &td("real_labels.csv"), "--same-sequence", "--max-offset", "0.03", "-o", &out],
         None,
     );
     ok(&o);
@@ -34,7 +34,7 @@ fn pose_pairing_with_sim_maps_duplicates_to_one_key() {
     let out = arg(dir.path(), "p.csv");
     ok(&run(
         "dem-pair",
-        &["--by", "pose", "--sim", &td("sim.npy"), "--sim-labels", &td("sim_labels.csv"), "--real-labels", &td("real_labels.csv"), "--same-sequence", "-o", &out],
+        &["--match", "pose", "--sim", &td("sim.npy"), "--sim-labels", &td("sim_labels.csv"), "--real-labels", &td("real_labels.csv"), "--same-sequence", "-o", &out],
         None,
     ));
     let sim = npy::read_all(&td("sim.npy")).unwrap();
@@ -52,7 +52,7 @@ fn content_pairs_are_the_nearest_and_no_key_is_in_both_splits() {
     let out = arg(dir.path(), "c.csv");
     ok(&run(
         "dem-pair",
-        &["--by", "content", "--sim", &td("sim.npy"), "--real", &td("real.npy"), "--k", "2", "--val-fraction", "0.4", "--seed", "3", "-o", &out],
+        &["--match", "content", "--sim", &td("sim.npy"), "--real", &td("real.npy"), "--k", "2", "--val-fraction", "0.4", "--seed", "3", "-o", &out],
         None,
     ));
     let pairs = table::read_pairs(&out).unwrap();
@@ -79,10 +79,10 @@ fn content_pairs_are_the_nearest_and_no_key_is_in_both_splits() {
 
 #[test]
 fn missing_inputs_for_the_method_are_usage_errors() {
-    let o = run("dem-pair", &["--by", "content", "--sim", &td("sim.npy")], None);
+    let o = run("dem-pair", &["--match", "content", "--sim", &td("sim.npy")], None);
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("--real"));
-    let o = run("dem-pair", &["--by", "pose", "--sim-labels", &td("sim_labels.csv")], None);
+    let o = run("dem-pair", &["--match", "pose", "--sim-labels", &td("sim_labels.csv")], None);
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("--real-labels"));
 }
@@ -94,7 +94,7 @@ fn missing_inputs_for_the_method_are_usage_errors() {
 fn expanded_pairs_are_one_record_per_pair_at_the_partner_s_time() {
     let dir = tempdir();
     let pairs = arg(dir.path(), "c.csv");
-    ok(&run("dem-pair", &["--by", "content", "--sim", &td("sim.npy"), "--real", &td("real.npy"), "--k", "2", "--val-fraction", "0.4", "--seed", "3", "-o", &pairs], None));
+    ok(&run("dem-pair", &["--match", "content", "--sim", &td("sim.npy"), "--real", &td("real.npy"), "--k", "2", "--val-fraction", "0.4", "--seed", "3", "-o", &pairs], None));
     let out = arg(dir.path(), "val");
     let o = run(
         "dem-pair",

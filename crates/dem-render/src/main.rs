@@ -20,7 +20,7 @@ use dem_core::cli::{self, value};
   dem-synth --out run/ --runs 20 && dem-render run/sim.npy --count 12 -o sim.png
   dem-render run/real.npy --indices 130,140,150 --title 'measured, pallet' -o pallet.png
   dem-render run/real.npy --per-terrain 3 --labels run/real_labels.csv -o terrains.png   # 3 of each terrain
-  dem-render run/sim.npy --index-csv keep.csv -o kept.png      # keep.csv: header `index`
+  dem-render run/sim.npy --index keep.csv -o kept.png      # keep.csv: header `index`
   dem-render --compare run/sim.npy run/real.npy --error-rows 2,1 -o pairs.png
   dem-render --compare in.npy closest.npy <(dem-apply --model g.onnx in.npy) --row-labels input,closest,generated -o fig.png
   dem-cat big.npy | dem-render - --start 100 --count 48 --columns 16 > page.png
@@ -33,31 +33,31 @@ struct Args {
     /// NPY file(s); `-` is stdin (the default). Several need --compare.
     inputs: Vec<String>,
     /// Output PNG; `-` is stdout (refused when it is a terminal).
-    #[arg(short, long = "out", alias = "output", default_value = "-")]
+    #[arg(short, long = "out", default_value = "-")]
     output: String,
     /// Stack the input files as rows, one per file, same records in each.
     #[arg(long)]
     compare: bool,
     /// First record to draw (zero-based).
-    #[arg(long, default_value_t = 0, conflicts_with_all = ["indices", "index_csv", "per_terrain"])]
+    #[arg(long, default_value_t = 0, conflicts_with_all = ["indices", "index", "per_terrain"])]
     start: u64,
     /// Records to draw from --start (fewer if the file ends first; at most 400).
-    #[arg(long, default_value_t = 24, conflicts_with_all = ["indices", "index_csv", "per_terrain"])]
+    #[arg(long, default_value_t = 24, conflicts_with_all = ["indices", "index", "per_terrain"])]
     count: u64,
     /// Draw these records, in this order: zero-based, comma-separated.
-    #[arg(long, value_delimiter = ',', conflicts_with = "index_csv")]
+    #[arg(long, value_delimiter = ',', conflicts_with = "index")]
     indices: Option<Vec<u64>>,
     /// Draw the records listed in an index CSV (header `index`).
-    #[arg(long, value_name = "FILE")]
-    index_csv: Option<String>,
+    #[arg(long, value_name = "CSV")]
+    index: Option<String>,
     /// Draw K records of each terrain, evenly spaced among its records (at
     /// 1/(K+1), 2/(K+1), ... of them), terrains in the order flat,
     /// stairs-up, stairs-down, pallet, other; needs --labels.
-    #[arg(long, value_name = "K", requires = "labels", conflicts_with_all = ["indices", "index_csv"], value_parser = value::at_least_one::<usize>)]
+    #[arg(long, value_name = "K", requires = "labels", conflicts_with_all = ["indices", "index"], value_parser = value::at_least_one::<usize>)]
     per_terrain: Option<usize>,
     /// A CSV with a `terrain` column, one row per record of the (first)
-    /// input in order: a labels CSV, or dem-eval's --records file.
-    #[arg(long, value_name = "FILE", requires = "per_terrain")]
+    /// input in order: a labels CSV, or dem-eval's --emit-records file.
+    #[arg(long, value_name = "CSV", requires = "per_terrain")]
     labels: Option<String>,
     /// Records per picture row before wrapping [default: up to 12].
     #[arg(long)]
@@ -99,7 +99,7 @@ impl Args {
         if self.output == "-" && std::io::stdout().is_terminal() {
             return Err(cli::usage("refusing to write a PNG to a terminal: give -o FILE or redirect stdout"));
         }
-        let pick = match (self.index_csv, self.indices, self.per_terrain.zip(self.labels)) {
+        let pick = match (self.index, self.indices, self.per_terrain.zip(self.labels)) {
             (Some(path), _, _) => Pick::IndexCsv(path),
             (None, Some(v), _) => Pick::Direct(Selection::Indices(v)),
             (None, None, Some((k, labels))) => {

@@ -102,7 +102,7 @@ pub fn read_selected(path: &str, selection: &Selection) -> Result<Picked> {
 /// records at K evenly spaced places among that terrain's records (the
 /// j-th of n at j = floor(n k / (K + 1)), k = 1..K, each once), from the
 /// `terrain` column of the CSV at `path`, whose rows are the input's
-/// records in order (a labels CSV, or dem-eval's `--records` file).
+/// records in order (a labels CSV, or dem-eval's `--emit-records` file).
 /// Terrains without records are skipped.
 pub fn per_terrain(path: &str, k: usize) -> Result<Vec<u64>> {
     let mut rdr = csv::ReaderBuilder::new().trim(csv::Trim::All).from_reader(dem_core::table::open_input(path)?);

@@ -159,7 +159,7 @@ fn indices_are_drawn_in_the_order_given() {
     // The same through an index CSV.
     let csv = arg(dir.path(), "keep.csv");
     std::fs::write(&csv, "index,why\n0,low\n2,high\n").unwrap();
-    ok(&run("dem-render", &[&input, "--index-csv", &csv, "-o", &out], None));
+    ok(&run("dem-render", &[&input, "--index", &csv, "-o", &out], None));
     let img = Image::open(&out);
     assert!(img.cells_of(DARK_BLUE)[0].0 < img.cells_of(DARK_RED)[0].0);
 }

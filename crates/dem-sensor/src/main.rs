@@ -41,13 +41,13 @@ enum Command {
     /// or chunking gives the same bytes.
     Apply {
         /// The sensor model (JSON).
-        #[arg(long = "sensor", alias = "model", value_name = "JSON")]
+        #[arg(long = "sensor", value_name = "JSON")]
         model: String,
         /// Input NPY stream (`-` for stdin).
         #[arg(default_value = "-")]
         input: String,
         /// Output NPY stream (`-` for stdout).
-        #[arg(short, long = "out", alias = "output", default_value = "-")]
+        #[arg(short, long = "out", default_value = "-")]
         output: String,
         /// Seed of the random effects.
         #[arg(long, default_value_t = 0)]
@@ -59,7 +59,7 @@ enum Command {
         first_index: u64,
         /// Labels CSV of the input (one row per record): `startup` uses
         /// each record's `time` in its run; without, its per-record rate p.
-        #[arg(long)]
+        #[arg(long, value_name = "CSV")]
         labels: Option<String>,
         /// Apply only these effects of the model (comma-separated names,
         /// e.g. `startup` after a generator: the one effect a sim DEM
@@ -97,7 +97,7 @@ enum Command {
     /// Check a model and print its effects, one a line.
     Show {
         /// The sensor model (JSON).
-        #[arg(long = "sensor", alias = "model", value_name = "JSON")]
+        #[arg(long = "sensor", value_name = "JSON")]
         model: String,
     },
 }

@@ -29,15 +29,15 @@ fn apply_is_deterministic_by_seed_on_any_thread_count() {
     std::fs::write(&model, MODEL).unwrap();
     let sim = std::fs::read(td("sim.npy")).unwrap();
     let one = run_cmd(
-        Command::new(dem_testkit::bin("dem-sensor")).args(["apply", "--model", &model, "--seed", "5"]).env("RAYON_NUM_THREADS", "1"),
+        Command::new(dem_testkit::bin("dem-sensor")).args(["apply", "--sensor", &model, "--seed", "5"]).env("RAYON_NUM_THREADS", "1"),
         Some(sim.clone()),
     );
     let many = run_cmd(
-        Command::new(dem_testkit::bin("dem-sensor")).args(["apply", "--model", &model, "--seed", "5"]).env("RAYON_NUM_THREADS", "3"),
+        Command::new(dem_testkit::bin("dem-sensor")).args(["apply", "--sensor", &model, "--seed", "5"]).env("RAYON_NUM_THREADS", "3"),
         Some(sim.clone()),
     );
     assert!(ok(&one) == ok(&many), "thread count changed the output");
-    let other = run("dem-sensor", &["apply", "--model", &model, "--seed", "6", &td("sim.npy")], None);
+    let other = run("dem-sensor", &["apply", "--sensor", &model, "--seed", "6", &td("sim.npy")], None);
     assert!(ok(&other) != ok(&one), "the seed matters");
     let out = npy::NpyReader::new(ok(&one), "stdout", None).read_to_end().unwrap();
     let input = npy::read_all(&td("sim.npy")).unwrap();
@@ -59,7 +59,7 @@ fn deterministic_effects_equal_the_numpy_implementation() {
             params.split(',').map(|kv| kv.split_once('=').unwrap()).map(|(k, v)| format!("\"{k}\": {v}")).collect();
         let model = arg(dir.path(), "m.json");
         std::fs::write(&model, format!(r#"{{"effects": [{{"effect": "{name}", "params": {{{}}}}}]}}"#, json_params.join(", "))).unwrap();
-        let rust = npy::NpyReader::new(ok(&run("dem-sensor", &["apply", "--model", &model, &small], None)), "stdout", None)
+        let rust = npy::NpyReader::new(ok(&run("dem-sensor", &["apply", "--sensor", &model, &small], None)), "stdout", None)
             .read_to_end()
             .unwrap();
         let py_out = arg(dir.path(), "p.npy");
@@ -97,11 +97,11 @@ fn bad_models_exit_2_naming_the_file() {
     for (text, why) in cases {
         let model = arg(dir.path(), "bad.json");
         std::fs::write(&model, text).unwrap();
-        let o = run("dem-sensor", &["apply", "--model", &model, &td("sim.npy")], None);
+        let o = run("dem-sensor", &["apply", "--sensor", &model, &td("sim.npy")], None);
         assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
         assert!(stderr(&o).contains("bad.json") && stderr(&o).contains(why), "{}", stderr(&o));
     }
-    let o = run("dem-sensor", &["apply", "--model", "missing.json", &td("sim.npy")], None);
+    let o = run("dem-sensor", &["apply", "--sensor", "missing.json", &td("sim.npy")], None);
     assert_eq!(o.status.code(), Some(2));
     // Values a model writes as infinities, and a show that would append to its model.
     let model = arg(dir.path(), "m.json");
@@ -125,7 +125,7 @@ fn a_closed_stdout_is_not_an_error() {
     let model = arg(dir.path(), "m.json");
     std::fs::write(&model, MODEL).unwrap();
     let mut child = Command::new(dem_testkit::bin("dem-sensor"))
-        .args(["apply", "--model", &model, &td("sim.npy")])
+        .args(["apply", "--sensor", &model, &td("sim.npy")])
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::piped())
         .spawn()
@@ -144,7 +144,7 @@ fn startup_follows_the_labels_time_and_its_rate_without() {
     std::fs::write(&model, r#"{"effects": [{"effect": "startup", "params": {"x0": 0.47, "v": 0.25, "p": 0.3}}]}"#).unwrap();
     let sim = npy::read_all(&td("sim.npy")).unwrap();
     let labels = dem_core::table::read_labels(&td("sim_labels.csv")).unwrap();
-    let o = run("dem-sensor", &["apply", "--model", &model, "--labels", &td("sim_labels.csv"), &td("sim.npy")], None);
+    let o = run("dem-sensor", &["apply", "--sensor", &model, "--labels", &td("sim_labels.csv"), &td("sim.npy")], None);
     let out = npy::NpyReader::new(ok(&o), "stdout", None).read_to_end().unwrap();
     assert_eq!(out.len(), sim.len());
     for ((d, s), l) in out.iter().zip(&sim).zip(&labels) {
@@ -158,14 +158,14 @@ fn startup_follows_the_labels_time_and_its_rate_without() {
         }
     }
     // Without labels: about 30 % of records have rows missing at the back.
-    let o = run("dem-sensor", &["apply", "--model", &model, "--seed", "2", &td("sim.npy")], None);
+    let o = run("dem-sensor", &["apply", "--sensor", &model, "--seed", "2", &td("sim.npy")], None);
     let out = npy::NpyReader::new(ok(&o), "stdout", None).read_to_end().unwrap();
     let blind = out.iter().filter(|d| (0..5).all(|c| !d.is_valid(0, c))).count() as f64 / out.len() as f64;
     assert!((blind - 0.3).abs() < 0.04, "share of startup frames {blind}");
     // Labels that do not cover the stream are refused.
     let short = arg(dir.path(), "short.csv");
     std::fs::write(&short, "index,terrain,time\n0,flat,0.0\n").unwrap();
-    let o = run("dem-sensor", &["apply", "--model", &model, "--labels", &short, &td("sim.npy")], None);
+    let o = run("dem-sensor", &["apply", "--sensor", &model, "--labels", &short, &td("sim.npy")], None);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("short.csv"), "{}", stderr(&o));
 }
@@ -177,7 +177,7 @@ fn patch_dropout_makes_blobs_of_its_size() {
     let dir = tempdir();
     let model = arg(dir.path(), "m.json");
     std::fs::write(&model, r#"{"effects": [{"effect": "patch-dropout", "params": {"n": 2.0, "r": 0.12}}]}"#).unwrap();
-    let o = run("dem-sensor", &["apply", "--model", &model, "--seed", "3", &td("sim.npy")], None);
+    let o = run("dem-sensor", &["apply", "--sensor", &model, "--seed", "3", &td("sim.npy")], None);
     let out = npy::NpyReader::new(ok(&o), "stdout", None).read_to_end().unwrap();
     let (mut miss, mut pairs, mut both) = (0usize, 0usize, 0usize);
     for d in &out {
@@ -205,11 +205,11 @@ fn only_applies_the_named_effects_with_their_draws_and_names_a_missing_one() {
     std::fs::write(&model, MODEL).unwrap();
     let alone = arg(dir.path(), "alone.json");
     std::fs::write(&alone, r#"{"effects": [{"effect": "noise", "params": {"sigma0": 0.003, "k": 0.01}}, {"effect": "dropout", "params": {"p": 0.05}}]}"#).unwrap();
-    let only = run("dem-sensor", &["apply", "--model", &model, "--only", "dropout,noise", "--seed", "3", &td("sim.npy")], None);
-    let same = run("dem-sensor", &["apply", "--model", &alone, "--seed", "3", &td("sim.npy")], None);
+    let only = run("dem-sensor", &["apply", "--sensor", &model, "--only", "dropout,noise", "--seed", "3", &td("sim.npy")], None);
+    let same = run("dem-sensor", &["apply", "--sensor", &alone, "--seed", "3", &td("sim.npy")], None);
     assert!(ok(&only) == ok(&same), "--only changed the effects' draws");
     assert!(stderr(&only).contains("through noise") && !stderr(&only).contains("occlusion"), "{}", stderr(&only));
-    let missing = run("dem-sensor", &["apply", "--model", &model, "--only", "startup", &td("sim.npy")], None);
+    let missing = run("dem-sensor", &["apply", "--sensor", &model, "--only", "startup", &td("sim.npy")], None);
     assert_eq!(missing.status.code(), Some(2));
     assert!(stderr(&missing).contains("m.json: the model has no startup effect (it has: fov, occlusion"), "{}", stderr(&missing));
 }

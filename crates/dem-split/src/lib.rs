@@ -14,13 +14,12 @@
 //! that was there untouched; a killed run leaves temp files only, which the
 //! next run writing beside them removes.
 
-mod labels;
 
 use std::io::Write;
 use std::os::unix::fs::MetadataExt;
 
 use dem_core::{cli, npy, output, Dem, DemError};
-use labels::LabelsReader;
+use dem_core::raw_labels::{self as labels, LabelsReader};
 
 /// How to cut.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -39,7 +39,7 @@ struct Args {
     #[arg(long, value_parser = value::at_least_one::<u64>)]
     shards: Option<u64>,
     /// Labels CSV of the input: split alongside, each re-indexed from 0.
-    #[arg(long)]
+    #[arg(long, value_name = "CSV")]
     labels: Option<String>,
     /// Prefix of the shard files (PREFIX-00000.npy, ...).
     #[arg(short, long)]

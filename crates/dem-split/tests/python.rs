@@ -23,7 +23,7 @@ fn demstream_reads_every_tool_output_file_and_pipe() {
     let cases: Vec<(&str, Vec<String>)> = vec![
         ("dem-cat", vec![sim.clone(), sim.clone()]),
         ("dem-filter", vec![sim.clone(), sim.clone()].into_iter().take(1).collect()),
-        ("dem-sensor", vec!["apply".into(), "--model".into(), m.clone(), sim.clone()]),
+        ("dem-sensor", vec!["apply".into(), "--sensor".into(), m.clone(), sim.clone()]),
         ("dem-fill-nans", vec![real.clone()]),
         ("dem-clean-pallet", vec![sim.clone()]),
         ("dem-apply", vec!["--model".into(), onnx.clone(), sim.clone()]),

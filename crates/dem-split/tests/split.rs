@@ -61,14 +61,14 @@ fn dem_sensor_shards_equal_the_whole_also_with_times() {
     let dir = tempdir();
     let m = model_json(dir.path());
     let whole = arg(dir.path(), "whole.npy");
-    ok(&run("dem-sensor", &["apply", "--model", &m, "--seed", "3", "--labels", &td("sim_labels.csv"), &td("sim.npy"), "-o", &whole], None));
+    ok(&run("dem-sensor", &["apply", "--sensor", &m, "--seed", "3", "--labels", &td("sim_labels.csv"), &td("sim.npy"), "-o", &whole], None));
     let whole = fs::read(&whole).unwrap();
     for cut in [["--shards", "3"], ["--records", "1000"], ["--records", "2000"]] {
         shards_equal_whole(
             dir.path(),
             &cut,
             &whole,
-            |s, first, labels| ["apply", "--model", &m, "--seed", "3", "--first-index", first, "--labels", labels, s].map(String::from).to_vec(),
+            |s, first, labels| ["apply", "--sensor", &m, "--seed", "3", "--first-index", first, "--labels", labels, s].map(String::from).to_vec(),
             "dem-sensor",
         );
     }
@@ -76,7 +76,7 @@ fn dem_sensor_shards_equal_the_whole_also_with_times() {
     let prefix = arg(dir.path(), "naive");
     let rows = manifest(ok(&run("dem-split", &["--shards", "2", "--out", &prefix, &td("sim.npy")], None)));
     let o = arg(dir.path(), "naive.out");
-    ok(&run("dem-sensor", &["apply", "--model", &m, "--seed", "3", &rows[1][0], "-o", &o], None));
+    ok(&run("dem-sensor", &["apply", "--sensor", &m, "--seed", "3", &rows[1][0], "-o", &o], None));
     let naive = fs::read(&o).unwrap();
     let tail = &whole[whole.len() - (naive.len() - 128)..];
     assert_eq!(naive.len() - 128, 1512 * 840);
@@ -144,13 +144,13 @@ fn the_scale_out_recipe_equals_one_run() {
     let dir = tempdir();
     let m = model_json(dir.path());
     let whole = arg(dir.path(), "whole.npy");
-    ok(&run("dem-sensor", &["apply", "--model", &m, "--seed", "9", &td("sim.npy"), "-o", &whole], None));
+    ok(&run("dem-sensor", &["apply", "--sensor", &m, "--seed", "9", &td("sim.npy"), "-o", &whole], None));
     let bins = bin("dem-split").parent().unwrap().to_string_lossy().into_owned();
     let path = format!("{bins}:{}", std::env::var("PATH").unwrap_or_default());
     let has_parallel = Command::new("sh").args(["-c", "command -v parallel"]).output().is_ok_and(|o| o.status.success());
-    let mut engines = vec![("xargs", "tail -n +2 shards.csv | tr , ' ' | xargs -P 2 -n 3 sh -c 'dem-sensor apply --model m.json --seed 9 --first-index $1 $0 -o $0.out'")];
+    let mut engines = vec![("xargs", "tail -n +2 shards.csv | tr , ' ' | xargs -P 2 -n 3 sh -c 'dem-sensor apply --sensor m.json --seed 9 --first-index $1 $0 -o $0.out'")];
     if has_parallel {
-        engines.push(("parallel", "parallel --will-cite -j 2 --colsep , --header : dem-sensor apply --model m.json --seed 9 --first-index {first_index} {shard} -o {shard}.out :::: shards.csv"));
+        engines.push(("parallel", "parallel --will-cite -j 2 --colsep , --header : dem-sensor apply --sensor m.json --seed 9 --first-index {first_index} {shard} -o {shard}.out :::: shards.csv"));
     } else {
         eprintln!("GNU parallel is not installed: the recipe ran with xargs only");
     }
@@ -240,7 +240,7 @@ fn dem_eval_shard_tables_merge_into_the_whole() {
     assert_eq!(rows.len(), 8);
     for method in [vec!["--model", model.as_str()], vec!["--identity"]] {
         let common = |sim: &str, labels: &str| -> Vec<String> {
-            let mut a: Vec<String> = ["--sim", sim, "--real", &real, "--pairs", &pairs, "--labels-sim", labels, "--by", "terrain", "--name", "m", "--format", "csv"]
+            let mut a: Vec<String> = ["--sim", sim, "--real", &real, "--pairs", &pairs, "--sim-labels", labels, "--by", "terrain", "--name", "m", "--format", "csv"]
                 .map(String::from)
                 .to_vec();
             a.extend(method.iter().map(|s| s.to_string()));
@@ -251,7 +251,7 @@ fn dem_eval_shard_tables_merge_into_the_whole() {
         for r in &rows {
             let (rec, pred) = (format!("{}.rec.csv", r[0]), format!("{}.pred.npy", r[0]));
             let mut a = common(&r[0], &r[3]);
-            a.extend(["--first-index", &r[1], "--records", &rec, "--emit-pred", &pred, "-o", "/dev/null"].map(String::from));
+            a.extend(["--first-index", &r[1], "--emit-records", &rec, "--emit-pred", &pred, "-o", "/dev/null"].map(String::from));
             ok(&run("dem-eval", &a.iter().map(String::as_str).collect::<Vec<_>>(), None));
             recs.push(rec);
             preds.push(pred);
@@ -290,7 +290,7 @@ fn dem_eval_shard_tables_merge_into_the_whole() {
     fs::write(&table, "method,terrain,count\n").unwrap();
     let o = run("dem-eval", &["merge", "--name", "m", &table], None);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
-    assert!(stderr(&o).contains("table.csv") && stderr(&o).contains("--records"), "{}", stderr(&o));
+    assert!(stderr(&o).contains("table.csv") && stderr(&o).contains("--emit-records"), "{}", stderr(&o));
 }
 
 /// Every file in `dir` (temp files too), by name, with its bytes.

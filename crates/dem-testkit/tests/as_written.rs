@@ -155,7 +155,7 @@ const FIXTURES: &str = r#"
 dem-synth --out world --runs 6 --real-runs 6 --seed 1 2>/dev/null
 cp world/sim.npy world/real.npy world/sim_labels.csv world/real_labels.csv .
 cp sim_labels.csv l.csv
-dem-pair --by pose --sim-labels sim_labels.csv --real-labels real_labels.csv --val-fraction 0.5 --seed 1 -o pairs.csv 2>/dev/null
+dem-pair --match pose --sim-labels sim_labels.csv --real-labels real_labels.csv --val-fraction 0.5 --seed 1 -o pairs.csv 2>/dev/null
 mkdir testdata all prep
 cp sim.npy real.npy sim_labels.csv real_labels.csv pairs.csv testdata/
 cp sim.npy real.npy sim_labels.csv real_labels.csv pairs.csv prep/

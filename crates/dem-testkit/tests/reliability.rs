@@ -67,10 +67,10 @@ fn closed_pipe_exits_0_for_csv_writers() {
     let big = big_stream(dir.path(), 10);
     let (sim, real) = (td("sim.npy"), td("real.npy"));
     let mut pair = Command::new(bin("dem-pair"));
-    pair.args(["--by", "content", "--sim", &sim, "--real", &real, "--k", "50"]);
+    pair.args(["--match", "content", "--sim", &sim, "--real", &real, "--k", "50"]);
     assert_eq!(exit_after_reading(&mut pair, 100), Some(0));
     let mut pose = Command::new(bin("dem-pair"));
-    pose.args(["--by", "pose", "--sim-labels", &td("sim_labels.csv"), "--real-labels", &td("real_labels.csv"), "--max-dist", "5", "--max-yaw", "3"]);
+    pose.args(["--match", "pose", "--sim-labels", &td("sim_labels.csv"), "--real-labels", &td("real_labels.csv"), "--max-offset", "5", "--max-yaw", "3"]);
     assert_eq!(exit_after_reading(&mut pose, 100), Some(0));
     let mut filter = Command::new(bin("dem-filter"));
     filter.args([&big, "--emit-index", "-", "-o", "/dev/null"]);
@@ -113,7 +113,7 @@ fn non_finite_and_nonsense_values_are_refused() {
     let (sim, real, pairs) = (td("sim.npy"), td("real.npy"), td("pairs.csv"));
     let out = arg(dir.path(), "o");
     let train = ["--sim", sim.as_str(), "--real", real.as_str(), "--pairs", pairs.as_str(), "--out", out.as_str()];
-    let pair = ["--by", "content", "--sim", sim.as_str(), "--real", real.as_str()];
+    let pair = ["--match", "content", "--sim", sim.as_str(), "--real", real.as_str()];
     let synth = ["--out", out.as_str(), "--runs", "2", "--real-runs", "1"];
     let cases: Vec<(&str, Vec<&str>, &str)> = vec![
         ("dem-train", [&train[..], &["--lr", "nan"]].concat(), "--lr"),
@@ -128,7 +128,7 @@ fn non_finite_and_nonsense_values_are_refused() {
         ("dem-pair", [&pair[..], &["--max-error=-1"]].concat(), "--max-error"),
         ("dem-pair", [&pair[..], &["--max-offset", "nan"]].concat(), "--max-offset"),
         // An old spelling is refused under the flag's name of today.
-        ("dem-pair", [&pair[..], &["--max-distance", "nan"]].concat(), "--max-error"),
+        ("dem-pair", [&pair[..], &["--max-error", "nan"]].concat(), "--max-error"),
         ("dem-pair", [&pair[..], &["--max-yaw=-1"]].concat(), "--max-yaw"),
         ("dem-synth", [&synth[..], &["--camera-height=-1"]].concat(), "--camera-height"),
         ("dem-synth", [&synth[..], &["--camera-height", "nan"]].concat(), "--camera-height"),
@@ -140,7 +140,7 @@ fn non_finite_and_nonsense_values_are_refused() {
         ("dem-fill-nans", ["--keep-fraction", "inf", sim.as_str()].to_vec(), "--keep-fraction"),
         ("dem-render", ["--vmin", "nan", sim.as_str(), "-o", "x.png"].to_vec(), "--vmin"),
         ("dem-gap", ["--sim", sim.as_str(), "--real", real.as_str(), "--out", out.as_str(), "--min-gain", "nan"].to_vec(), "--min-gain"),
-        ("dem-pair", ["--by", "content", "--seed", "-1"].to_vec(), "--seed"),
+        ("dem-pair", ["--match", "content", "--seed", "-1"].to_vec(), "--seed"),
     ];
     for (tool, args, flag) in cases {
         let o = run(tool, &args, None);
@@ -159,7 +159,7 @@ fn sensor_models_with_unknown_keys_or_huge_values_are_refused() {
     ] {
         let m = arg(dir.path(), name);
         fs::write(&m, json).unwrap();
-        let o = run("dem-sensor", &["apply", "--model", &m, &td("sim.npy"), "-o", &arg(dir.path(), "o.npy")], None);
+        let o = run("dem-sensor", &["apply", "--sensor", &m, &td("sim.npy"), "-o", &arg(dir.path(), "o.npy")], None);
         refused(&o, "dem-sensor", &[name, says]);
     }
     assert!(!dir.path().join("o.npy").exists());
@@ -183,8 +183,8 @@ fn infinite_values_are_refused_by_every_tool_naming_the_record() {
     let cases: Vec<(&str, Vec<String>, [&str; 2])> = vec![
         ("dem-cat", vec![bad.clone(), "-o".into(), o("a.npy")], inf_says),
         ("dem-filter", vec![bad.clone(), "-o".into(), o("b.npy")], inf_says),
-        ("dem-sensor", vec!["apply".into(), "--model".into(), id.clone(), bad.clone(), "-o".into(), o("c.npy")], inf_says),
-        ("dem-pair", vec!["--by".into(), "content".into(), "--sim".into(), bad.clone(), "--real".into(), real.clone(), "-o".into(), o("d.csv")], inf_says),
+        ("dem-sensor", vec!["apply".into(), "--sensor".into(), id.clone(), bad.clone(), "-o".into(), o("c.npy")], inf_says),
+        ("dem-pair", vec!["--match".into(), "content".into(), "--sim".into(), bad.clone(), "--real".into(), real.clone(), "-o".into(), o("d.csv")], inf_says),
         ("dem-eval", vec!["--sim".into(), bad.clone(), "--real".into(), real.clone(), "--pairs".into(), pairs.clone(), "--identity".into()], inf_says),
         ("dem-gap", vec!["--sim".into(), bad.clone(), "--real".into(), real.clone(), "--out".into(), o("gap")], inf_says),
         ("dem-fill-nans", vec![bad.clone(), "-o".into(), o("e.npy")], inf_says),
@@ -271,7 +271,7 @@ fn index_csvs_past_the_end_are_refused_naming_the_line() {
     refused(&run("dem-filter", &["--index", &idx, &td("sim.npy"), "-o", &out], None), "dem-filter", &["i.csv: line 4", "index 3025 is past the end"]);
     assert!(!Path::new(&out).exists());
     refused(
-        &run("dem-render", &["--index-csv", &idx, &td("sim.npy"), "-o", &arg(dir.path(), "k.png")], None),
+        &run("dem-render", &["--index", &idx, &td("sim.npy"), "-o", &arg(dir.path(), "k.png")], None),
         "dem-render",
         &["i.csv: line 4", "index 3025 is past the end"],
     );
@@ -293,7 +293,7 @@ fn no_output_overwrites_an_input() {
     let (real, pairs) = (td("real.npy"), td("pairs.csv"));
     let cases: Vec<(&str, Vec<&str>)> = vec![
         ("dem-eval", vec!["--sim", &s, "--real", &real, "--pairs", &pairs, "--identity", "--emit-pred", &s]),
-        ("dem-pair", vec!["--by", "content", "--sim", &s, "--real", &real, "-o", &s]),
+        ("dem-pair", vec!["--match", "content", "--sim", &s, "--real", &real, "-o", &s]),
         ("dem-apply", vec!["-m", &m, &s, "-o", &m]),
         ("dem-filter", vec![&s, "--emit-index", &s, "-o", "/dev/null"]),
         ("dem-cat", vec![&s, "-o", &s]),
@@ -364,7 +364,7 @@ fn a_killed_write_to_a_redirected_stdout_reads_up_to_its_last_complete_chunk() {
 // 9. Messages: one line naming the tool; outputs checked before the work.
 #[test]
 fn usage_errors_are_one_line_naming_the_tool() {
-    refused(&run("dem-pair", &["--by", "content", "--seed", "-1"], None), "dem-pair", &["--seed"]);
+    refused(&run("dem-pair", &["--match", "content", "--seed", "-1"], None), "dem-pair", &["--seed"]);
     refused(&run("dem-cat", &["--no-such-flag"], None), "dem-cat", &["--no-such-flag"]);
     refused(&run("dem-eval", &["--identity", "--model", "m.onnx"], None), "dem-eval", &["cannot be used with"]);
     refused(&run("dem-synth", &[], None), "dem-synth", &["--out"]);
@@ -375,7 +375,7 @@ fn an_empty_input_is_named() {
     let dir = tempdir();
     let empty = arg(dir.path(), "empty.npy");
     fs::write(&empty, b"").unwrap();
-    let o = run("dem-pair", &["--by", "content", "--sim", &empty, "--real", &td("real.npy")], None);
+    let o = run("dem-pair", &["--match", "content", "--sim", &empty, "--real", &td("real.npy")], None);
     refused(&o, "dem-pair", &["empty.npy: holds no records"]);
     let run_dir = arg(dir.path(), "run");
     let o = run("dem-train", &["--sim", &empty, "--real", &td("real.npy"), "--out", &run_dir], None);
@@ -395,7 +395,7 @@ fn dem_gap_checks_its_out_folder_before_the_analysis() {
     fs::create_dir(&gap).unwrap();
     let model = gap.join("sensor.json");
     fs::write(&model, r#"{"effects":[]}"#).unwrap();
-    let o = run("dem-gap", &["--sim", &td("sim.npy"), "--real", &td("real.npy"), "--model", &model.to_string_lossy(), "--out", &gap.to_string_lossy()], None);
+    let o = run("dem-gap", &["--sim", &td("sim.npy"), "--real", &td("real.npy"), "--sensor", &model.to_string_lossy(), "--out", &gap.to_string_lossy()], None);
     refused(&o, "dem-gap", &["would overwrite the input"]);
 }
 

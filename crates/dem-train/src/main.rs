@@ -46,7 +46,7 @@ enum Command {
         /// Run directory made by dem-train.
         run: String,
         /// Output PNG.
-        #[arg(short, long = "out", alias = "output")]
+        #[arg(short, long = "out")]
         output: String,
     },
 }
@@ -64,7 +64,7 @@ struct TrainArgs {
     pairs: Option<String>,
     /// Sensor model (dem-gap's sensor.json) applied to the sims first, so the
     /// network learns only what the named effects leave unexplained.
-    #[arg(long)]
+    #[arg(long, value_name = "JSON")]
     sensor: Option<String>,
     /// Run directory.
     #[arg(short, long)]
@@ -126,6 +126,10 @@ struct TrainArgs {
     /// Continue the run in --out from its checkpoint.
     #[arg(long)]
     resume: bool,
+    /// Do not warn when --sim misses clearly more cells than --real (the
+    /// sign of swapped inputs: measured DEMs have holes, sim DEMs few).
+    #[arg(long)]
+    no_swap_check: bool,
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
@@ -148,7 +152,7 @@ struct ExportArgs {
     /// Run directory made by dem-train.
     run: String,
     /// Output ONNX file.
-    #[arg(short, long = "out", alias = "output")]
+    #[arg(short, long = "out")]
     output: String,
     /// Which generator: y (sim -> real) or x (real -> sim).
     #[arg(long, default_value = "y", value_parser = ["y", "x"])]
@@ -179,7 +183,10 @@ fn main() -> ExitCode {
                 if let Some(t) = c.train.threads {
                     rayon::ThreadPoolBuilder::new().num_threads(t).build_global()?;
                 }
-                dem_train::train(&config(c.train)?)
+                let no_swap_check = c.train.no_swap_check;
+                let cfg = config(c.train)?;
+                dem_core::swap::check_files(&cfg.sim, &cfg.real, no_swap_check);
+                dem_train::train(&cfg)
             }
         }
     })

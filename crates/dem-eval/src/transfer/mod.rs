@@ -65,7 +65,7 @@ pub struct TransferArgs {
     #[arg(long, value_enum, default_value = "text")]
     format: Format,
     /// Table output (`-` for stdout).
-    #[arg(short, long = "out", alias = "output", default_value = "-")]
+    #[arg(short, long = "out", default_value = "-")]
     output: String,
 }
 

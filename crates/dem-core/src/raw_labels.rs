@@ -1,15 +1,15 @@
-//! The labels CSV of the input, read a row at a time beside the records and
-//! cut with them. Each row is kept as the bytes it was written in (extra
-//! columns, quoting, spacing, line ends); only its `index`, the first field,
-//! is rewritten to count from 0 in its shard. Every row is checked as the
-//! tools check labels (`dem_core::table::read_labels`: header, terrain,
-//! numbers, index order), so a shard's labels are read by every tool that
-//! reads the whole's.
+//! A labels CSV read a row at a time beside its records, to be cut
+//! (dem-split) or joined (dem-cat) with them. Each row is kept as the bytes
+//! it was written in (extra columns, quoting, spacing, line ends); only its
+//! `index`, the first field, is rewritten to count in the file written.
+//! Every row is checked as the tools check labels
+//! ([`crate::table::read_labels`]: header, terrain, numbers, index order),
+//! so labels written from it are read by every tool that reads the input's.
 
 use std::io::{BufRead, Write};
 
-use dem_core::table::{self, Label};
-use dem_core::DemError;
+use crate::table::{self, Label};
+use crate::DemError;
 
 const UNBALANCED: &str = "unbalanced quotes: a quoted field is not closed, or a quote stands inside a field \
 that does not start with one (quote the whole field, a quote inside it as \"\")";
@@ -59,6 +59,11 @@ impl LabelsReader {
     /// Data rows read so far.
     pub fn rows(&self) -> u64 {
         self.rows
+    }
+
+    /// The header's column names, trimmed.
+    pub fn columns(&self) -> Vec<&str> {
+        self.headers.iter().collect()
     }
 
     fn bad(&self, line: u64, reason: String) -> DemError {
