@@ -8,7 +8,7 @@ PY := $(VENV)/bin/python
 BIN := target/release
 OUT := out
 
-.PHONY: all build install venv venv-torch torch-check test readme-check demo tour bench clean testdata eval-ci eval-baseline thesis-table fuzz
+.PHONY: all build install venv venv-torch torch-check test test-long readme-check demo tour bench clean testdata eval-ci eval-baseline thesis-table fuzz
 
 all: build
 
@@ -40,8 +40,17 @@ $(VENV)/.stamp: scripts/requirements.txt python/pyproject.toml $(wildcard python
 	$(PY) -m pip install -q ./python
 	touch $@
 
+# The test suite but for its two long suites (dem-gap naming every hidden
+# effect, and the README and every help example run as written), which
+# `make test-long` runs; CI runs both.
+LONG_SKIP := --skip the_readme_pipeline_runs --skip every_help_example_runs
 test: venv
-	DEM_PYTHON=$(abspath $(PY)) $(CARGO) test --workspace
+	DEM_PYTHON=$(abspath $(PY)) $(CARGO) test --workspace --exclude dem-gap -- $(LONG_SKIP)
+	DEM_PYTHON=$(abspath $(PY)) $(CARGO) test -p dem-gap --lib --bins
+
+test-long: venv
+	DEM_PYTHON=$(abspath $(PY)) $(CARGO) test -p dem-gap --test gap
+	DEM_PYTHON=$(abspath $(PY)) $(CARGO) test -p dem-testkit --test as_written
 
 # The README's pipeline and every tool's --help examples, run as written
 # with small worlds (part of `make test` too).
