@@ -118,8 +118,14 @@ fn with_default(c: &str, command: &str, needs: &str, flags: &[(&str, &str)]) -> 
 /// The shell block under `## A pipeline` in the README, continued lines
 /// joined, comments dropped.
 fn readme_pipeline() -> String {
+    readme_block("## A pipeline")
+}
+
+/// The first shell block under `heading` in the README, continued lines
+/// joined, comments dropped.
+fn readme_block(heading: &str) -> String {
     let readme = std::fs::read_to_string(workspace_root().join("README.md")).unwrap();
-    let section = readme.split("## A pipeline").nth(1).expect("README has no `## A pipeline`");
+    let section = readme.split(heading).nth(1).unwrap_or_else(|| panic!("README has no `{heading}`"));
     let block = section.split("```sh\n").nth(1).and_then(|b| b.split("```").next()).expect("no sh block");
     let mut out = String::new();
     for line in block.lines() {
@@ -249,6 +255,22 @@ impl Scratch {
         let o = Command::new("cp").arg("-a").arg(&self.base).arg(&here).output().unwrap();
         assert!(o.status.success(), "cp -a: {}", String::from_utf8_lossy(&o.stderr));
         here
+    }
+}
+
+/// The README's quickstart, as written, on the bundled testdata (its own
+/// sizes: it is the one block that runs on them).
+#[test]
+fn the_readme_quickstart_runs() {
+    let s = Scratch::new();
+    let here = s.work.join("quickstart");
+    std::fs::create_dir(&here).unwrap();
+    let script = format!("cp -r \"$ROOT/testdata\" testdata\n{}", readme_block("## Quickstart"));
+    assert!(script.lines().count() >= 4, "{script}");
+    let o = bash(&here, &s.path, &format!("set -x\n{script}"));
+    assert!(o.status.success(), "the README's quickstart failed ({}):\n{}", o.status, String::from_utf8_lossy(&o.stderr));
+    for f in ["gap/report.md", "gap/sensor.json", "sensor.onnx", "modelled.png"] {
+        assert!(here.join(f).exists(), "the README's quickstart wrote no {f}");
     }
 }
 
