@@ -122,10 +122,7 @@ pub fn run(c: &Config, model: &OnnxModel, progress: impl FnMut(u64)) -> Result<R
             s.draw(inp, out, first);
         }
         let t = dem_sensor::chunk_times(times.as_ref().map(|(p, t)| (*p, t.as_slice())), first, out.len())?;
-        let mut u = vec![0.0f32; out.len() * k];
-        if k > 0 {
-            u.par_chunks_mut(k).enumerate().for_each(|(i, u)| residual.uniforms(c.seed, c.first_index + first + i as u64, u));
-        }
+        let u = residual.uniforms_of(c.seed, c.first_index + first, out.len());
         out.par_iter_mut().zip(inp).enumerate().for_each(|(i, (y, x))| {
             let time = t.and_then(|t| t.get(i).copied()).filter(|t| t.is_finite());
             tail.finish(x, y, &u[i * k..(i + 1) * k], time);

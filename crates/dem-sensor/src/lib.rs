@@ -144,6 +144,17 @@ impl SensorModel {
         }
     }
 
+    /// The uniforms of records `first..first + n` under `seed`, record after
+    /// record ([`SensorModel::uniforms`] each), drawn in parallel: `n x K`.
+    pub fn uniforms_of(&self, seed: u64, first: u64, n: usize) -> Vec<f32> {
+        let k = self.draws();
+        let mut u = vec![0.0f32; n * k];
+        if k > 0 {
+            u.par_chunks_mut(k).enumerate().for_each(|(i, u)| self.uniforms(seed, first + i as u64, u));
+        }
+        u
+    }
+
     /// Apply every effect to `d` with the record's uniforms `u` (laid out
     /// as [`SensorModel::uniforms`] writes them) and its time in its run
     /// when known (finite; `startup` uses it): what the ONNX graph computes.
@@ -317,10 +328,7 @@ pub fn apply_shard_emit(
                 None => model.apply_chunk(chunk, seed, first_index, first, times)?,
                 Some(w) => {
                     let t = chunk_times(times, first, chunk.len())?;
-                    let mut u = vec![0.0f32; chunk.len() * k];
-                    if k > 0 {
-                        u.par_chunks_mut(k).enumerate().for_each(|(i, u)| model.uniforms(seed, first_index + first + i as u64, u));
-                    }
+                    let u = model.uniforms_of(seed, first_index + first, chunk.len());
                     chunk.par_iter_mut().enumerate().for_each(|(i, d)| {
                         model.apply_drawn(d, &u[i * k..(i + 1) * k], t.and_then(|t| t.get(i).copied()));
                     });
