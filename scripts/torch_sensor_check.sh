@@ -30,7 +30,7 @@ done
 "$BIN/dem-apply" --model "$OUT/gy.onnx" --seed 3 --labels "$LABELS" --emit-uniform "$OUT/ugy.npy" "$SIM" -o "$OUT/ogy.npy" 2>/dev/null
 cases+=("$OUT/gy.onnx" "$OUT/ugy.npy" "$OUT/ogy.npy")
 "$TORCH_PY" - "$SIM" "$LABELS" "${cases[@]}" <<'PY'
-import csv, sys, warnings
+import csv, json, sys, warnings
 import numpy as np, onnx, torch
 from onnx2torch import convert
 warnings.filterwarnings("ignore")
@@ -53,7 +53,12 @@ for model, u, out in zip(rest[0::3], rest[1::3], rest[2::3]):
     row20 = np.array_equal(want[:, 20], got[:, 20])
     ok = differ <= 1e-4 and worst <= 1e-5 and row20
     bad += not ok
-    name = m.doc_string.split("(")[1].split(")")[0] if "named effects" in m.doc_string else "G_Y + residual.json"
+    meta = {p.key: p.value for p in m.metadata_props}
+    effects = json.loads(meta["dem.residual"])["effects"]
+    if meta.get("dem.graph") == "network+sensor":
+        name = f"G_Y + {len(effects)} effects"
+    else:
+        name = effects[0]["effect"] if len(effects) == 1 else f"{len(effects)} effects"
     print(f"{name[:28]:<28} {100 * differ:>16.4f}% {worst:>16.1e}  {'same' if row20 else 'CHANGED'}{'' if ok else '  FAIL'}")
 print(f"torch {torch.__version__}; {len(rest) // 3} graphs, {bad} failed")
 sys.exit(1 if bad else 0)
