@@ -19,7 +19,7 @@
 
 use dem_core::format::Dem;
 use dem_core::{table, DemError};
-use dem_onnx::apply::{apply, ApplyStats, MaskSampling};
+use dem_onnx::apply::{apply, After, ApplyStats, MaskSampling};
 use dem_core::npy::F32ArrayWriter;
 use dem_onnx::sensor::Stored;
 use dem_onnx::{Heights, OnnxModel};
@@ -139,7 +139,8 @@ pub fn run(c: &Config, model: &OnnxModel, progress: impl FnMut(u64)) -> Result<R
     };
     let labels_cover = |records: u64| dem_sensor::labels_cover(times.as_ref().map(|(p, t)| (*p, t.len())), records);
     let any = sample.is_some() || tail.has_tail();
-    let stats = apply(model, &c.input, &c.output, c.batch, c.strict, any.then_some(&finish as _), Some(&labels_cover), progress)?;
+    let after = After { finish: any.then_some(&finish as _), at_end: Some(&labels_cover) };
+    let stats = apply(model, &c.input, &c.output, c.batch, c.strict, after, progress)?;
     if let Some(w) = emit {
         w.into_inner().expect("one writer").finish()?;
     }

@@ -37,17 +37,18 @@ pub struct ApplyStats {
 /// residual sensor model): it gets the batch's inputs, its outputs and the
 /// index of its first record in the input stream, batches in stream order.
 /// `at_end`, when given, gets the number of records before the output is
-/// completed, and when it refuses, a named output file is not written.
+/// completed, and when it refuses, a named output file is not written
+/// (both in `after`).
 pub fn apply(
     model: &OnnxModel,
     input: &str,
     output: &str,
     batch: usize,
     strict: bool,
-    finish: Option<Finish>,
-    at_end: Option<&dyn Fn(u64) -> Result<(), DemError>>,
+    after: After,
     mut progress: impl FnMut(u64),
 ) -> Result<ApplyStats, DemError> {
+    let After { finish, at_end } = after;
     let mut attitude = AttitudeCheck::default();
     assert!(batch >= 1, "batch must be at least 1");
     let mut reader = npy::open(input)?;
@@ -72,6 +73,17 @@ pub fn apply(
     }
     writer.finish()?;
     Ok(ApplyStats { records, attitude })
+}
+
+/// What [`apply`] does after the model: to each batch's outputs
+/// (`finish`), and with the number of records before the output is
+/// completed (`at_end`, which may refuse).
+#[derive(Clone, Copy, Default)]
+pub struct After<'a> {
+    /// Changes each batch's checked outputs before they are written.
+    pub finish: Option<Finish<'a>>,
+    /// A last check that needs the whole stream.
+    pub at_end: Option<&'a dyn Fn(u64) -> Result<(), DemError>>,
 }
 
 /// What [`apply`] does to a batch's outputs after the model: `(inputs,

@@ -128,10 +128,10 @@ impl OnnxModel {
             .map_err(|e| bad(name, format!("not an ONNX model (protobuf decoding failed: {e})")))?;
         // A virtual sensor's graph: its network runs here, the tail natively.
         match crate::sensor::network_part(&proto, name)? {
-            Some((network, stored)) => {
-                let mut m = Self::from_proto(&network, name)?;
-                if stored.heights == crate::Heights::Network && network.graph.as_ref().is_some_and(|g| g.node.len() == 1) {
-                    // A sensor model alone: its "network" is the identity.
+            Some(part) => {
+                let mut m = Self::from_proto(&part.network, name)?;
+                if part.sensor_alone {
+                    // Its network is the identity: tract runs it, nothing to note.
                     m.note = None;
                 }
                 Ok(m)

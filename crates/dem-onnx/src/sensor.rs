@@ -171,18 +171,31 @@ pub fn sensor_model(w: &GeneratorWeights, name: &str, stored: &Stored) -> pb::Mo
     model_proto(g, name, stored.describe(&desc), sensor_graph::graph_inputs(&model))
 }
 
+/// The network part of a virtual sensor file ([`network_part`]).
+pub struct NetworkPart {
+    /// The nodes up to [`NETWORK_OUT`], as a model of their own.
+    pub network: pb::ModelProto,
+    /// What the rest of the graph does.
+    pub stored: Stored,
+    /// A sensor model alone (`dem-sensor export`): its network is the identity.
+    pub sensor_alone: bool,
+}
+
 /// The network part of a file whose graph is a virtual sensor: the nodes up
 /// to [`NETWORK_OUT`] as a model of their own (input `dem`, output
 /// `network_out`), after checking that the nodes and constants after it are
-/// exactly those `stored` builds. `None` for a graph that is not one
+/// exactly those its metadata builds. `None` for a graph that is not one
 /// (`dem.graph` absent).
-pub fn network_part(proto: &pb::ModelProto, name: &str) -> Result<Option<(pb::ModelProto, Stored)>, DemError> {
+pub fn network_part(proto: &pb::ModelProto, name: &str) -> Result<Option<NetworkPart>, DemError> {
     let info = ModelInfo::of(proto);
     let marked: Vec<&str> = info.metadata.iter().filter(|(k, _)| k == GRAPH_KEY).map(|(_, v)| v.as_str()).collect();
     match marked.as_slice() {
         [] => return Ok(None),
         [GRAPH_SENSOR] => {}
-        [GRAPH_SENSOR_ONLY] => return sensor_alone(proto, &info, name).map(Some),
+        [GRAPH_SENSOR_ONLY] => {
+            let (network, stored) = sensor_alone(proto, &info, name)?;
+            return Ok(Some(NetworkPart { network, stored, sensor_alone: true }));
+        }
         other => {
             return Err(DemError::input(
                 name,
@@ -221,7 +234,7 @@ pub fn network_part(proto: &pb::ModelProto, name: &str) -> Result<Option<(pb::Mo
         }),
         ..proto.clone()
     };
-    Ok(Some((network, stored)))
+    Ok(Some(NetworkPart { network, stored, sensor_alone: false }))
 }
 
 /// A sensor model alone (`dem-sensor export`): checked to be exactly the
