@@ -45,6 +45,7 @@ $(VENV)/.stamp: scripts/requirements.txt python/pyproject.toml $(wildcard python
 # `make test-long` runs; CI runs both.
 LONG_SKIP := --skip the_readme_pipeline_runs --skip the_readme_quickstart_runs --skip every_help_example_runs
 test: venv
+	$(CARGO) build --workspace --bins
 	DEM_PYTHON=$(abspath $(PY)) $(CARGO) test --workspace --exclude dem-gap -- $(LONG_SKIP)
 	DEM_PYTHON=$(abspath $(PY)) $(CARGO) test -p dem-gap --lib --bins
 
