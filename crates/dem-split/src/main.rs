@@ -21,7 +21,7 @@ use dem_split::{stage, Cut, SplitConfig};
 #[derive(Parser)]
 #[command(version, after_long_help = "Examples:
   dem-split --shards 4 --out part sim.npy > shards.csv
-  dem-split --records 100000 --labels sim_labels.csv --out part - < sim.npy
+  dem-split --records 100000 --labels sim_labels.csv --out chunk - < sim.npy
   # in parallel (GNU parallel reads the manifest's columns by name), then join:
   parallel --colsep , --header : dem-sensor apply --sensor s.json --seed 1 \\
       --first-index {first_index} {shard} -o {shard}.out :::: shards.csv
