@@ -135,4 +135,4 @@ tour: build venv
 
 # The committed test data set (see testdata/README.md).
 testdata: build
-	$(BIN)/dem-synth --out testdata --runs 60 --real-runs 20 --seed 1
+	$(BIN)/dem-synth --out testdata --runs 60 --real-runs 20 --seed 1 --no-drift --no-latency --no-extrinsic --no-vibration

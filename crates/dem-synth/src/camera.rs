@@ -30,6 +30,7 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
+use super::motion::{camera_pose, CameraError, Mat3};
 use super::pose::Pose;
 use super::terrain::World;
 use dem_core::format::{col_center_y, row_center_x, COLS, GRID_ROWS};
@@ -103,11 +104,39 @@ pub struct Stages {
     pub dropout: bool,
     /// Map cells whose variance stays above the maximum become holes.
     pub holes: bool,
+    /// The map believes a pose that drifts from the true one per metre
+    /// travelled (see [`motion`](super::motion)).
+    pub drift: bool,
+    /// The DEM handed out is that of the frame taken a latency earlier.
+    pub latency: bool,
+    /// The camera's true pitch and roll on its mount differ from the nominal.
+    pub extrinsic: bool,
+    /// The body's true pitch and roll differ from the estimate every frame.
+    pub vibration: bool,
 }
 
 impl Default for Stages {
     fn default() -> Self {
-        Stages { fov: true, occlusion: true, noise: true, smoothing: true, dropout: true, holes: true }
+        Stages {
+            fov: true,
+            occlusion: true,
+            noise: true,
+            smoothing: true,
+            dropout: true,
+            holes: true,
+            drift: true,
+            latency: true,
+            extrinsic: true,
+            vibration: true,
+        }
+    }
+}
+
+impl Stages {
+    /// The six sensor stages on, the four motion stages (drift, latency,
+    /// extrinsic, vibration) off: the emulator as `testdata/` was made.
+    pub fn sensor_only() -> Self {
+        Stages { drift: false, latency: false, extrinsic: false, vibration: false, ..Stages::default() }
     }
 }
 
@@ -164,6 +193,9 @@ struct Frame {
     /// Optical axis pitch (rad, up positive) and yaw.
     pitch: f64,
     yaw: f64,
+    /// World from camera rotation when the camera has orientation errors
+    /// (roll makes pitch and yaw alone insufficient); None: pitch and yaw.
+    rot: Option<Mat3>,
 }
 
 impl Frame {
@@ -172,7 +204,17 @@ impl Frame {
         let fx = cfg.forward * cp - cfg.height * sp;
         let fz = cfg.forward * sp + cfg.height * cp;
         let (wx, wy) = pose.to_world(fx, 0.0);
-        Frame { origin: [wx, wy, pose.z + fz], pitch: pose.pitch - cfg.tilt_deg.to_radians(), yaw: pose.yaw }
+        Frame { origin: [wx, wy, pose.z + fz], pitch: pose.pitch - cfg.tilt_deg.to_radians(), yaw: pose.yaw, rot: None }
+    }
+
+    /// The camera of a robot at `pose` with orientation errors `err`
+    /// (exactly [`Frame::new`] when they are all zero).
+    fn with_error(pose: &Pose, cfg: &CameraConfig, err: &CameraError) -> Frame {
+        if err.is_zero() {
+            return Frame::new(pose, cfg);
+        }
+        let cam = camera_pose(pose, cfg, err);
+        Frame { origin: cam.t, pitch: 0.0, yaw: 0.0, rot: Some(cam.r) }
     }
 
     /// Unit world direction of a camera-frame direction (1, ty, tz), and
@@ -180,6 +222,9 @@ impl Frame {
     fn ray(&self, ty: f64, tz: f64) -> ([f64; 3], f64) {
         let n = (1.0 + ty * ty + tz * tz).sqrt();
         let (x, y, z) = (1.0 / n, ty / n, tz / n);
+        if let Some(r) = &self.rot {
+            return ([0, 1, 2].map(|i| r[i][0] * x + r[i][1] * y + r[i][2] * z), 1.0 / n);
+        }
         let (sp, cp) = self.pitch.sin_cos();
         let (x1, z1) = (x * cp - z * sp, x * sp + z * cp);
         let (sy, cy) = self.yaw.sin_cos();
@@ -189,6 +234,10 @@ impl Frame {
     /// True when the unit world direction `d` lies in the pixel rays' cone:
     /// |ty| <= hx and |tz| <= hy in the camera frame ([`Frame::ray`] undone).
     fn in_view(&self, d: [f64; 3], hx: f64, hy: f64) -> bool {
+        if let Some(r) = &self.rot {
+            let [x, y, z] = [0, 1, 2].map(|i| r[0][i] * d[0] + r[1][i] * d[1] + r[2][i] * d[2]);
+            return x > 0.0 && (y / x).abs() <= hx && (z / x).abs() <= hy;
+        }
         let (sy, cy) = self.yaw.sin_cos();
         let (x1, y) = (cy * d[0] + sy * d[1], -sy * d[0] + cy * d[1]);
         let (sp, cp) = self.pitch.sin_cos();
@@ -227,7 +276,23 @@ pub fn observe_with(
     rng: &mut ChaCha8Rng,
     aux: &mut ChaCha8Rng,
 ) -> Vec<Hit> {
-    let frame = Frame::new(pose, cfg);
+    observe_tilted(world, pose, &CameraError::default(), cfg, stages, rng, aux)
+}
+
+/// [`observe_with`] from a camera whose true orientation differs from the
+/// nominal one at `pose` by `err` (body vibration, mount miscalibration):
+/// the rays are cast from the true camera; the hits are where the rays
+/// truly meet the world.
+pub fn observe_tilted(
+    world: &World,
+    pose: &Pose,
+    err: &CameraError,
+    cfg: &CameraConfig,
+    stages: Stages,
+    rng: &mut ChaCha8Rng,
+    aux: &mut ChaCha8Rng,
+) -> Vec<Hit> {
+    let frame = Frame::with_error(pose, cfg, err);
     let mut hits = Vec::new();
     let mut ts = Vec::new();
     let mut sub = Vec::new();
@@ -444,6 +509,31 @@ mod tests {
         }
         let (d, _) = f.ray(0.0, 0.0);
         assert!(!f.in_view([-d[0], -d[1], -d[2]], hx, hy), "behind the camera");
+    }
+
+    #[test]
+    fn a_camera_with_orientation_errors_casts_its_rays_turned() {
+        let pose = Pose { x: 1.0, y: -0.5, z: 0.07, yaw: 0.4, pitch: 0.1, flippers: [0.0; 4] };
+        let cfg = CameraConfig::default();
+        let plain = Frame::new(&pose, &cfg);
+        let zero = Frame::with_error(&pose, &cfg, &CameraError::default());
+        assert!(zero.rot.is_none() && zero.origin == plain.origin);
+        // A pitch error on the body alone is a frame at another pitch (but
+        // the general path).
+        let err = CameraError { body_pitch: 0.02, ..CameraError::default() };
+        let turned = Frame::with_error(&pose, &cfg, &err);
+        let same = Frame::new(&Pose { pitch: 0.12, ..pose }, &cfg);
+        for (ty, tz) in [(0.0, 0.0), (0.3, -0.2), (-0.4, 0.35)] {
+            let (a, b) = (turned.ray(ty, tz), same.ray(ty, tz));
+            assert!((0..3).all(|k| (a.0[k] - b.0[k]).abs() < 1e-12) && a.1 == b.1);
+            assert!(turned.in_view(a.0, 0.5, 0.4));
+        }
+        assert!((0..3).all(|k| (turned.origin[k] - same.origin[k]).abs() < 1e-12));
+        // A roll tips the rays across: the left edge of the image goes up.
+        let rolled = Frame::with_error(&pose, &cfg, &CameraError { mount_roll: 0.05, ..CameraError::default() });
+        let (l, r) = (rolled.ray(0.4, 0.0).0, rolled.ray(-0.4, 0.0).0);
+        assert!(l[2] > plain.ray(0.4, 0.0).0[2] && r[2] < plain.ray(-0.4, 0.0).0[2]);
+        assert!(!rolled.in_view(rolled.ray(0.0, 0.0).0.map(|v| -v), 0.5, 0.4));
     }
 
     #[test]

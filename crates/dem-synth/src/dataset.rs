@@ -80,8 +80,11 @@ impl<T: serde::Serialize> CsvOut<T> {
 /// - `maps.csv`: `index,sequence,time,center_x,center_y,resolution,x,y,z,yaw,pitch,
 ///   flipper_fl,flipper_fr,flipper_rl,flipper_rr`: `index` the real record,
 ///   `sequence` the run, `time` as in `real_labels.csv`, then the window's
-///   centre and resolution and the robot's pose, at full precision (Rust's
-///   shortest round-trip formatting of f64).
+///   centre and resolution and the robot's pose the DEM was cut around
+///   ([`Step::map_pose`](super::run::Step::map_pose): with drift and
+///   latency, the believed pose at the frame; pitch and flippers the
+///   current ones), at full precision (Rust's shortest round-trip
+///   formatting of f64).
 pub struct MapsOut {
     npy: F32ArrayWriter,
     csv: csv::Writer<AtomicOutput>,
@@ -179,7 +182,8 @@ pub fn generate(cfg: &DatasetConfig, dir: &Path, progress: impl Fn(u64)) -> Resu
                     pairs.row(&Pair { sim_index: summary.sim, real_index: summary.real, split: None, distance: None })?;
                     if let Some(maps) = maps.as_mut() {
                         let map = step.map.as_ref().expect("a measured step keeps its map with emit_maps");
-                        maps.write(summary.real, i, round(step.time), &step.pose, map)?;
+                        let pose = step.map_pose.as_ref().expect("a measured step has the pose its DEM was cut around");
+                        maps.write(summary.real, i, round(step.time), pose, map)?;
                     }
                     summary.real += 1;
                     counts.1 += 1;

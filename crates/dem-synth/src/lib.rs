@@ -7,6 +7,8 @@
 //! - [`terrain`]: height fields (flat, stairs, pallets of planks, other).
 //! - [`pose`]: how the robot rests on the terrain (pitch, flippers).
 //! - [`camera`]: the depth camera ray-cast into the height field.
+//! - [`motion`]: the pose the map believes and the camera's true
+//!   orientation (drift, extrinsic and vibration errors).
 //! - [`elevation_map`]: Kalman fusion into a moving 5 cm map, resampled to
 //!   the 10 cm DEM.
 //! - [`run`]: one run across one obstacle.
@@ -15,6 +17,7 @@
 pub mod camera;
 pub mod dataset;
 pub mod elevation_map;
+pub mod motion;
 pub mod pose;
 pub mod run;
 pub mod terrain;
@@ -22,4 +25,5 @@ pub mod terrain;
 pub use camera::{CameraConfig, Stages};
 pub use dataset::{generate, DatasetConfig, Summary};
 pub use elevation_map::{MapConfig, MapWindow};
+pub use motion::{DriftConfig, VibrationConfig};
 pub use run::RunConfig;

@@ -3,14 +3,16 @@
 use std::process::ExitCode;
 
 use clap::Parser;
-use dem_synth::{self as synth, CameraConfig, DatasetConfig, MapConfig, RunConfig, Stages};
+use dem_synth::{self as synth, CameraConfig, DatasetConfig, DriftConfig, MapConfig, RunConfig, Stages, VibrationConfig};
 use dem_core::cli::{self, value};
 use dem_core::Terrain;
 
 /// Simulate robot runs across flat ground, stairs, pallets and other terrain,
 /// and write for every step the exact sim DEM and, for the first
 /// --real-runs runs, the DEM a RealSense-like depth camera plus a Kalman
-/// elevation map would measure (noise, holes, shadows, smoothing, startup).
+/// elevation map would measure (noise, holes, shadows, smoothing, startup)
+/// on a robot that moves: its pose estimate drifts, the map lags, the
+/// camera mount is miscalibrated and the body shakes on edges.
 ///
 /// Writes DIR/sim.npy, DIR/sim_labels.csv, DIR/real.npy, DIR/real_labels.csv
 /// and DIR/pairs.csv (sim and real records of the same pose). The same
@@ -21,6 +23,8 @@ use dem_core::Terrain;
 #[command(version, after_long_help = "Examples:
   dem-synth --out run/ --runs 400 --real-runs 20 --seed 1
   dem-synth --out shadowless/ --no-occlusion --seed 1      # same worlds, one effect hidden
+  dem-synth --out still/ --no-drift --no-latency --no-extrinsic --no-vibration --seed 1   # sensor stages only
+  dem-synth --out slow/ --latency 0.4 --drift 0.05 --seed 1    # a laggier map, a worse odometry
   dem-synth --out high/ --camera-height 0.7 --camera-tilt 25 --seed 2   # another camera mount
   dem-synth --out maps/ --runs 4 --real-runs 2 --seed 1 --emit-maps     # + the 5 cm maps behind real.npy
   dem-synth --out run/ && dem-render --compare run/sim.npy run/real.npy \\
@@ -86,11 +90,53 @@ struct Args {
     /// map cell (of 4) is enough for a DEM cell.
     #[arg(long)]
     no_holes: bool,
+    /// Switch off pose drift (the map believes the true pose).
+    #[arg(long)]
+    no_drift: bool,
+    /// Pose drift: horizontal random walk, sd of x and y each per sqrt of
+    /// the metres travelled (m/sqrt(m), 0..=1).
+    #[arg(long, default_value_t = 0.02, value_name = "M", value_parser = |s: &str| value::within(s, 0.0, 1.0))]
+    drift: f64,
+    /// Pose drift: vertical random walk (m/sqrt(m), 0..=1).
+    #[arg(long, default_value_t = 0.005, value_name = "M", value_parser = |s: &str| value::within(s, 0.0, 1.0))]
+    drift_vertical: f64,
+    /// Pose drift: heading random walk (degrees/sqrt(m), 0..=20).
+    #[arg(long, default_value_t = 0.6, value_name = "DEG", value_parser = |s: &str| value::within(s, 0.0, 20.0))]
+    drift_yaw: f64,
+    /// Pose drift: factor on the drift while the tracks ride on an edge (a
+    /// height step over 3 cm under them: stairs, pallets) (1..=20).
+    #[arg(long, default_value_t = 3.0, value_name = "FACTOR", value_parser = |s: &str| value::within(s, 1.0, 20.0))]
+    drift_slip: f64,
+    /// Switch off latency (the DEM is of the current frame).
+    #[arg(long)]
+    no_latency: bool,
+    /// Latency: the DEM handed out is the map of the frame taken this many
+    /// seconds earlier, cut around that pose (s, 0..=2).
+    #[arg(long, default_value_t = 0.15, value_name = "S", value_parser = |s: &str| value::within(s, 0.0, 2.0))]
+    latency: f64,
+    /// Switch off the camera mount's miscalibration.
+    #[arg(long)]
+    no_extrinsic: bool,
+    /// Miscalibrated mount: sd of the camera's true pitch and roll against
+    /// the nominal, drawn once per run (degrees, 0..=10).
+    #[arg(long, default_value_t = 0.5, value_name = "DEG", value_parser = |s: &str| value::within(s, 0.0, 10.0))]
+    extrinsic: f64,
+    /// Switch off vibration (rays cast with the estimated attitude).
+    #[arg(long)]
+    no_vibration: bool,
+    /// Vibration: sd of the body's true pitch and roll against the
+    /// estimate per frame on even ground (degrees, 0..=10).
+    #[arg(long, default_value_t = 0.1, value_name = "DEG", value_parser = |s: &str| value::within(s, 0.0, 10.0))]
+    vibration: f64,
+    /// Vibration: extra sd per metre of height step under the tracks
+    /// (degrees/m, 0..=100; 4: +0.7 degree on a 0.17 m stair edge).
+    #[arg(long, default_value_t = 4.0, value_name = "DEG", value_parser = |s: &str| value::within(s, 0.0, 100.0))]
+    vibration_edge: f64,
     /// Also write DIR/maps.npy ((M, 2, 80, 80) float32: elevation and
     /// variance of the 4 m elevation map window after each measured frame,
     /// grid_map's unwrapped index order, NaN where invalid) and DIR/maps.csv
-    /// (window centre and robot pose per map, full precision). Changes no
-    /// other output.
+    /// (window centre and the pose the DEM was cut around per map, full
+    /// precision). Changes no other output.
     #[arg(long)]
     emit_maps: bool,
 }
@@ -117,7 +163,19 @@ fn main() -> ExitCode {
             smoothing: !a.no_smoothing,
             dropout: !a.no_dropout,
             holes: !a.no_holes,
+            drift: !a.no_drift,
+            latency: !a.no_latency,
+            extrinsic: !a.no_extrinsic,
+            vibration: !a.no_vibration,
         };
+        let drift = DriftConfig {
+            horizontal: a.drift,
+            vertical: a.drift_vertical,
+            yaw: a.drift_yaw.to_radians(),
+            slip: a.drift_slip,
+            ..DriftConfig::default()
+        };
+        let vibration = VibrationConfig { flat: a.vibration.to_radians(), per_edge: a.vibration_edge.to_radians() };
         let map = MapConfig { max_variance: a.max_variance, ..MapConfig::default() };
         let cfg = DatasetConfig {
             first_run: a.first_run,
@@ -131,6 +189,10 @@ fn main() -> ExitCode {
                 camera,
                 map,
                 stages,
+                drift,
+                latency: a.latency,
+                extrinsic: a.extrinsic.to_radians(),
+                vibration,
                 emit_maps: a.emit_maps,
             },
         };

@@ -15,6 +15,10 @@ fn synth(dir: &std::path::Path, name: &str, extra: &[&str]) -> String {
     out
 }
 
+/// The flags that switch the four motion stages off: the emulator of the
+/// six sensor stages, as `testdata/` was made.
+const STILL: [&str; 4] = ["--no-drift", "--no-latency", "--no-extrinsic", "--no-vibration"];
+
 fn bytes(dir: &str, file: &str) -> Vec<u8> {
     std::fs::read(format!("{dir}/{file}")).unwrap()
 }
@@ -35,7 +39,8 @@ fn same_seed_same_bytes_on_any_thread_count() {
 fn first_runs_reproduce_the_committed_testdata() {
     let dir = tempdir();
     let out = arg(dir.path(), "t");
-    ok(&run("dem-synth", &["--out", &out, "--runs", "2", "--real-runs", "2", "--seed", "1"], None));
+    let args = [&["--out", out.as_str(), "--runs", "2", "--real-runs", "2", "--seed", "1"][..], &STILL[..]].concat();
+    ok(&run("dem-synth", &args, None));
     for f in ["sim.npy", "real.npy"] {
         let fresh = npy::read_all(&format!("{out}/{f}")).unwrap();
         let committed = npy::read_all(testdata(f).to_str().unwrap()).unwrap();
@@ -51,7 +56,18 @@ fn first_runs_reproduce_the_committed_testdata() {
 fn hiding_one_stage_keeps_the_sim_and_changes_the_measured() {
     let dir = tempdir();
     let full = synth(dir.path(), "full", &[]);
-    for flag in ["--no-occlusion", "--no-noise", "--no-smoothing", "--no-fov", "--no-dropout", "--no-holes"] {
+    for flag in [
+        "--no-occlusion",
+        "--no-noise",
+        "--no-smoothing",
+        "--no-fov",
+        "--no-dropout",
+        "--no-holes",
+        "--no-drift",
+        "--no-latency",
+        "--no-extrinsic",
+        "--no-vibration",
+    ] {
         let hidden = synth(dir.path(), flag.trim_start_matches('-'), &[flag]);
         assert_eq!(bytes(&full, "sim.npy"), bytes(&hidden, "sim.npy"), "{flag} changed the sim");
         assert_eq!(bytes(&full, "pairs.csv"), bytes(&hidden, "pairs.csv"));
@@ -65,7 +81,7 @@ fn hiding_one_stage_keeps_the_sim_and_changes_the_measured() {
 #[test]
 fn every_stage_alone_changes_the_data() {
     let dir = tempdir();
-    let stages = ["fov", "occlusion", "smoothing", "dropout", "holes"];
+    let stages = ["fov", "occlusion", "smoothing", "dropout", "holes", "drift", "latency", "extrinsic", "vibration"];
     let all_off: Vec<String> = stages.iter().chain(&["noise"]).map(|s| format!("--no-{s}")).collect();
     let refs: Vec<&str> = all_off.iter().map(String::as_str).collect();
     let off = synth(dir.path(), "off", &refs);
@@ -98,6 +114,34 @@ fn switching_a_stage_off_keeps_the_other_draws() {
         }
     }
     assert!(both > 0 && same as f64 > 0.6 * both as f64, "{same} of {both} cells equal");
+}
+
+/// The motion stages draw from streams of their own: each stage on with a
+/// zero amplitude makes all its draws and changes nothing, so with every
+/// other stage on, `--no-X` is the full emulator less X's effect alone
+/// (the other stages' draws unchanged); and each stage alone changes the
+/// six-stage data, leaving the sim as it is.
+#[test]
+fn the_motion_stages_keep_the_other_draws() {
+    let dir = tempdir();
+    for (st, zero) in [
+        ("drift", &["--drift", "0", "--drift-vertical", "0", "--drift-yaw", "0"][..]),
+        ("latency", &["--latency", "0"][..]),
+        ("extrinsic", &["--extrinsic", "0"][..]),
+        ("vibration", &["--vibration", "0", "--vibration-edge", "0"][..]),
+    ] {
+        let off = synth(dir.path(), &format!("no-{st}"), &[&format!("--no-{st}")]);
+        let mute = synth(dir.path(), &format!("zero-{st}"), zero);
+        assert_eq!(bytes(&off, "real.npy"), bytes(&mute, "real.npy"), "{st} at zero amplitude moved other draws");
+    }
+    let still = synth(dir.path(), "still", &STILL);
+    for st in ["drift", "latency", "extrinsic", "vibration"] {
+        let flag = format!("--no-{st}");
+        let others: Vec<&str> = STILL.iter().copied().filter(|f| *f != flag).collect();
+        let one = synth(dir.path(), st, &others);
+        assert_ne!(bytes(&still, "real.npy"), bytes(&one, "real.npy"), "{st} alone changes nothing");
+        assert_eq!(bytes(&still, "sim.npy"), bytes(&one, "sim.npy"), "{st} changed the sim");
+    }
 }
 
 #[test]
@@ -194,7 +238,9 @@ fn field(row: &[(String, String)], name: &str) -> f64 {
 /// i = floor((center_x + L/2 - x) / res), j = floor((center_y + L/2 - y) / res);
 /// the cell is valid with at least 2 non-NaN samples, its height their mean
 /// minus z. It must equal real.npy: same validity, heights within 1e-5 m.
-fn rebuild_dems_from_maps(out: &str) -> usize {
+/// The pose is the one the DEM was cut around: the labels' (true) pose
+/// when `still` (motion stages off), else near it (drift, latency).
+fn rebuild_dems_from_maps(out: &str, still: bool) -> usize {
     use dem_core::format::{col_center_y, row_center_x};
     use dem_synth::pose::Pose;
     let real = npy::read_all(&format!("{out}/real.npy")).unwrap();
@@ -216,7 +262,12 @@ fn rebuild_dems_from_maps(out: &str) -> usize {
             flippers: ["flipper_fl", "flipper_fr", "flipper_rl", "flipper_rr"].map(|f| field(row, f)),
         };
         let micro = |v: f64| (v * 1e6).round() / 1e6;
-        assert_eq!((Some(micro(pose.x)), Some(micro(pose.y)), Some(micro(pose.yaw))), (l.x, l.y, l.yaw));
+        if still {
+            assert_eq!((Some(micro(pose.x)), Some(micro(pose.y)), Some(micro(pose.yaw))), (l.x, l.y, l.yaw));
+        } else {
+            let (dx, dy, dyaw) = (pose.x - l.x.unwrap(), pose.y - l.y.unwrap(), pose.yaw - l.yaw.unwrap());
+            assert!(dx.abs() < 0.3 && dy.abs() < 0.3 && dyaw.abs() < 0.2, "record {k}: cut {dx} {dy} {dyaw} from the true pose");
+        }
         let att = real[k].attitude();
         let expected = [pose.pitch, pose.flippers[0], pose.flippers[1], pose.flippers[2], pose.flippers[3]];
         assert_eq!(att, expected.map(|v| v as f32), "record {k}: attitude");
@@ -261,12 +312,14 @@ fn emit_maps_rebuilds_every_measured_dem_and_changes_nothing_else() {
         assert_eq!(bytes(&plain, f), bytes(&maps, f), "--emit-maps changed {f}");
     }
     assert!(!std::path::Path::new(&plain).join("maps.npy").exists() && !std::path::Path::new(&plain).join("maps.csv").exists());
-    let valid = rebuild_dems_from_maps(&maps);
+    let valid = rebuild_dems_from_maps(&maps, false);
     assert!(valid > 1000, "only {valid} valid cells checked");
     // A maximum variance low enough that seen cells become holes: the
     // variance layer keeps them, the elevation layer does not.
     let thin = synth(dir.path(), "thin", &["--emit-maps", "--max-variance", "2e-5"]);
-    rebuild_dems_from_maps(&thin);
+    rebuild_dems_from_maps(&thin, false);
+    let still = synth(dir.path(), "still", &[&["--emit-maps"][..], &STILL[..]].concat());
+    assert!(rebuild_dems_from_maps(&still, true) > 1000);
     let (_, n, values) = read_maps(&format!("{thin}/maps.npy"));
     let holes = values
         .chunks_exact(2 * n * n)
