@@ -71,6 +71,22 @@ heights relative to the robot centre; missing = mask -1, height 0):
                half of the lower cell whose centre that reaches reads the
                higher height; each half of the higher cell whose centre
                -(s + e) reaches reads the lower height (a raise wins)
+  tilt         per record a = pitch z1, b = roll z2 (standard normals):
+               h += a (max(x, x0) - x0) + b y
+  shake        per record s = sigma + edge J, J the largest |height step|
+               between valid x-neighbours in rows 2..9 (|x| <= 0.35 m),
+               capped at 0.5 m (0 if none); a = s z1, b = s z2:
+               h += a x + b y
+  lag          per record s_r = s (1 + spread (2u - 1)), u uniform;
+               h'(x) = h(x - s_r) + s_r tan(pitch), pitch = row 20, column
+               0, clamped to +-1 rad; linear interpolation between the two
+               row centres around x - s_r, a row outside the grid or missing
+               read as the cell's own height; validity kept
+  drift        rows with centre x < x0 displaced: going back from the last
+               such row, dx and dz are cumulative sums of normals of sd
+               rate sqrt(0.1) and zrate sqrt(0.1) per row (one of each per
+               row); h'(x) = h(x - dx) + dz interpolated as in lag (shifts
+               clamped to +-1 m)
 """
 import sys
 import numpy as np
@@ -340,12 +356,78 @@ def riser_blend(d, rng, foot, top):
     d[:20, :, 0] = np.where(step != 0, z + u * share * step, d[:20, :, 0])
 
 
+def _read_at(z, valid, r, c, p):
+    """Height of column c read at x = p (linear between row centres; a row
+    outside the grid or missing reads cell (r, c)'s own height)."""
+    k = int(np.floor((p - X[0]) / 0.1 + 1e-9))
+    w = (p - (X[0] + 0.1 * k)) / 0.1
+    w = min(max(w, 0.0), 1.0)
+    own = z[r, c]
+
+    def val(j):
+        return z[j, c] if 0 <= j < 20 and valid[j, c] else own
+
+    return (1 - w) * val(k) + w * val(k + 1)
+
+
+def _shift(d, dx, dz):
+    z = d[:20, :, 0].astype(np.float64)
+    valid = d[:20, :, 1] > 0
+    out = z.copy()
+    for r in range(20):
+        for c in range(5):
+            if valid[r, c]:
+                p = X[r] - np.clip(dx[r], -1.0, 1.0)
+                out[r, c] = _read_at(z, valid, r, c, p) + dz[r]
+    d[:20, :, 0] = np.where(valid, out, d[:20, :, 0])
+
+
+def _plane(d, a, b, lever):
+    valid = d[:20, :, 1] > 0
+    h = d[:20, :, 0].astype(np.float64) + a * lever[:, None] + b * Y[None, :]
+    d[:20, :, 0] = np.where(valid, h, d[:20, :, 0])
+
+
+def tilt(d, rng, pitch, roll, x0):
+    z1, z2 = rng.standard_normal(2)
+    _plane(d, pitch * z1, roll * z2, np.maximum(X, x0) - x0)
+
+
+def shake(d, rng, sigma, edge):
+    z1, z2 = rng.standard_normal(2)
+    z = d[:20, :, 0].astype(np.float64)
+    valid = d[:20, :, 1] > 0
+    both = valid[2:9] & valid[3:10]
+    steps = np.abs(z[3:10] - z[2:9])[both]
+    j = min(steps.max(), 0.5) if steps.size else 0.0
+    s = sigma + edge * j
+    _plane(d, s * z1, s * z2, X)
+
+
+def lag(d, rng, s, spread):
+    sr = s * (1 + spread * (2 * rng.random() - 1))
+    pitch = float(d[20, 0, 0])
+    climb = sr * np.tan(np.clip(pitch, -1.0, 1.0)) if np.isfinite(pitch) else 0.0
+    _shift(d, np.full(20, sr), np.full(20, climb))
+
+
+def drift(d, rng, rate, zrate, x0):
+    steps = rng.standard_normal((20, 2)) * np.sqrt(0.1) * np.array([rate, zrate])
+    behind = X < x0
+    dx, dz = np.zeros(20), np.zeros(20)
+    for r in range(20):
+        if behind[r]:
+            dx[r] = steps[r:, 0][behind[r:]].sum()
+            dz[r] = steps[r:, 1][behind[r:]].sum()
+    _shift(d, dx, dz)
+
+
 EFFECTS = {"noise": noise, "dropout": dropout, "row-dropout": row_dropout, "occlusion": occlusion,
            "fov": fov, "smoothing": smoothing, "bias": bias, "quantization": quantization,
            "startup": startup, "patch-dropout": patch_dropout, "edge-holes": edge_holes,
            "mixed-cells": mixed_cells, "rim-holes": rim_holes, "pit-fill": pit_fill, "view-top": view_top,
            "hole-growth": hole_growth, "drop-blend": drop_blend, "riser-blend": riser_blend, "floor-lift": floor_lift,
-           "drop-holes": drop_holes}
+           "drop-holes": drop_holes, "tilt": tilt, "shake": shake, "lag": lag, "drift": drift}
 
 
 def main():

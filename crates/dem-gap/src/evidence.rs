@@ -300,6 +300,122 @@ pub fn evidence(effect: &Effect, before: &Stats, after: &Stats, real: &Stats, ga
                 format!("steps between neighbouring rows of 0.02-0.1 m: real {} vs model {}: {verdict}", pct(mid(real)), pct(mid(before)))
             }
         }
+        Effect::Tilt { pitch, roll, x0 } => {
+            // Rows just ahead of x0 (the pivot) against the far rows: a
+            // tilt's spread grows with the distance past x0.
+            let first = (0..GRID_ROWS).find(|&r| row_center_x(r) > x0).unwrap_or(GRID_ROWS).min(12);
+            let near = first..first + 3;
+            let sd = |s: &Stats, rows: std::ops::Range<usize>| s.mean_over("spread-sd", rows);
+            let (rn, bn, rf, bf) = (sd(real, near.clone()), sd(before, near.clone()), sd(real, 15..20), sd(before, 15..20));
+            let verdict = if rf > bf && rf - bf > rn - bn {
+                format!(
+                    "real spreads more the farther ahead of x0: heights tilted by a camera angle that differs from record to record (sd pitch {:.2}, roll {:.2} degrees)",
+                    pitch.to_degrees(),
+                    roll.to_degrees()
+                )
+            } else {
+                "real's extra spread does not grow with range: the tilt is the closest effect, not a clear one".to_string()
+            };
+            format!(
+                "height spread ({spread}) just ahead of x = {x0:.2} m (rows {}-{}) real {} vs model {}, far ahead (rows 15-19) real {} vs model {}: {verdict}",
+                near.start,
+                near.end - 1,
+                mm(rn),
+                mm(bn),
+                mm(rf),
+                mm(bf),
+            )
+        }
+        Effect::Shake { sigma, edge } => {
+            // Both ends of the grid against the rows over C: a body rocking
+            // about C moves both ends, the middle not at all.
+            let sd = |s: &Stats, rows: std::ops::Range<usize>| s.mean_over("spread-sd", rows);
+            let (rb, bb, rm, bm, rf, bf) =
+                (sd(real, 0..3), sd(before, 0..3), sd(real, 5..7), sd(before, 5..7), sd(real, 16..20), sd(before, 16..20));
+            let verdict = if (rb - bb).min(rf - bf) > rm - bm {
+                format!(
+                    "real spreads more at both ends than over C: the body rocks about its centre, with sd {:.2} degrees plus {:.2} degrees per 10 cm of step under the tracks",
+                    sigma.to_degrees(),
+                    (0.1 * edge).to_degrees()
+                )
+            } else {
+                "real's extra spread is not larger at both ends than over C: the shake is the closest effect, not a clear one".to_string()
+            };
+            format!(
+                "height spread ({spread}) behind the robot (rows 0-2) real {} vs model {}, over C (rows 5-6) real {} vs model {}, far ahead (rows 16-19) real {} vs model {}: {verdict}",
+                mm(rb),
+                mm(bb),
+                mm(rm),
+                mm(bm),
+                mm(rf),
+                mm(bf),
+            )
+        }
+        Effect::Lag { s, .. } => {
+            let ahead = if s >= 0.0 { "ahead" } else { "back" };
+            if real.paired {
+                // The cells beside steps moved > 2 cm toward the other
+                // surface (component 2): a shift ahead moves the far side of
+                // each step (riser tops, drop floors), a shift back the near
+                // side (riser feet, drop lips).
+                let moved = |st: &Stats, sides: [&str; 2]| sides.iter().map(|n| st.term(n).map_or(0.0, |t| t.values[2])).sum::<f64>() / 2.0;
+                let (far, near) = (["riser-top", "drop-floor"], ["riser-foot", "drop-lip"]);
+                let (lead, trail) = if s >= 0.0 { (far, near) } else { (near, far) };
+                let (rl, bl, rt, bt) = (moved(real, lead), moved(before, lead), moved(real, trail), moved(before, trail));
+                let verdict = if rl > bl && rl - bl > rt - bt {
+                    format!("steps read {:.1} cm {ahead} of where sim has them: the DEM is the map of an older frame", 100.0 * s.abs())
+                } else {
+                    "real moves no more cells on that side of steps than the other: the lag is the closest effect, not a clear one".to_string()
+                };
+                format!(
+                    "cells on the {} side of steps (riser {}, drop {}) moved more than 2 cm toward the other surface: real {} vs model {}; on the other side real {} vs model {}: {verdict}",
+                    if s >= 0.0 { "far" } else { "near" },
+                    if s >= 0.0 { "tops" } else { "feet" },
+                    if s >= 0.0 { "floors" } else { "lips" },
+                    pct(rl),
+                    pct(bl),
+                    pct(rt),
+                    pct(bt),
+                )
+            } else {
+                let verdict = if mid(real) > mid(before) {
+                    format!("steps read part of the way across where a shift {ahead} of {:.1} cm puts a cell on both sides", 100.0 * s.abs())
+                } else {
+                    "no more part-way steps in real: the lag is the closest effect, not a clear one".to_string()
+                };
+                format!("steps between neighbouring rows of 0.02-0.1 m: real {} vs model {}: {verdict}", pct(mid(real)), pct(mid(before)))
+            }
+        }
+        Effect::Drift { rate, zrate, x0 } => {
+            // The oldest rows against those just behind x0 and those ahead:
+            // a walk back from x0 spreads most in the oldest rows.
+            let behind = (0..GRID_ROWS).filter(|&r| row_center_x(r) < x0).count().clamp(4, 17);
+            let sd = |s: &Stats, rows: std::ops::Range<usize>| s.mean_over("spread-sd", rows);
+            let (old, just, ahead) = (0..2, behind - 2..behind, behind..behind + 3);
+            let ex = |rows: std::ops::Range<usize>| sd(real, rows.clone()) - sd(before, rows);
+            let verdict = if ex(old.clone()) > ex(just.clone()) && ex(old.clone()) > ex(ahead.clone()) {
+                format!(
+                    "real's extra spread grows going back from x0: rows seen earlier are displaced by a pose that walks {:.0} mm along x and {:.0} mm in height per sqrt(m) travelled",
+                    1000.0 * rate,
+                    1000.0 * zrate
+                )
+            } else {
+                "real's extra spread does not grow going back: the drift is the closest effect, not a clear one".to_string()
+            };
+            format!(
+                "height spread ({spread}) in the oldest rows (0-1) real {} vs model {}, just behind x = {x0:.2} m (rows {}-{}) real {} vs model {}, ahead of it (rows {}-{}) real {} vs model {}: {verdict}",
+                mm(sd(real, old.clone())),
+                mm(sd(before, old)),
+                just.start,
+                just.end - 1,
+                mm(sd(real, just.clone())),
+                mm(sd(before, just.clone())),
+                ahead.start,
+                ahead.end - 1,
+                mm(sd(real, ahead.clone())),
+                mm(sd(before, ahead.clone())),
+            )
+        }
         Effect::Smoothing { .. } => {
             let (r10, b10) = (real.mean_over("edge-10cm", 0..19), before.mean_over("edge-10cm", 0..19));
             let verdict = if r10 < b10 {
@@ -376,6 +492,40 @@ mod tests {
         assert!(s.contains("at the foot real 100.0% vs model 0.0%") && s.contains("read part of the way across the step: the foot up"), "{s}");
         let s = evidence(&e, &model, &model, &model, 2.0, 1.0);
         assert!(s.contains("not a clear one"), "{s}");
+    }
+
+    /// Paired, each of tilt, shake, lag and drift hidden in "real" (the
+    /// sim records through the effect) is read as itself from the per-row
+    /// spreads and the step sides; with real equal to the model, it is
+    /// not a clear one.
+    #[test]
+    fn pose_effects_are_read_from_the_spread_by_row_and_the_steps() {
+        use dem_sensor::SensorModel;
+        // Stairs going up: a 0.15 m riser every third row.
+        let mut stairs = empty_dem();
+        for r in 0..GRID_ROWS {
+            for c in 0..COLS {
+                stairs.set_valid(r, c, -0.07 + 0.15 * (r / 3) as f32);
+            }
+        }
+        let mut flat = empty_dem();
+        (0..GRID_ROWS * COLS).for_each(|i| flat.set_valid(i / COLS, i % COLS, -0.07));
+        let cases = [
+            (Effect::Tilt { pitch: 0.02, roll: 0.0, x0: 0.45 }, flat, "farther ahead of x0"),
+            (Effect::Shake { sigma: 0.01, edge: 0.0 }, flat, "rocks about its centre"),
+            (Effect::Lag { s: 0.08, spread: 0.5 }, stairs, "steps read 8.0 cm ahead"),
+            (Effect::Drift { rate: 0.05, zrate: 0.02, x0: 0.45 }, flat, "grows going back from x0"),
+        ];
+        for (e, terrain, says) in cases {
+            let sim = vec![terrain; 400];
+            let mut real = sim.clone();
+            SensorModel { effects: vec![e] }.apply_all(&mut real, 5, 0);
+            let (model, measured) = (stats(&sim, Some(&sim)), stats(&real, Some(&sim)));
+            let s = evidence(&e, &model, &model, &measured, 2.0, 1.0);
+            assert!(s.contains(says), "{e}: {s}");
+            let s = evidence(&e, &model, &model, &model, 2.0, 1.0);
+            assert!(s.contains("not a clear one"), "{e}: {s}");
+        }
     }
 
     /// Unpaired, `bias`'s sentence says an offset when real is higher (or

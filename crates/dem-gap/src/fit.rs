@@ -60,7 +60,17 @@ pub fn ranges(name: &str) -> Vec<Range> {
         // cells read the edge's height).
         "floor-lift" => vec![lin(-0.3, 1.45), lin(0.0, 1.0), lin(0.0, 3.0)],
         "drop-holes" => vec![lin(0.0, 1.0)],
-        _ => vec![],
+        // Sds of the camera's pitch and roll errors up to 3 degrees (0.05
+        // rad); x0 from behind the grid (every row tilts) to 1 m ahead.
+        "tilt" => vec![lin(0.0, 0.05), lin(0.0, 0.05), lin(-0.6, 1.0)],
+        // On even ground up to 1 degree; per metre of step under the
+        // tracks up to 0.3 rad (a 0.2 m stair edge: 3.4 degrees more).
+        "shake" => vec![lin(0.0, 0.02), lin(0.0, 0.3)],
+        // Speed times latency: up to 0.15 m, spread from none to all of it.
+        "lag" => vec![lin(0.0, 0.15), lin(0.0, 1.0)],
+        // Walks up to 0.1 m per sqrt(m) along x, 0.05 in height; x0 as tilt's.
+        "drift" => vec![lin(0.0, 0.1), lin(0.0, 0.05), lin(-0.6, 1.0)],
+        other => unreachable!("dem-gap has no search box for effect {other}"),
     }
 }
 
@@ -99,7 +109,15 @@ pub fn limits(name: &str) -> Vec<(f64, f64, bool, bool)> {
         "floor-lift" => vec![(-0.6, 1.45, true, true), (0.0, 1.0, true, true), (0.0, 5.0, true, true)],
         // No drop edge lost, or every one: natural ends.
         "drop-holes" => vec![(0.0, 1.0, true, true)],
-        _ => vec![],
+        // No error (sd 0) is a natural end; x0 behind the grid (every row
+        // tilts) or past it (no row pitches) too.
+        "tilt" => vec![(0.0, 0.2, true, false), (0.0, 0.2, true, false), (-0.6, 1.45, true, true)],
+        "shake" => vec![(0.0, 0.2, true, false), (0.0, 1.0, true, false)],
+        // No shift is a natural end, and a backward one is allowed (a
+        // robot reversing); spread none or all: natural ends.
+        "lag" => vec![(-0.3, 0.5, true, false), (0.0, 1.0, true, true)],
+        "drift" => vec![(0.0, 1.0, true, false), (0.0, 0.5, true, false), (-0.6, 1.45, true, true)],
+        other => unreachable!("dem-gap has no limits for effect {other}"),
     }
 }
 
@@ -238,7 +256,7 @@ fn fit_in(name: &str, base: &SensorModel, target: &Target, ranges: &[Range], fix
     let eval = |u: &[f64]| -> f64 {
         let v = values(u);
         match Effect::from_values(name, &v) {
-            Some(e) if e.check().is_ok() => target.gap(&base.with(e)),
+            Some(e) if e.check().is_ok() => prepared.gap(e),
             _ => f64::INFINITY,
         }
     };
@@ -299,5 +317,31 @@ fn snap(e: Effect) -> Effect {
             Effect::Fov { x_min: b(below), x_max: b(upto).max(b(below) + 0.1) }
         }
         other => other,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every effect of the vocabulary has a search box and limits, one per
+    /// parameter, the box inside the limits and valid at its corners.
+    #[test]
+    fn every_effect_has_a_box_inside_its_limits() {
+        for name in dem_sensor::effects::NAMES {
+            let (r, l) = (ranges(name), limits(name));
+            let e = Effect::from_values(name, &vec![0.0; r.len()]).unwrap_or_else(|| panic!("{name}: {} values", r.len()));
+            assert_eq!(e.params().len(), r.len(), "{name}");
+            assert_eq!(l.len(), r.len(), "{name}");
+            for (x, &(lo, hi, _, _)) in r.iter().zip(&l) {
+                assert!(lo <= x.lo && x.lo < x.hi && x.hi <= hi, "{name}: box {x:?} outside its limits ({lo}, {hi})");
+            }
+            for corner in [0.0, 1.0] {
+                let v: Vec<f64> = r.iter().map(|x| x.at(corner)).collect();
+                let e = Effect::from_values(name, &v).unwrap();
+                // fov's corners may cross (x_min >= x_max); the fit scores such a point infinite.
+                assert!(e.check().is_ok() || name == "fov", "{name} at {v:?}: {:?}", e.check());
+            }
+        }
     }
 }

@@ -28,6 +28,10 @@
 //! | `floor-lift` | in rows whose centre x < `x`, a valid cell whose valid neighbour behind (row r - 1) is higher by more than [`MIXED_JUMP`] (the ground just beyond a drop edge) reads, with probability p, h + min(1, u a) (h_n - h), u uniform, h_n that neighbour: the edge hides the floor nearest it, and the cell keeps points lifted toward the edge (x past the grid: every row; x at the cone's lowest ray: the rows where the map keeps that grazing view) |
 //! | `riser-blend` | at a riser along x (valid cells of rows r and r + 1, row r + 1 higher by more than [`MIXED_JUMP`]), the cell at its foot reads h + u `foot` (h_n - h) and the cell on its top h + u `top` (h_n - h), u uniform per cell, h_n the other cell (a cell beside two risers takes the larger step; the one behind only when larger by more than [`TIE_MARGIN`]); `foot`, `top` in [-1, 1], negative: away from the other surface: the stereo window over a riser's corners moves the points there along their rays, up or down the step as the view angle gives |
 //! | `mixed-cells` | a cell is the mean of its two half cells along x; at a jump of more than [`MIXED_JUMP`] between valid x-neighbours the step lies at s, uniform over the 10 cm between their centres (one draw per row boundary), and the higher surface reaches e = u r past it into the lower cell (u uniform per cell; r = `up` when the higher cell lies ahead, `down` when it lies behind, i.e. beyond a drop): a half of the lower cell whose centre the higher surface reaches reads the higher height, a half of the higher cell the lower surface reaches (the step lies in it, deeper than e) reads the lower height |
+//! | `tilt` | per record a = `pitch` z1, b = `roll` z2 (z1, z2 standard normals, one Box-Muller pair; radians, used as slopes), h += a (max(x, x0) - x0) + b y: the camera's pitch and roll off their calibration (the extrinsic error; the cells behind x0 were seen from the near range, so they keep its error); also the first-order trace of vibration |
+//! | `shake` | per record s = `sigma` + `edge` J, J the largest height step (m, capped at [`SHAKE_MAX_STEP`]) between valid x-neighbours of the rows under the tracks ([`TRACK_ROWS`], \|x\| <= 0.35 m) of the DEM as it comes in; a = s z1, b = s z2 (one Box-Muller pair), h += a x + b y: the body rocks about C, more on edges. Unlike `tilt` it pivots at C (rows behind C move the other way) and its spread follows the terrain under the tracks |
+//! | `lag` | per record shift s_r = `s` (1 + `spread` (2u - 1)), u uniform; h'(x) = h(x - s_r) + s_r tan(pitch), pitch the record's row 20 column 0 (clamped to +-[`MAX_CLIMB_PITCH`], 0 if not finite): the DEM is the map of a frame s_r / v old, cut at that older pose. See [`shift_rows`] for the interpolation; validity is kept |
+//! | `drift` | rows whose centre x < `x0` are displaced by a random walk going back from x0: per row r, from the row just behind x0 backward, dx(r) = `rate` sqrt(0.1) sum of xi_j and dz(r) = `zrate` sqrt(0.1) sum of zeta_j over the rows j from r to the last row behind x0 (xi_j, zeta_j the normals of Box-Muller pair j); h'(x) = h(x - dx) + dz by [`shift_rows`]; rows from x0 on are left alone: the map registers older frames at a believed pose that walks at random per metre travelled |
 
 use rand::RngCore;
 
@@ -77,6 +81,22 @@ const X_BACK: f64 = -0.6;
 /// statistic sees this effect's steps and no others. Below it the terrain
 /// is a slope, whose cell mean is the centre's height.
 pub const MIXED_JUMP: f64 = dem_core::distribution::JUMP;
+/// Largest sd (rad) of `tilt`'s pitch and roll and of `shake`'s `sigma`:
+/// a calibration or a body that far off (29 degrees) is no sensor effect.
+pub const MAX_TILT: f64 = 0.5;
+/// The rows under the tracks whose x-neighbour steps `shake` reads: rows
+/// 2..=9, centres from x = -0.35 to 0.35 m (tracks 0.7 m long about C).
+pub const TRACK_ROWS: (usize, usize) = (2, 9);
+/// `shake`'s step under the tracks is capped at this (m): a taller step is
+/// no edge the tracks ride, and the cap keeps a stack of shakes finite.
+pub const SHAKE_MAX_STEP: f64 = 0.5;
+/// Largest `lag` shift `s` (m, either sign): a frame 2 s old at 0.25 m/s.
+pub const MAX_LAG: f64 = 0.5;
+/// Row shifts (`lag`, `drift`) are clamped to +-this many metres (10
+/// rows): with `lag`'s box no shift reaches it; `drift` at absurd rates does.
+pub const MAX_SHIFT: f64 = 1.0;
+/// `lag` reads the record's pitch clamped to +-this (rad, 57 degrees).
+pub const MAX_CLIMB_PITCH: f64 = 1.0;
 
 /// One effect with its parameters. JSON: `{"effect": NAME, "params": {...}}`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -249,10 +269,44 @@ pub enum Effect {
         /// cell beyond it.
         down: f64,
     },
+    /// The camera's pitch and roll off their calibration (extrinsic error):
+    /// heights tilted by distance times angle, a new angle per record.
+    Tilt {
+        /// Sd (rad) of the pitch error.
+        pitch: f64,
+        /// Sd (rad) of the roll error.
+        roll: f64,
+        /// Cells behind this x (m) keep the error of x0 (seen from near range).
+        x0: f64,
+    },
+    /// Vibration: the body's pitch and roll noise, larger on edges.
+    Shake {
+        /// Sd (rad) on even ground.
+        sigma: f64,
+        /// Extra sd per metre of step under the tracks (rad per m).
+        edge: f64,
+    },
+    /// Latency: the DEM is an older frame's map, cut at that older pose.
+    Lag {
+        /// Mean shift ahead (m): speed times latency.
+        s: f64,
+        /// Spread of the shift around s, as a share of s (0..1).
+        spread: f64,
+    },
+    /// Pose drift: rows behind x0 (older frames) displaced along x and in
+    /// height by a random walk per 10 cm travelled.
+    Drift {
+        /// Sd of the x walk (m per sqrt(m) travelled).
+        rate: f64,
+        /// Sd of the height walk (m per sqrt(m) travelled).
+        zrate: f64,
+        /// Rows whose centre lies behind this x (m) are displaced.
+        x0: f64,
+    },
 }
 
 /// Every effect name, in the vocabulary's order.
-pub const NAMES: [&str; 20] = [
+pub const NAMES: [&str; 24] = [
     "noise",
     "dropout",
     "row-dropout",
@@ -273,6 +327,10 @@ pub const NAMES: [&str; 20] = [
     "riser-blend",
     "floor-lift",
     "drop-holes",
+    "tilt",
+    "shake",
+    "lag",
+    "drift",
 ];
 
 impl Effect {
@@ -299,6 +357,10 @@ impl Effect {
             Effect::RiserBlend { .. } => "riser-blend",
             Effect::FloorLift { .. } => "floor-lift",
             Effect::DropHoles { .. } => "drop-holes",
+            Effect::Tilt { .. } => "tilt",
+            Effect::Shake { .. } => "shake",
+            Effect::Lag { .. } => "lag",
+            Effect::Drift { .. } => "drift",
         }
     }
 
@@ -320,6 +382,10 @@ impl Effect {
             Effect::DropBlend { p, a } => vec![("p", p), ("a", a)],
             Effect::RiserBlend { foot, top } => vec![("foot", foot), ("top", top)],
             Effect::FloorLift { x, p, a } => vec![("x", x), ("p", p), ("a", a)],
+            Effect::Tilt { pitch, roll, x0 } => vec![("pitch", pitch), ("roll", roll), ("x0", x0)],
+            Effect::Shake { sigma, edge } => vec![("sigma", sigma), ("edge", edge)],
+            Effect::Lag { s, spread } => vec![("s", s), ("spread", spread)],
+            Effect::Drift { rate, zrate, x0 } => vec![("rate", rate), ("zrate", zrate), ("x0", x0)],
         }
     }
 
@@ -347,35 +413,44 @@ impl Effect {
             "riser-blend" => Effect::RiserBlend { foot: g(0)?, top: g(1)? },
             "floor-lift" => Effect::FloorLift { x: g(0)?, p: g(1)?, a: g(2)? },
             "drop-holes" => Effect::DropHoles { p: g(0)? },
+            "tilt" => Effect::Tilt { pitch: g(0)?, roll: g(1)?, x0: g(2)? },
+            "shake" => Effect::Shake { sigma: g(0)?, edge: g(1)? },
+            "lag" => Effect::Lag { s: g(0)?, spread: g(1)? },
+            "drift" => Effect::Drift { rate: g(0)?, zrate: g(1)?, x0: g(2)? },
             _ => return None,
         })
     }
 
-    /// Place in the physical chain: what the sensor can see (fov,
+    /// Place in the physical chain: where the map puts the terrain (lag,
+    /// drift), what the sensor can see (fov,
     /// startup, occlusion), what the matcher rejects at jumps (edge-holes),
     /// how fusion and resampling shape heights (mixed-cells, smoothing,
     /// bias, noise, quantization),
     /// what is lost at the end (dropout, patch-dropout, row-dropout).
     pub fn stage(&self) -> u8 {
         match self {
-            Effect::Fov { .. } | Effect::ViewTop { .. } => 0,
-            Effect::Startup { .. } => 1,
-            Effect::Occlusion { .. } => 2,
-            Effect::EdgeHoles { .. } | Effect::RimHoles { .. } | Effect::DropHoles { .. } => 3,
-            Effect::PitFill { .. } => 4,
-            Effect::MixedCells { .. } => 5,
+            // The map's geometry at an older or a believed pose: the
+            // terrain every later stage sees.
+            Effect::Lag { .. } | Effect::Drift { .. } => 0,
+            Effect::Fov { .. } | Effect::ViewTop { .. } => 1,
+            Effect::Startup { .. } => 2,
+            Effect::Occlusion { .. } => 3,
+            Effect::EdgeHoles { .. } | Effect::RimHoles { .. } | Effect::DropHoles { .. } => 4,
+            Effect::PitFill { .. } => 5,
+            Effect::MixedCells { .. } => 6,
             // Both move cells at drops, after the mixed cells; of the two,
             // the one added to a model first is applied first.
-            Effect::DropBlend { .. } | Effect::FloorLift { .. } => 6,
-            Effect::RiserBlend { .. } => 7,
-            Effect::Smoothing { .. } => 8,
-            Effect::Bias { .. } => 9,
-            Effect::Noise { .. } => 10,
-            Effect::Quantization { .. } => 11,
-            Effect::Dropout { .. } => 12,
-            Effect::PatchDropout { .. } => 13,
-            Effect::HoleGrowth { .. } => 14,
-            Effect::RowDropout { .. } => 15,
+            Effect::DropBlend { .. } | Effect::FloorLift { .. } => 7,
+            Effect::RiserBlend { .. } => 8,
+            Effect::Smoothing { .. } => 9,
+            // Registration: heights tilted as the points are placed.
+            Effect::Bias { .. } | Effect::Tilt { .. } | Effect::Shake { .. } => 10,
+            Effect::Noise { .. } => 11,
+            Effect::Quantization { .. } => 12,
+            Effect::Dropout { .. } => 13,
+            Effect::PatchDropout { .. } => 14,
+            Effect::HoleGrowth { .. } => 15,
+            Effect::RowDropout { .. } => 16,
         }
     }
 
@@ -417,6 +492,16 @@ impl Effect {
                 Err(format!("foot = {foot} and top = {top} must be in [-1, 1]"))
             }
             Effect::MixedCells { up, down } if up < 0.0 || down < 0.0 => Err(format!("up = {up} and down = {down} must be >= 0")),
+            Effect::Tilt { pitch, roll, .. } if !(0.0..=MAX_TILT).contains(&pitch) || !(0.0..=MAX_TILT).contains(&roll) => {
+                Err(format!("pitch = {pitch} and roll = {roll} must be in [0, {MAX_TILT}] rad"))
+            }
+            Effect::Shake { sigma, edge } if !(0.0..=MAX_TILT).contains(&sigma) || edge < 0.0 => {
+                Err(format!("sigma = {sigma} must be in [0, {MAX_TILT}] rad and edge = {edge} >= 0"))
+            }
+            Effect::Lag { s, spread } if s.abs() > MAX_LAG || !(0.0..=1.0).contains(&spread) => {
+                Err(format!("s = {s} must be in [-{MAX_LAG}, {MAX_LAG}] m and spread = {spread} in [0, 1]"))
+            }
+            Effect::Drift { rate, zrate, .. } if rate < 0.0 || zrate < 0.0 => Err(format!("rate = {rate} and zrate = {zrate} must be >= 0")),
             Effect::Occlusion { h, .. } if h <= 0.0 => Err(format!("sensor height h = {h} must be > 0")),
             Effect::Fov { x_min, x_max } if x_min >= x_max => Err(format!("x_min = {x_min} must be < x_max = {x_max}")),
             Effect::Smoothing { w } if !(w > 0.0 && w <= 1.0) => Err(format!("w = {w} must be in (0, 1]")),
@@ -432,8 +517,9 @@ impl Effect {
     /// hole-growth, riser-blend: one per cell), 200 (drop-blend,
     /// floor-lift, drop-holes: two per cell), 20 (row-dropout: one per
     /// row), 2 (startup), 3 per slot (patch-dropout), 19 x 6 (mixed-cells:
-    /// per row boundary a step position, then a reach per column), 0 (the
-    /// deterministic effects).
+    /// per row boundary a step position, then a reach per column), 2 (tilt,
+    /// shake: one Box-Muller pair), 1 (lag), 40 (drift: a Box-Muller pair
+    /// per row, its x and its height step), 0 (the deterministic effects).
     pub fn draws(&self) -> usize {
         match self {
             Effect::Noise { .. }
@@ -448,6 +534,9 @@ impl Effect {
             Effect::Startup { .. } => 2,
             Effect::PatchDropout { .. } => 3 * PATCH_SLOTS,
             Effect::MixedCells { .. } => (GRID_ROWS - 1) * (1 + COLS),
+            Effect::Tilt { .. } | Effect::Shake { .. } => 2,
+            Effect::Lag { .. } => 1,
+            Effect::Drift { .. } => 2 * GRID_ROWS,
             Effect::Occlusion { .. }
             | Effect::Fov { .. }
             | Effect::ViewTop { .. }
@@ -565,6 +654,25 @@ impl Effect {
             Effect::DropBlend { p, a } => blend_drops(d, rng, p, a),
             Effect::FloorLift { x, p, a } => lift_floors(d, rng, x, p, a),
             Effect::RiserBlend { foot, top } => blend_risers(d, rng, foot, top),
+            Effect::Tilt { pitch, roll, x0 } => {
+                let [z1, z2]: [f64; 2] = rng.normals();
+                tilt_plane(d, pitch * z1, roll * z2, |x| x.max(x0) - x0);
+            }
+            Effect::Shake { sigma, edge } => {
+                let [z1, z2]: [f64; 2] = rng.normals();
+                let s = sigma + edge * step_under_tracks(d);
+                tilt_plane(d, s * z1, s * z2, |x| x);
+            }
+            Effect::Lag { s, spread } => {
+                let shift = s * (1.0 + spread * (2.0 * rng.gen() - 1.0));
+                let climb = shift * climb_slope(d);
+                shift_rows(d, &[shift; GRID_ROWS], &[climb; GRID_ROWS]);
+            }
+            Effect::Drift { rate, zrate, x0 } => {
+                let z: [f64; 2 * GRID_ROWS] = rng.normals();
+                let (dx, dz) = drift_walk(&z, rate, zrate, x0);
+                shift_rows(d, &dx, &dz);
+            }
             Effect::EdgeHoles { g, p } => jump_holes(d, rng, g, p, 1.0),
             Effect::RimHoles { g, p } => jump_holes(d, rng, g, p, -1.0),
             Effect::PitFill { g, p } => {
@@ -909,6 +1017,87 @@ fn mix_cells(d: &mut Dem, rng: &mut Draws, up: f64, down: f64) {
     }
 }
 
+/// h += a lever(x) + b y on the valid cells (`tilt`, `shake`).
+fn tilt_plane(d: &mut Dem, a: f64, b: f64, lever: impl Fn(f64) -> f64) {
+    for r in 0..GRID_ROWS {
+        let ax = a * lever(row_center_x(r));
+        for c in 0..COLS {
+            if d.is_valid(r, c) {
+                d.set_valid(r, c, (d.height(r, c) as f64 + ax + b * col_center_y(c)) as f32);
+            }
+        }
+    }
+}
+
+/// `shake`'s J: the largest height step (m) between valid x-neighbours of
+/// the rows under the tracks ([`TRACK_ROWS`]), at most [`SHAKE_MAX_STEP`];
+/// 0 when no such pair is valid.
+pub fn step_under_tracks(d: &Dem) -> f64 {
+    let mut j: f64 = 0.0;
+    for r in TRACK_ROWS.0..TRACK_ROWS.1 {
+        for c in 0..COLS {
+            if d.is_valid(r, c) && d.is_valid(r + 1, c) {
+                j = j.max((d.height(r + 1, c) as f64 - d.height(r, c) as f64).abs());
+            }
+        }
+    }
+    j.min(SHAKE_MAX_STEP)
+}
+
+/// `lag`'s climb per metre of shift: tan of the record's pitch (row 20,
+/// column 0), clamped to +-[`MAX_CLIMB_PITCH`]; 0 when it is not finite.
+pub fn climb_slope(d: &Dem) -> f64 {
+    let p = d.attitude()[0] as f64;
+    if p.is_finite() {
+        p.clamp(-MAX_CLIMB_PITCH, MAX_CLIMB_PITCH).tan()
+    } else {
+        0.0
+    }
+}
+
+/// `drift`'s displacements per row from its 40 normals (pair j: `z[2j]`
+/// along x, `z[2j + 1]` in height): cumulative sums going back from the
+/// last row whose centre lies behind `x0`, one step of sd rate sqrt(0.1)
+/// (zrate sqrt(0.1)) per row; 0 for the rows from x0 on.
+pub fn drift_walk(z: &[f64; 2 * GRID_ROWS], rate: f64, zrate: f64, x0: f64) -> ([f64; GRID_ROWS], [f64; GRID_ROWS]) {
+    let step = dem_core::format::CELL.sqrt();
+    let (mut dx, mut dz) = ([0.0; GRID_ROWS], [0.0; GRID_ROWS]);
+    let (mut sx, mut sz) = (0.0, 0.0);
+    for r in (0..GRID_ROWS).rev().filter(|&r| row_center_x(r) < x0) {
+        sx += rate * step * z[2 * r];
+        sz += zrate * step * z[2 * r + 1];
+        dx[r] = sx;
+        dz[r] = sz;
+    }
+    (dx, dz)
+}
+
+/// Row `r` of every column reads the column at x - dx[r], plus dz[r]
+/// (`lag`, `drift`), on the valid cells; validity is kept. With q = dx / 0.1
+/// (in rows, clamped to +-[`MAX_SHIFT`] / 0.1), m = floor(q), g = q - m:
+/// h' = (1 - g) src(r - m) + g src(r - m - 1) + dz, where src(k) is row k's
+/// height when row k lies in the grid and is valid there, else the cell's
+/// own height (nothing seen there: the cell keeps what it had; row 0 keeps
+/// its value when nothing lies behind). The same as weights max(0, 1 - |q -
+/// m|) on src(r - m) for every integer m, as the graph computes it:
+/// continuous in dx, so no runtime's rounding of q decides a cell.
+pub fn shift_rows(d: &mut Dem, dx: &[f64; GRID_ROWS], dz: &[f64; GRID_ROWS]) {
+    let z = heights(d);
+    let lim = MAX_SHIFT / dem_core::format::CELL;
+    for r in 0..GRID_ROWS {
+        let q = (dx[r] / dem_core::format::CELL).clamp(-lim, lim);
+        let m = q.floor();
+        let g = q - m;
+        let k = r as i64 - m as i64;
+        for c in 0..COLS {
+            let Some(own) = z[r][c] else { continue };
+            let src = |k: i64| usize::try_from(k).ok().filter(|&k| k < GRID_ROWS).and_then(|k| z[k][c]).unwrap_or(own);
+            let h = (1.0 - g) * src(k) + g * src(k - 1);
+            d.set_valid(r, c, (h + dz[r]) as f32);
+        }
+    }
+}
+
 fn smooth(d: &mut Dem, w: f64) {
     let z = heights(d);
     let wn = (1.0 - w) / 8.0;
@@ -1247,6 +1436,235 @@ mod tests {
         d.set_valid(5, 0, 0.2); // x = -0.05: below 0.415
         Effect::ViewTop { h: 0.4, t: 0.3 }.apply(&mut d, &mut rng());
         assert!(!d.is_valid(15, 0) && d.is_valid(5, 0) && d.valid_cells() == 99);
+    }
+
+    /// Heights of `d` as f64 (None where missing), for the references below.
+    fn grid(d: &Dem) -> Vec<Vec<Option<f64>>> {
+        (0..GRID_ROWS).map(|r| (0..COLS).map(|c| d.is_valid(r, c).then(|| d.height(r, c) as f64)).collect()).collect()
+    }
+
+    /// A slow reference of a row shift: the column read at x_r - dx[r] by
+    /// finding the two row centres around it (x_k = -0.55 + 0.1 k, any
+    /// integer k) and interpolating, a row outside the grid or missing
+    /// reading the cell's own height; plus dz[r].
+    fn reference_shift(z: &[Vec<Option<f64>>], dx: &[f64], dz: &[f64]) -> Vec<Vec<Option<f64>>> {
+        let xk = |k: i64| -0.55 + 0.1 * k as f64;
+        (0..GRID_ROWS)
+            .map(|r| {
+                (0..COLS)
+                    .map(|c| {
+                        let own = z[r][c]?;
+                        let p = xk(r as i64) - dx[r].clamp(-MAX_SHIFT, MAX_SHIFT);
+                        let k = (-40..40).filter(|&k| xk(k) <= p + 1e-12).max().unwrap();
+                        let w = ((p - xk(k)) / 0.1).clamp(0.0, 1.0);
+                        let val = |k: i64| if (0..GRID_ROWS as i64).contains(&k) { z[k as usize][c].unwrap_or(own) } else { own };
+                        Some((1.0 - w) * val(k) + w * val(k + 1) + dz[r])
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+
+    fn assert_close(got: &Dem, want: &[Vec<Option<f64>>], tol: f64, what: &str) {
+        for r in 0..GRID_ROWS {
+            for c in 0..COLS {
+                match want[r][c] {
+                    None => assert!(!got.is_valid(r, c), "{what}: ({r}, {c}) stays missing"),
+                    Some(h) => {
+                        assert!(got.is_valid(r, c), "{what}: ({r}, {c}) stays valid");
+                        assert!((got.height(r, c) as f64 - h).abs() <= tol, "{what}: ({r}, {c}) {} vs {h}", got.height(r, c));
+                    }
+                }
+            }
+        }
+    }
+
+    /// A DEM of varied heights (a riser, a drop, a slope) with a few
+    /// missing cells.
+    fn rough() -> Dem {
+        let mut d = empty_dem();
+        for r in 0..GRID_ROWS {
+            for c in 0..COLS {
+                let h = match r {
+                    0..=6 => -0.07 + 0.01 * c as f64,
+                    7..=11 => 0.1 + 0.02 * r as f64,
+                    _ => -0.2 + 0.03 * (r as f64 - 12.0),
+                };
+                d.set_valid(r, c, h as f32);
+            }
+        }
+        for (r, c) in [(0, 1), (5, 2), (6, 2), (12, 4), (19, 0), (10, 3)] {
+            d.set_missing(r, c);
+        }
+        d
+    }
+
+    /// tilt on flat ground is exactly the plane h + a (max(x, x0) - x0) +
+    /// b y, a = pitch z1, b = roll z2 from the record's Box-Muller pair; a
+    /// missing cell stays missing.
+    #[test]
+    fn tilt_on_flat_ground_is_the_plane() {
+        for (u, x0) in [([0.3f32, 0.1f32], 0.45), ([0.93, 0.71], -0.6), ([0.01, 0.5], 1.2)] {
+            let (pitch, roll) = (0.02, 0.015);
+            let (z1, z2) = crate::draws::box_muller(u[0], u[1]);
+            let mut d = flat();
+            d.set_missing(3, 3);
+            Effect::Tilt { pitch, roll, x0 }.apply_drawn(&mut d, &u, None);
+            let mut want = grid(&flat());
+            want[3][3] = None;
+            for (r, row) in want.iter_mut().enumerate() {
+                for (c, h) in row.iter_mut().enumerate() {
+                    let x = row_center_x(r);
+                    *h = h.map(|h| h + pitch * z1 * (x.max(x0) - x0) + roll * z2 * col_center_y(c));
+                }
+            }
+            assert_close(&d, &want, 1e-7, "tilt");
+            // Behind x0 every row reads the same as x0's: no pitch there.
+            if x0 > -0.5 {
+                assert_eq!(d.height(0, 0), d.height(1, 0));
+            }
+        }
+        assert!(Effect::Tilt { pitch: 0.6, roll: 0.0, x0: 0.0 }.check().is_err());
+        assert!(Effect::Tilt { pitch: 0.01, roll: -0.01, x0: 0.0 }.check().is_err());
+    }
+
+    /// shake: the same plane about C (x from C, every row) with sd sigma +
+    /// edge J, J the largest step between x-neighbours of rows 2..=9; a
+    /// step farther ahead is not under the tracks.
+    #[test]
+    fn shake_rocks_about_c_with_the_step_under_the_tracks() {
+        let u = [0.2f32, 0.3f32];
+        let (z1, z2) = crate::draws::box_muller(u[0], u[1]);
+        let (sigma, edge) = (0.003, 0.07);
+        for (step_row, rise, j) in [(8, 0.12, 0.12), (13, 0.12, 0.0), (6, 0.9, SHAKE_MAX_STEP), (2, 0.1, 0.0)] {
+            let mut d = flat();
+            for r in step_row..GRID_ROWS {
+                (0..COLS).for_each(|c| d.set_valid(r, c, FLAT_GROUND + rise as f32));
+            }
+            let before = grid(&d);
+            assert!((step_under_tracks(&d) - j).abs() < 1e-6, "step at {step_row}: {}", step_under_tracks(&d));
+            Effect::Shake { sigma, edge }.apply_drawn(&mut d, &u, None);
+            let s = sigma + edge * j;
+            let want: Vec<Vec<Option<f64>>> = (0..GRID_ROWS)
+                .map(|r| (0..COLS).map(|c| before[r][c].map(|h| h + s * z1 * row_center_x(r) + s * z2 * col_center_y(c))).collect())
+                .collect();
+            assert_close(&d, &want, 1e-6, "shake");
+        }
+        assert!(Effect::Shake { sigma: 0.01, edge: -0.1 }.check().is_err());
+    }
+
+    /// lag of a step moves it by s: at s = 0.1 m the row beyond the riser
+    /// reads the lower surface; at 0.05 m it reads the mean; the climb
+    /// s tan(pitch) is added from row 20; row 0 keeps its value; a missing
+    /// cell behind is read as the cell's own height; validity is kept.
+    #[test]
+    fn lag_moves_a_step_by_s_and_adds_the_climb() {
+        let step = || {
+            let mut d = flat();
+            for r in 10..GRID_ROWS {
+                (0..COLS).for_each(|c| d.set_valid(r, c, 0.1));
+            }
+            d
+        };
+        let mut d = step();
+        Effect::Lag { s: 0.1, spread: 0.0 }.apply_drawn(&mut d, &[0.77], None);
+        assert!((d.height(10, 0) - FLAT_GROUND).abs() < 1e-6 && (d.height(11, 0) - 0.1).abs() < 1e-6);
+        assert!((d.height(0, 0) - FLAT_GROUND).abs() < 1e-6, "row 0 keeps its value");
+        let mut d = step();
+        Effect::Lag { s: 0.05, spread: 0.0 }.apply_drawn(&mut d, &[0.3], None);
+        assert!((d.height(10, 2) as f64 - (0.1 + -0.07) / 2.0).abs() < 1e-6 && (d.height(11, 2) - 0.1).abs() < 1e-6);
+        // The climb: pitch 0.3 rad, u = 0.75 with spread 0.4: s_r = 0.06 (1 + 0.2).
+        let mut d = step();
+        let mut att = d.attitude();
+        att[0] = 0.3;
+        d.set_attitude(att);
+        d.set_missing(4, 1);
+        Effect::Lag { s: 0.06, spread: 0.4 }.apply_drawn(&mut d, &[0.75], None);
+        let sr = 0.06 * 1.2;
+        let mut z = grid(&step());
+        z[4][1] = None;
+        let want = reference_shift(&z, &[sr; GRID_ROWS], &[sr * 0.3f64.tan(); GRID_ROWS]);
+        assert_close(&d, &want, 1e-6, "lag with a climb");
+        assert!(!d.is_valid(4, 1) && d.attitude()[0] == 0.3);
+        // A missing cell behind a valid one: the valid one reads its own
+        // height in its place (row 5, column 1: row 4 is missing).
+        assert!((d.height(5, 1) as f64 - (FLAT_GROUND as f64 + sr * 0.3f64.tan())).abs() < 1e-6);
+        assert!(Effect::Lag { s: 0.6, spread: 0.0 }.check().is_err() && Effect::Lag { s: 0.1, spread: 1.5 }.check().is_err());
+    }
+
+    /// lag against the slow reference on a rough DEM, shifts either way
+    /// and across whole rows.
+    #[test]
+    fn lag_equals_the_reference() {
+        let mut r = rng();
+        for (s, spread) in [(0.04, 0.5), (0.15, 1.0), (-0.12, 0.3), (0.5, 1.0), (-0.5, 1.0), (0.1, 0.0)] {
+            for _ in 0..50 {
+                let u = [crate::draws::uniform(&mut r)];
+                let mut d = rough();
+                let mut att = d.attitude();
+                att[0] = -0.4;
+                d.set_attitude(att);
+                Effect::Lag { s, spread }.apply_drawn(&mut d, &u, None);
+                let sr = s * (1.0 + spread * (2.0 * f64::from(u[0]) - 1.0));
+                let want = reference_shift(&grid(&rough()), &[sr; GRID_ROWS], &[sr * (-0.4f64).tan(); GRID_ROWS]);
+                assert_close(&d, &want, 1e-6, &format!("lag s {s} spread {spread} u {}", u[0]));
+            }
+        }
+    }
+
+    /// drift with rates 0 is the identity; rows from x0 on never move; the
+    /// rest equals the slow reference (walks summed by hand), and the
+    /// height walk's spread grows as the square root of the rows behind x0.
+    #[test]
+    fn drift_is_a_walk_back_from_x0() {
+        let mut r = rng();
+        let mut u = vec![0.0f32; 40];
+        for x0 in [-1.0, 0.3, 0.45, 2.0] {
+            crate::draws::fill_uniform(&mut r, &mut u);
+            let mut d = rough();
+            Effect::Drift { rate: 0.0, zrate: 0.0, x0 }.apply_drawn(&mut d, &u, None);
+            assert_eq!(d, rough(), "rates 0: the identity");
+        }
+        for (rate, zrate, x0) in [(0.05, 0.02, 0.3), (0.2, 0.0, 1.5), (3.0, 0.1, 0.0), (0.1, 0.05, -0.7)] {
+            for _ in 0..50 {
+                crate::draws::fill_uniform(&mut r, &mut u);
+                let mut d = rough();
+                Effect::Drift { rate, zrate, x0 }.apply_drawn(&mut d, &u, None);
+                let normals: Vec<(f64, f64)> = u.chunks(2).map(|p| crate::draws::box_muller(p[0], p[1])).collect();
+                let (mut dx, mut dz) = (vec![0.0; GRID_ROWS], vec![0.0; GRID_ROWS]);
+                for row in 0..GRID_ROWS {
+                    if row_center_x(row) < x0 {
+                        for j in row..GRID_ROWS {
+                            if row_center_x(j) < x0 {
+                                dx[row] += rate * 0.1f64.sqrt() * normals[j].0;
+                                dz[row] += zrate * 0.1f64.sqrt() * normals[j].1;
+                            }
+                        }
+                    }
+                }
+                let want = reference_shift(&grid(&rough()), &dx, &dz);
+                assert_close(&d, &want, 2e-6, &format!("drift {rate} {zrate} {x0}"));
+                for row in (0..GRID_ROWS).filter(|&row| row_center_x(row) >= x0) {
+                    (0..COLS).for_each(|c| assert_eq!(d.height(row, c), rough().height(row, c)));
+                }
+            }
+        }
+        // On flat ground the height walk alone shows: sd zrate sqrt(0.1 k)
+        // in the k-th row behind x0 = 0.3 (rows 8, 7, ...: k = 1, 2, ...).
+        let (zrate, n) = (0.02, 4000);
+        let mut sq = [0.0f64; GRID_ROWS];
+        for _ in 0..n {
+            crate::draws::fill_uniform(&mut r, &mut u);
+            let mut d = flat();
+            Effect::Drift { rate: 0.05, zrate, x0: 0.3 }.apply_drawn(&mut d, &u, None);
+            (0..GRID_ROWS).for_each(|row| sq[row] += (d.height(row, 0) as f64 - FLAT_GROUND as f64).powi(2));
+        }
+        for row in 0..GRID_ROWS {
+            let sd = (sq[row] / n as f64).sqrt();
+            let k = (0..GRID_ROWS).filter(|&j| j >= row && row_center_x(j) < 0.3).count() as f64;
+            let want = zrate * (0.1 * k).sqrt();
+            assert!((sd - want).abs() <= 0.04 * want + 1e-9, "row {row}: sd {sd} vs {want}");
+        }
     }
 
     #[test]

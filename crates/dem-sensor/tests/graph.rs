@@ -90,6 +90,12 @@ fn every_effect() -> Vec<Effect> {
         Effect::FloorLift { x: 0.6, p: 0.7, a: 1.5 },
         Effect::RiserBlend { foot: 0.4, top: -0.3 },
         Effect::MixedCells { up: 0.04, down: 0.06 },
+        Effect::Tilt { pitch: 0.02, roll: 0.015, x0: 0.45 },
+        Effect::Shake { sigma: 0.003, edge: 0.1 },
+        Effect::Lag { s: 0.08, spread: 0.6 },
+        Effect::Lag { s: -0.3, spread: 1.0 },
+        Effect::Drift { rate: 0.08, zrate: 0.03, x0: 0.4 },
+        Effect::Drift { rate: 2.0, zrate: 0.0, x0: 2.0 },
     ]
 }
 
@@ -112,6 +118,8 @@ fn every_effect_alone_computes_the_same_in_the_graph() {
 fn a_model_of_several_effects_computes_the_same_in_the_graph() {
     let model = SensorModel::from_json(
         r#"{"effects": [
+            {"effect": "lag", "params": {"s": 0.05, "spread": 0.5}},
+            {"effect": "drift", "params": {"rate": 0.05, "zrate": 0.01, "x0": 0.4}},
             {"effect": "fov", "params": {"x_min": -0.45, "x_max": 1.2}},
             {"effect": "startup", "params": {"x0": 0.3, "v": 0.25, "p": 0.3}},
             {"effect": "occlusion", "params": {"h": 0.42, "x0": 0.12}},
@@ -120,6 +128,8 @@ fn a_model_of_several_effects_computes_the_same_in_the_graph() {
             {"effect": "mixed-cells", "params": {"up": 0.03, "down": 0.05}},
             {"effect": "floor-lift", "params": {"x": 2.0, "p": 0.4, "a": 1.2}},
             {"effect": "smoothing", "params": {"w": 0.7}},
+            {"effect": "tilt", "params": {"pitch": 0.01, "roll": 0.01, "x0": 0.4}},
+            {"effect": "shake", "params": {"sigma": 0.002, "edge": 0.07}},
             {"effect": "noise", "params": {"sigma0": 0.004, "k": 0.01}},
             {"effect": "noise", "params": {"sigma0": 0.002, "k": 0.0}},
             {"effect": "dropout", "params": {"p": 0.05}},

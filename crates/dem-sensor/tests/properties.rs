@@ -45,6 +45,10 @@ proptest! {
             "riser-blend" => format!(r#"{{"foot":{},"top":{}}}"#, a / 10.0, b / 10.0),
             "floor-lift" => format!(r#"{{"x":{a},"p":{c},"a":{b}}}"#),
             "view-top" => format!(r#"{{"h":{a},"t":{b}}}"#),
+            "tilt" => format!(r#"{{"pitch":{},"roll":{},"x0":{a}}}"#, c / 4.0, b / 40.0),
+            "shake" => format!(r#"{{"sigma":{},"edge":{b}}}"#, c / 4.0),
+            "lag" => format!(r#"{{"s":{},"spread":{c}}}"#, a / 40.0),
+            "drift" => format!(r#"{{"rate":{c},"zrate":{b},"x0":{a}}}"#),
             other => unreachable!("{other}"),
         };
         let json = format!(r#"{{"effects":[{{"effect":"{effect}","params":{params}}}]}}"#);
@@ -77,6 +81,10 @@ fn extreme(effect: &str, a: f64, b: f64, s: f64) -> String {
         "riser-blend" => format!(r#"{{"foot":{},"top":{}}}"#, s * a, -s * b),
         "floor-lift" => format!(r#"{{"x":{},"p":{a},"a":{}}}"#, s * 10.0 * b, 10.0 * b),
         "view-top" => format!(r#"{{"h":{},"t":{}}}"#, s * 10.0 * a, 10.0 * b),
+        "tilt" => format!(r#"{{"pitch":{},"roll":{},"x0":{}}}"#, 0.5 * a, 0.5 * b, s * 10.0 * b),
+        "shake" => format!(r#"{{"sigma":{},"edge":{}}}"#, 0.5 * a, 10.0 * b),
+        "lag" => format!(r#"{{"s":{},"spread":{b}}}"#, s * 0.5 * a),
+        "drift" => format!(r#"{{"rate":{},"zrate":{},"x0":{}}}"#, 10.0 * a, 10.0 * b, s * 10.0 * a),
         other => unreachable!("{other}"),
     };
     format!(r#"{{"effect":"{effect}","params":{p}}}"#)

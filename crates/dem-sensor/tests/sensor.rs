@@ -53,7 +53,7 @@ fn deterministic_effects_equal_the_numpy_implementation() {
     let dir = tempdir();
     let small = arg(dir.path(), "s.npy");
     dem_testkit::py(dir.path(), &format!("import numpy as np\nnp.save('s.npy', np.load({:?})[::7])", td("sim.npy")));
-    for spec in ["occlusion:h=0.45,x0=0.15", "fov:x_min=-0.33,x_max=0.97", "smoothing:w=0.4", "bias:b=0.02,t=0.03", "quantization:q=0.021", "edge-holes:g=0.06,p=1", "rim-holes:g=0.06,p=1", "pit-fill:g=0.03,p=1", "view-top:h=0.4,t=0.3"] {
+    for spec in ["occlusion:h=0.45,x0=0.15", "fov:x_min=-0.33,x_max=0.97", "smoothing:w=0.4", "bias:b=0.02,t=0.03", "quantization:q=0.021", "edge-holes:g=0.06,p=1", "rim-holes:g=0.06,p=1", "pit-fill:g=0.03,p=1", "view-top:h=0.4,t=0.3", "lag:s=0.07,spread=0", "lag:s=-0.23,spread=0"] {
         let (name, params) = spec.split_once(':').unwrap();
         let json_params: Vec<String> =
             params.split(',').map(|kv| kv.split_once('=').unwrap()).map(|(k, v)| format!("\"{k}\": {v}")).collect();
