@@ -45,6 +45,24 @@ fn paired_misses(real: &Stats, before: &Stats, more: &str, not_more: &str) -> St
     )
 }
 
+/// Unpaired evidence of a per-record tilt (`tilt`, `shake`): tilted heights
+/// leave fewer level neighbours and more small steps than sim's flat cells.
+fn tilted_unpaired(real: &Stats, before: &Stats, what: &str) -> String {
+    let (rl, bl) = (real.mean_over("level-pairs", 0..20), before.mean_over("level-pairs", 0..20));
+    let verdict = if rl < bl && small_steps(real) > small_steps(before) {
+        format!("level ground reads tilted in real: {what}")
+    } else {
+        "real has as many level neighbours and small steps: a tilt is the closest effect, not a clear one".to_string()
+    };
+    format!(
+        "neighbouring cells across the robot of equal height real {} vs model {}; neighbour differences of 0.1-10 mm real {} vs model {}: {verdict}",
+        pct(rl),
+        pct(bl),
+        pct(small_steps(real)),
+        pct(small_steps(before)),
+    )
+}
+
 /// One sentence of evidence for `effect`, from the statistics of the model
 /// before it was added, after, and of real.
 pub fn evidence(effect: &Effect, before: &Stats, after: &Stats, real: &Stats, gap_before: f64, gap_after: f64) -> String {
@@ -300,6 +318,43 @@ pub fn evidence(effect: &Effect, before: &Stats, after: &Stats, real: &Stats, ga
                 format!("steps between neighbouring rows of 0.02-0.1 m: real {} vs model {}: {verdict}", pct(mid(real)), pct(mid(before)))
             }
         }
+        Effect::Tilt { pitch, roll, .. } if !real.paired => tilted_unpaired(
+            real,
+            before,
+            &format!("a camera angle that differs from record to record (sd pitch {:.2}, roll {:.2} degrees)", pitch.to_degrees(), roll.to_degrees()),
+        ),
+        Effect::Shake { sigma, edge } if !real.paired => tilted_unpaired(
+            real,
+            before,
+            &format!(
+                "the body rocks about its centre, with sd {:.2} degrees plus {:.2} degrees per 10 cm of step under the tracks",
+                sigma.to_degrees(),
+                (0.1 * edge).to_degrees()
+            ),
+        ),
+        Effect::Drift { rate, zrate, x0 } if !real.paired => {
+            // Along-x steps between the rows behind x0 (each row its own
+            // height offset) against those ahead of it.
+            let behind = (0..GRID_ROWS).filter(|&r| row_center_x(r) < x0).count().clamp(2, 18);
+            let e = |s: &Stats, rows: std::ops::Range<usize>| s.mean_over("edge-2cm", rows);
+            let (rb, bb, ra, ba) = (e(real, 0..behind - 1), e(before, 0..behind - 1), e(real, behind..19), e(before, behind..19));
+            let verdict = if rb - bb > ra - ba && rb > bb {
+                format!(
+                    "the rows behind x0 step against each other: rows seen earlier are displaced by a pose that walks {:.0} mm along x and {:.0} mm in height per sqrt(m) travelled",
+                    1000.0 * rate,
+                    1000.0 * zrate
+                )
+            } else {
+                "no more steps behind x0 than ahead of it in real: the drift is the closest effect, not a clear one".to_string()
+            };
+            format!(
+                "steps above 2 cm between neighbouring rows behind x = {x0:.2} m real {} vs model {}, ahead of it real {} vs model {}: {verdict}",
+                pct(rb),
+                pct(bb),
+                pct(ra),
+                pct(ba),
+            )
+        }
         Effect::Tilt { pitch, roll, x0 } => {
             // Rows just ahead of x0 (the pivot) against the far rows: a
             // tilt's spread grows with the distance past x0.
@@ -525,6 +580,21 @@ mod tests {
             assert!(s.contains(says), "{e}: {s}");
             let s = evidence(&e, &model, &model, &model, 2.0, 1.0);
             assert!(s.contains("not a clear one"), "{e}: {s}");
+        }
+        // Unpaired, on flat ground: tilted records leave fewer level
+        // neighbours; drift's rows behind x0 step against each other.
+        let sim = vec![flat; 400];
+        for (e, says) in [
+            (Effect::Tilt { pitch: 0.02, roll: 0.02, x0: 0.45 }, "level ground reads tilted"),
+            (Effect::Shake { sigma: 0.02, edge: 0.0 }, "level ground reads tilted"),
+            (Effect::Drift { rate: 0.05, zrate: 0.1, x0: 0.45 }, "rows behind x0 step against each other"),
+        ] {
+            let mut real = sim.clone();
+            SensorModel { effects: vec![e] }.apply_all(&mut real, 5, 0);
+            let (model, measured) = (stats(&sim, None), stats(&real, None));
+            let s = evidence(&e, &model, &model, &measured, 2.0, 1.0);
+            assert!(s.contains(says), "{e}: {s}");
+            assert!(evidence(&e, &model, &model, &model, 2.0, 1.0).contains("not a clear one"), "{e}");
         }
     }
 
