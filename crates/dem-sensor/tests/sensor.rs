@@ -213,3 +213,49 @@ fn only_applies_the_named_effects_with_their_draws_and_names_a_missing_one() {
     assert_eq!(missing.status.code(), Some(2));
     assert!(stderr(&missing).contains("m.json: the model has no startup effect (it has: fov, occlusion"), "{}", stderr(&missing));
 }
+
+/// The random motion effects against the independent numpy implementation:
+/// different draws, so the same distribution. On a third of the sim
+/// records, each row's residual sd (the effect's output minus the input,
+/// over valid cells) agrees within 12 % (or 0.5 mm); validity is kept.
+#[test]
+fn motion_effects_equal_the_numpy_implementation_in_distribution() {
+    let dir = tempdir();
+    let small = arg(dir.path(), "s.npy");
+    dem_testkit::py(dir.path(), &format!("import numpy as np\nnp.save('s.npy', np.load({:?})[::3])", td("sim.npy")));
+    let input = npy::read_all(&small).unwrap();
+    let row_sd = |out: &[dem_core::Dem]| -> Vec<f64> {
+        (0..20)
+            .map(|r| {
+                let v: Vec<f64> = out
+                    .iter()
+                    .zip(&input)
+                    .flat_map(|(a, b)| (0..5).filter(|&c| b.is_valid(r, c)).map(move |c| f64::from(a.height(r, c)) - f64::from(b.height(r, c))))
+                    .collect();
+                let m = v.iter().sum::<f64>() / v.len().max(1) as f64;
+                (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / v.len().max(1) as f64).sqrt()
+            })
+            .collect()
+    };
+    for spec in ["tilt:pitch=0.02,roll=0.015,x0=0.4", "shake:sigma=0.003,edge=0.1", "lag:s=0.08,spread=0.6", "drift:rate=0.08,zrate=0.03,x0=0.4"] {
+        let (name, params) = spec.split_once(':').unwrap();
+        let json_params: Vec<String> =
+            params.split(',').map(|kv| kv.split_once('=').unwrap()).map(|(k, v)| format!("\"{k}\": {v}")).collect();
+        let model = arg(dir.path(), "m.json");
+        std::fs::write(&model, format!(r#"{{"effects": [{{"effect": "{name}", "params": {{{}}}}}]}}"#, json_params.join(", "))).unwrap();
+        let rust = npy::NpyReader::new(ok(&run("dem-sensor", &["apply", "--sensor", &model, "--seed", "2", &small], None)), "stdout", None)
+            .read_to_end()
+            .unwrap();
+        let py_out = arg(dir.path(), "p.npy");
+        let o = Command::new(python()).arg(workspace_root().join("scripts/hidden_effects.py")).args([&small, &py_out, "5", spec]).output().unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let theirs = npy::read_all(&py_out).unwrap();
+        for out in [&rust, &theirs] {
+            assert!(out.iter().zip(&input).all(|(a, b)| (0..100).all(|i| a.is_valid(i / 5, i % 5) == b.is_valid(i / 5, i % 5))), "{spec}: validity kept");
+        }
+        let (a, b) = (row_sd(&rust), row_sd(&theirs));
+        for r in 0..20 {
+            assert!((a[r] - b[r]).abs() <= 0.12 * a[r].max(b[r]) + 5e-4, "{spec}: row {r} sd {:.4} (dem-sensor) vs {:.4} (numpy); {a:?} vs {b:?}", a[r], b[r]);
+        }
+    }
+}
