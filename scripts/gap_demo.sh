@@ -19,7 +19,7 @@ RUNS=${RUNS:-20}
 EXACT_RUNS=${EXACT_RUNS:-60}
 SYNTH_ARGS=${SYNTH_ARGS:-}
 GAP_ARGS=${GAP_ARGS:-}
-STAGES=${STAGES:-"fov occlusion smoothing noise dropout holes"}
+STAGES=${STAGES:-"fov occlusion smoothing noise dropout holes drift latency extrinsic vibration"}
 dir="$OUT/gap"
 mkdir -p "$dir"
 synth() { # out-dir runs [flags]
@@ -59,6 +59,10 @@ expect = {
     "noise": {"noise"},
     "dropout": {"patch-dropout", "dropout"},
     "holes": {"hole-growth", "drop-holes", "edge-holes", "rim-holes", "dropout", "patch-dropout"},
+    "drift": {"drift"},
+    "latency": {"lag"},
+    "extrinsic": {"tilt"},
+    "vibration": {"shake"},
 }
 cases = [(f"no-{s}-{m}", f"{s} ({m})", s) for s in stages for m in ("paired", "unpaired")]
 cases += [("exact-paired", "exact sim -> all (paired)", None), ("exact-unpaired", "exact sim -> all (unpaired)", None)]

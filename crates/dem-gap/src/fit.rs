@@ -11,6 +11,8 @@ use dem_sensor::{Effect, SensorModel};
 
 use dem_core::distribution::{gap, hides_too_much, stats, Stats};
 
+mod prefix;
+
 /// One parameter's search range; `log` searches log(value).
 #[derive(Debug, Clone, Copy)]
 pub struct Range {
@@ -253,6 +255,8 @@ fn fit_in(name: &str, base: &SensorModel, target: &Target, ranges: &[Range], fix
         }
         v
     };
+    let probe = Effect::from_values(name, &values(&vec![0.5; dims]))?;
+    let prepared = prefix::Prepared::new(target, base, &probe);
     let eval = |u: &[f64]| -> f64 {
         let v = values(u);
         match Effect::from_values(name, &v) {

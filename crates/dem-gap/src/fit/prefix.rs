@@ -1,0 +1,122 @@
+//! A fit evaluates hundreds of parameter points of one candidate on top of
+//! the same base model. The base effects that act before the candidate
+//! ([`SensorModel::with`] inserts it after every effect of an earlier or
+//! equal stage) give the same output at every point, so they are applied
+//! once and each point applies only the candidate and the effects after it.
+//!
+//! The result is the same, bit for bit, as applying the whole model: each
+//! effect's draws come from its own stream, keyed by its name, its
+//! occurrence among effects of that name and the record
+//! ([`dem_sensor::effect_rng`]), not by its position; splitting the model
+//! keeps every occurrence count when no name of the part applied later
+//! also occurs in the part applied first (otherwise the whole model is
+//! applied at every point).
+
+use dem_core::distribution::{gap, hides_too_much, stats};
+use dem_core::format::Dem;
+use dem_sensor::{Effect, SensorModel};
+
+use super::Target;
+
+/// The base model's output before a candidate's place, ready for every
+/// parameter point of that candidate.
+pub struct Prepared<'a> {
+    target: &'a Target<'a>,
+    base: &'a SensorModel,
+    /// Where the candidate goes in the base model.
+    at: usize,
+    /// The sim records after `base.effects[..at]`; None when the model
+    /// cannot be split there.
+    before: Option<Vec<Dem>>,
+}
+
+/// Where [`SensorModel::with`] inserts `e` into `base`.
+fn place(base: &SensorModel, e: &Effect) -> usize {
+    base.effects.iter().position(|x| x.stage() > e.stage()).unwrap_or(base.effects.len())
+}
+
+impl<'a> Prepared<'a> {
+    /// Apply the part of `base` before `probe`'s place once (`probe`: any
+    /// parameter point of the candidate; its name decides the place).
+    pub fn new(target: &'a Target<'a>, base: &'a SensorModel, probe: &Effect) -> Self {
+        let at = place(base, probe);
+        let (first, later) = base.effects.split_at(at);
+        let shared = later.iter().chain(std::iter::once(probe)).any(|l| first.iter().any(|f| f.name() == l.name()));
+        let before = (!shared).then(|| {
+            let mut out = target.sim.to_vec();
+            SensorModel { effects: first.to_vec() }.apply_all_at(&mut out, target.seed, 0, target.times);
+            out
+        });
+        Prepared { target, base, at, before }
+    }
+
+    /// [`Target::gap`] of `base` with `e` added.
+    pub fn gap(&self, e: Effect) -> f64 {
+        let before = match &self.before {
+            Some(b) if place(self.base, &e) == self.at => b,
+            _ => return self.target.gap(&self.base.with(e)),
+        };
+        let mut out = before.clone();
+        let rest = SensorModel { effects: std::iter::once(e).chain(self.base.effects[self.at..].iter().cloned()).collect() };
+        rest.apply_all_at(&mut out, self.target.seed, 0, self.target.times);
+        let s = stats(&out, self.target.paired.then_some(self.target.sim));
+        if hides_too_much(&s, self.target.real).is_some() {
+            return f64::INFINITY;
+        }
+        gap(&s, self.target.real)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use dem_core::format::{col_center_y, empty_dem, row_center_x, DemCells, COLS, GRID_ROWS};
+
+    /// Stairs with a missing cell, a few records apart in height.
+    fn records(n: usize) -> Vec<Dem> {
+        (0..n)
+            .map(|i| {
+                let mut d = empty_dem();
+                for r in 0..GRID_ROWS {
+                    for c in 0..COLS {
+                        let step = if row_center_x(r) > 0.3 { 0.17 } else { 0.0 };
+                        d.set_valid(r, c, (step - 0.07 + 0.01 * i as f64 + 0.001 * col_center_y(c)) as f32);
+                    }
+                }
+                d.set_missing(3 + i % 5, i % COLS);
+                d
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_split_model_gives_the_whole_model_s_gap_bit_for_bit() {
+        let sim = records(40);
+        let mut real_recs = sim.clone();
+        SensorModel { effects: vec![Effect::Noise { sigma0: 0.004, k: 0.01 }, Effect::Dropout { p: 0.1 }] }.apply_all(&mut real_recs, 9, 0);
+        for paired in [true, false] {
+            let real = stats(&real_recs, paired.then_some(sim.as_slice()));
+            let target = Target { sim: &sim, times: None, paired, real: &real, seed: 3 };
+            let base = SensorModel {
+                effects: vec![
+                    Effect::Occlusion { h: 0.5, x0: 0.1 },
+                    Effect::Smoothing { w: 0.6 },
+                    Effect::Noise { sigma0: 0.002, k: 0.0 },
+                    Effect::RowDropout { p: 0.05 },
+                ],
+            };
+            for e in [
+                Effect::Dropout { p: 0.07 },
+                Effect::Bias { b: 0.01, t: 0.0 },
+                Effect::EdgeHoles { g: 0.1, p: 0.5 },
+                Effect::Fov { x_min: -0.3, x_max: 1.2 },
+                // A second noise: the model cannot be split after the first.
+                Effect::Noise { sigma0: 0.001, k: 0.002 },
+            ] {
+                let prepared = Prepared::new(&target, &base, &e);
+                let (split, whole) = (prepared.gap(e), target.gap(&base.with(e)));
+                assert_eq!(split.to_bits(), whole.to_bits(), "{e}, paired {paired}: {split} vs {whole}");
+            }
+        }
+    }
+}
