@@ -21,11 +21,15 @@
 //!    also gives the unpaired sampling floor, two halves of real scaled to
 //!    the set sizes ([`noise_floor`]), as what to expect of a perfect model.
 //! 4. **show**: [`report`] writes `report.json`, `sensor.json`, `report.md`
-//!    and its pictures.
+//!    and its pictures; [`unexplained`] says what the final model leaves
+//!    above the sampling floor and where (statistic, band of rows, side,
+//!    terrain), flags weak steps, and, for a gap below the floor, how many
+//!    records (runs) would show it.
 
 pub mod evidence;
 pub mod fit;
 pub mod report;
+pub mod unexplained;
 
 use rand::seq::index::sample;
 use rand::{Rng, SeedableRng};
@@ -223,6 +227,14 @@ pub struct Outcome {
     pub terrain_mix: Option<(usize, usize)>,
     /// Unpaired over the records of pairs (`--unpaired` with `--pairs`).
     pub over_pairs: bool,
+    /// What the final model leaves above the sampling floor, and where.
+    pub unexplained: unexplained::Unexplained,
+    /// With the start gap below its sampling floor: the records (runs)
+    /// that would lift it above.
+    pub more_data: Option<unexplained::MoreData>,
+    /// Missing-cell rates behind and ahead of the robot, for all records
+    /// and per terrain (labels).
+    pub missing_bands: Vec<unexplained::BandRow>,
 }
 
 /// The compared sets: model side (sim) and real side, aligned when paired.
@@ -715,7 +727,38 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
         [mean(&SensorModel::default()), mean(&cfg.start), mean(&model)]
     });
     let terrains = per_terrain(sets, &cfg.start, &model, cfg.seed);
-    let floor = if model == cfg.start { floor_initial } else { floor_of(&model) };
+    // The final model's two draws, once: the draw floor (as `draw_floor`
+    // takes it) and what the model leaves unexplained, where.
+    let (out_a, stats_a) = measure(&model, &sets.sim, paired, cfg.seed);
+    let (out_b, stats_b) = measure(&model, &sets.sim, paired, other_draws(cfg.seed));
+    let floor = if model == cfg.start { floor_initial } else { split_floor.max(gap(&stats_a, &stats_b)) };
+    drop((stats_a, stats_b));
+    let real_h = (!paired && sets.real.len() >= 100).then(|| real_halves(sets));
+    let both_terrains = match (&sets.sim_terrain, &sets.real_terrain) {
+        (Some(s), Some(r)) => Some((&s[..], &r[..])),
+        _ => None,
+    };
+    let unexplained = unexplained::analyse(&unexplained::Inputs {
+        out_a: &out_a,
+        out_b: &out_b,
+        sim: &sets.sim,
+        real: &sets.real,
+        paired,
+        terrains: both_terrains,
+        halves: real_h.as_ref(),
+        gap: gap_final,
+        floor,
+        gap_initial,
+        steps: steps.iter().map(|s| (s.effect.name().to_string(), s.gap_before, s.gap_after)).collect(),
+    });
+    drop(out_b);
+    log(unexplained.summary());
+    let missing_bands = unexplained::missing_bands(&sets.sim, &out_a, &sets.real, both_terrains, sets.sim_time.is_some());
+    drop(out_a);
+    let more_data = unexplained::more_data(sets, &cfg.start, gap_initial, floor_initial, cfg.seed);
+    if let Some(m) = &more_data {
+        log(m.sentence(sets.real.len(), sets.sim.len()));
+    }
     Outcome {
         steps,
         gap_initial,
@@ -733,6 +776,9 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
         refits,
         terrain_mix: sets.terrain_mix,
         over_pairs: sets.over_pairs,
+        unexplained,
+        more_data,
+        missing_bands,
     }
 }
 
@@ -802,7 +848,7 @@ const HALF_BLOCK: usize = 50;
 
 /// Fewest real runs for halves of whole runs: with fewer, one run more or
 /// less in a half is most of its difference, and blocks are dealt instead.
-const MIN_RUNS_FOR_HALVES: usize = 8;
+pub const MIN_RUNS_FOR_HALVES: usize = 8;
 
 /// Two halves of the real records, for the sampling checks ([`halves`]).
 pub fn real_halves(sets: &Sets) -> [Vec<usize>; 2] {
@@ -835,6 +881,12 @@ pub fn sim_halves(sets: &Sets) -> [Vec<usize>; 2] {
 /// in the same order (a sim and a real recording of the same poses) are
 /// split alike.
 pub fn halves(n: usize, runs: Option<&[u64]>, terrain: Option<&[Terrain]>) -> [Vec<usize>; 2] {
+    halves_of_runs(n, runs, terrain, MIN_RUNS_FOR_HALVES)
+}
+
+/// [`halves`], dealing whole runs from `min_runs` runs on (the sampling
+/// floor at half the size deals a half's runs as the whole set's were).
+pub fn halves_of_runs(n: usize, runs: Option<&[u64]>, terrain: Option<&[Terrain]>, min_runs: usize) -> [Vec<usize>; 2] {
     let blocks = |idx: Vec<usize>| idx.chunks(HALF_BLOCK).map(<[usize]>::to_vec).collect::<Vec<_>>();
     // Runs in order of first appearance.
     let mut by_run: Vec<(u64, Vec<usize>)> = Vec::new();
@@ -844,7 +896,7 @@ pub fn halves(n: usize, runs: Option<&[u64]>, terrain: Option<&[Terrain]>) -> [V
             None => by_run.push((r, vec![i])),
         }
     }
-    let units: Vec<Vec<usize>> = if by_run.len() >= MIN_RUNS_FOR_HALVES {
+    let units: Vec<Vec<usize>> = if by_run.len() >= min_runs.max(2) {
         by_run.into_iter().map(|(_, v)| v).collect()
     } else {
         // Blocks within each terrain's records, so a block has one terrain.

@@ -10,8 +10,17 @@
 //!                            "gains_halves": [g1, g2], "named_gains_halves": [n1, n2]}]}],
 //!  "refits": [{"effect": NAME, "params_named": {...}, "params": {...}, "gap_before": x, "gap_after": y, "at_edge": [...]}],
 //!  "gap_initial": x, "gap_final": y, "gap_final_unseen": z,
-//!  "sampling_floor": f, "sampling_floor_initial": f0, ...}
+//!  "sampling_floor": f, "sampling_floor_initial": f0, ...,
+//!  "unexplained": {"gap", "floor", "excess", "share", "of_initial", "location": {"statistic", "row_band", "side", "terrain"},
+//!                  "by_statistic": [...], "by_row_band": [...], "by_side": [...], "by_terrain": [...], "by_row": [...],
+//!                  "weak_steps": [{"step", "effect", "removed"}]},
+//!  "records_needed": n | null, "runs_needed": n | null, "records_estimate": {...} | null,
+//!  "missing_by_band": [{"terrain", "band", "records", "sim", "model", "real", "flag", "reason"}]}
 //! ```
+//!
+//! `unexplained`: the final gap above the sampling floor and where it
+//! lives ([`crate::unexplained`]); `records_needed`: with the start gap
+//! below its floor, the records (runs) that would lift it above.
 //!
 //! `at_edge` names the parameters fitted on an edge of their search box
 //! (after widening it up to the effect's limits, `widened`): such an effect
@@ -41,9 +50,10 @@ use dem_core::{npy, output};
 
 use dem_core::distribution::gap_terms;
 use super::{Outcome, Sets};
+use crate::unexplained::{Part, BANDS, BAND_KEYS, GRID_WIDE, WEAK};
 
 /// Every file [`write()`] leaves in its folder.
-pub const FILES: [&str; 6] = ["report.json", "sensor.json", "report.md", "compare.png", "rows-missing.png", "rows-height.png"];
+pub const FILES: [&str; 7] = ["report.json", "sensor.json", "report.md", "compare.png", "rows-missing.png", "rows-height.png", "unexplained.png"];
 
 /// `report.json` of an outcome, in the exact schema of the module doc.
 pub fn report_json(o: &Outcome) -> Value {
@@ -74,7 +84,46 @@ pub fn report_json(o: &Outcome) -> Value {
     json!({"steps": steps, "refits": refits, "gap_initial": o.gap_initial, "gap_final": o.gap_final,
         "gap_final_unseen": o.gap_final_unseen, "sampling_floor": o.floor, "sampling_floor_initial": o.floor_initial,
         "sim_records": o.sizes.0, "real_records": o.sizes.1, "over_pairs": o.over_pairs,
-        "terrain_mix": o.terrain_mix.map(|(kept, of)| json!({"drawn": kept, "from": of}))})
+        "terrain_mix": o.terrain_mix.map(|(kept, of)| json!({"drawn": kept, "from": of})),
+        "unexplained": unexplained_json(&o.unexplained),
+        "records_needed": o.more_data.as_ref().map(|m| m.records),
+        "runs_needed": o.more_data.as_ref().and_then(|m| m.runs),
+        "records_estimate": o.more_data.as_ref().map(|m| json!({"gap": m.gap, "floor": m.floor, "floor_half": m.floor_half,
+            "exponent_measured": m.exponent_measured, "exponent": m.exponent, "factor": m.factor, "records": m.records,
+            "sim_records": m.sim_records, "runs": m.runs, "runs_now": m.runs_now})),
+        "missing_by_band": o.missing_bands.iter().map(|b| json!({"terrain": b.terrain.map(|t| t.as_str()), "band": b.band,
+            "records": b.records, "sim": b.missing[0], "model": b.missing[1], "real": b.missing[2],
+            "flag": b.flag.is_some(), "reason": b.flag})).collect::<Vec<_>>()})
+}
+
+/// `unexplained` of report.json.
+fn unexplained_json(u: &crate::unexplained::Unexplained) -> Value {
+    let parts = |v: &[Part], key: &str| -> Vec<Value> {
+        v.iter()
+            .map(|p| {
+                let mut m = Map::new();
+                m.insert(key.into(), json!(p.name));
+                for (k, x) in [("gap", p.gap), ("floor", p.floor), ("excess", p.excess), ("share", p.share)] {
+                    m.insert(k.into(), json!(x));
+                }
+                if key == "terrain" {
+                    m.insert("records".into(), json!(p.records));
+                    m.insert("statistic".into(), json!(p.top.as_ref().map(|t| &t.0)));
+                    m.insert("row_band".into(), json!(p.top.as_ref().map(|t| &t.1)));
+                }
+                Value::Object(m)
+            })
+            .collect()
+    };
+    let l = &u.location;
+    json!({"gap": u.gap, "floor": u.floor, "excess": u.excess, "share": u.share, "of_initial": u.of_initial,
+        "location": {"statistic": l.statistic, "row_band": l.row_band, "side": l.side, "terrain": l.terrain},
+        "by_statistic": parts(&u.by_statistic, "statistic"),
+        "by_row_band": parts(&u.by_row_band, "band"),
+        "by_side": parts(&u.by_side, "side"),
+        "by_terrain": parts(&u.by_terrain, "terrain"),
+        "by_row": u.by_row.iter().enumerate().map(|(r, (g, f))| json!({"row": r, "x": row_center_x(r), "gap": g, "floor": f})).collect::<Vec<_>>(),
+        "weak_steps": u.weak_steps.iter().map(|(k, e, sh)| json!({"step": k, "effect": e, "removed": sh})).collect::<Vec<_>>()})
 }
 
 /// The rivals a step is tied with, as a list of `name`s.
@@ -105,6 +154,7 @@ pub fn write(dir: &str, o: &Outcome, sets: &Sets, start: &dem_sensor::SensorMode
     o.model.write(&path(dir, "sensor.json"))?;
     pictures(dir, o, sets, start, seed)?;
     plots(dir, o)?;
+    unexplained_plot(dir, o)?;
     let md = markdown(o);
     output::write_atomic(&path(dir, "report.md"), |w| w.write_all(md.as_bytes()))
 }
@@ -193,6 +243,158 @@ fn plots(dir: &str, o: &Outcome) -> Result<()> {
     blit(&mut both, &a, 0);
     blit(&mut both, &b, a.height());
     output::write_atomic(&path(dir, "rows-height.png"), |w| both.write_png(w))
+}
+
+/// unexplained.png: per row, the remaining gap and its sampling floor,
+/// the gap of the statistics with most of the excess; below, the gap per
+/// row on each terrain (labels).
+fn unexplained_plot(dir: &str, o: &Outcome) -> Result<()> {
+    const PALETTE: [Rgb; 6] = [[200, 30, 30], [30, 90, 200], [40, 160, 60], [150, 60, 180], [230, 150, 40], [0, 150, 160]];
+    let u = &o.unexplained;
+    let xs = crate::unexplained::row_xs();
+    let mut top = vec![
+        ("gap left".to_string(), BLACK, u.by_row.iter().map(|r| r.0).collect::<Vec<f64>>()),
+        ("sampling floor".to_string(), [150, 150, 150], u.by_row.iter().map(|r| r.1).collect()),
+    ];
+    top.extend(u.rows_of_top.iter().enumerate().map(|(k, (n, v))| (n.clone(), PALETTE[k % PALETTE.len()], v.clone())));
+    let a = line_plot("remaining gap per row (and per statistic)", "x of the row (m)", &xs, &top, false);
+    let c = if u.rows_of_terrain.is_empty() {
+        a
+    } else {
+        let per: Vec<(String, Rgb, Vec<f64>)> =
+            u.rows_of_terrain.iter().enumerate().map(|(k, (n, v))| (n.clone(), PALETTE[k % PALETTE.len()], v.clone())).collect();
+        let b = line_plot("remaining gap per row, per terrain", "x of the row (m)", &xs, &per, false);
+        let mut both = Canvas::new(a.width(), a.height() + b.height(), WHITE);
+        blit(&mut both, &a, 0);
+        blit(&mut both, &b, a.height());
+        both
+    };
+    output::write_atomic(&path(dir, "unexplained.png"), |w| c.write_png(w))
+}
+
+/// The "Unexplained" section of report.md.
+fn unexplained_md(s: &mut String, o: &Outcome) {
+    let u = &o.unexplained;
+    let _ = writeln!(s, "\n## Unexplained\n");
+    if !u.weak_steps.is_empty() {
+        let w: Vec<String> = u.weak_steps.iter().map(|(k, e, sh)| format!("step {k} `{e}` removed {:.0}%", 100.0 * sh)).collect();
+        let _ = writeln!(
+            s,
+            "**Weak:** {}: each removed less than {:.0}% of the gap it was given. It is the closest effect of the vocabulary, not the explanation: read the gap it left as unexplained.\n",
+            w.join(", "),
+            100.0 * WEAK
+        );
+    }
+    if u.excess <= 0.0 {
+        let _ = writeln!(
+            s,
+            "Nothing above the sampling floor: the gap left, {:.3}, is within the floor {:.3} (a perfect model's own draws or two halves of real differ as much).\n",
+            u.gap, u.floor
+        );
+        return;
+    }
+    let why = if o.stop.starts_with("stopped after --max-steps") {
+        "the run stopped at `--max-steps`: more steps may explain part of it"
+    } else {
+        "no effect of the vocabulary explains it"
+    };
+    let l = &u.location;
+    let mut at = Vec::new();
+    if let Some(x) = &l.statistic {
+        at.push(format!("statistic `{x}`"));
+    }
+    if let Some(x) = &l.row_band {
+        let band = BAND_KEYS.iter().position(|k| k == x).map_or(x.as_str(), |i| BANDS[i].0);
+        at.push(format!("rows {band}"));
+    }
+    if let Some(x) = &l.side {
+        at.push(format!("side: {x}"));
+    }
+    if let Some(x) = &l.terrain {
+        at.push(if x == "all" { "every terrain alike".to_string() } else { format!("terrain `{x}`") });
+    }
+    let _ = writeln!(
+        s,
+        "**{:.3} of the gap {:.3} is above the sampling floor {:.3}** ({:.0}% of what is left, {:.0}% of the start gap {:.3}): {why}. Most of it: {}.\n",
+        u.excess,
+        u.gap,
+        u.floor,
+        100.0 * u.share,
+        100.0 * u.of_initial,
+        o.gap_initial,
+        at.join(", ")
+    );
+    let _ = writeln!(
+        s,
+        "Each piece is the gap of the final model(sim) against real there and the sampling floor there; `above` = gap - floor (not below 0), `share` = its part of the sum of `above` in the table. Statistics and row bands split the gap itself (terms per row go to their row, edges half to each row of the pair, the rest is `{GRID_WIDE}`); sides and terrains are each compared as sets of their own (a side: its two columns only), against their own floor.\n"
+    );
+    let _ = writeln!(s, "| split | where | gap | floor | above | share |\n|---|---|---|---|---|---|");
+    let mut row = |split: &str, p: &Part, name: String| {
+        let _ = writeln!(s, "| {split} | {name} | {:.3} | {:.3} | {:.3} | {:.0}% |", p.gap, p.floor, p.excess, 100.0 * p.share);
+    };
+    for p in u.by_statistic.iter().filter(|p| p.gap > 0.0).take(6) {
+        row("statistic", p, format!("`{}`", p.name));
+    }
+    for p in &u.by_row_band {
+        let band = BAND_KEYS.iter().position(|k| *k == p.name).map_or(p.name.clone(), |i| format!("rows {}", BANDS[i].0));
+        row("row band", p, band);
+    }
+    for p in &u.by_side {
+        let cols = if p.name == "left" { "left (columns 0-1)" } else { "right (columns 3-4)" };
+        row("side", p, cols.to_string());
+    }
+    for p in &u.by_terrain {
+        let top = p.top.as_ref().map_or(String::new(), |(st, b)| format!(" ({} records; mostly `{st}`, {b})", p.records));
+        row("terrain", p, format!("`{}`{top}", p.name));
+    }
+    let _ = writeln!(s, "\n![remaining gap per row](unexplained.png)");
+}
+
+fn more_data_md(s: &mut String, o: &Outcome) {
+    let Some(m) = &o.more_data else { return };
+    let _ = writeln!(
+        s,
+        "\n## How much data would show it\n\nThe start gap {:.3} is below its sampling floor {:.3}. The floor is a sum over statistics of ln(1 + z^2), each z a sampling difference whose variance falls as 1/n, while a true gap stays. Measured on the sampling halves, the floor is {:.3} at half the records (it falls as n^-{:.2}); each z^2 scales as n^-{:.2} (fitted; 1 is pure sampling). Solving floor(n) = gap: about **{} real records{}** and {} sim records (x{:.1} the {} and {} now) would lift the gap above the floor, if it is a real one; until then what separates the sets cannot be told from sampling.\n",
+        m.gap,
+        m.floor,
+        m.floor_half,
+        m.exponent_measured,
+        m.exponent,
+        m.records,
+        match (m.runs, m.runs_now) {
+            (Some(r), Some(n)) => format!(" ({r} runs instead of {n})"),
+            _ => String::new(),
+        },
+        m.sim_records,
+        m.factor,
+        o.sizes.1,
+        o.sizes.0
+    );
+}
+
+fn missing_bands_md(s: &mut String, o: &Outcome) {
+    if o.missing_bands.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        s,
+        "\n## Missing cells behind and ahead of the robot\n\nBehind: rows with x < 0; ahead: x >= 0. Missing-cell rate of sim / final model(sim) / real; flagged where model and real differ by more than {:.0} points.{}\n\n| terrain | band | real records | sim | model | real | flag |\n|---|---|---|---|---|---|---|",
+        100.0 * crate::unexplained::MISSING_FLAG,
+        if o.terrains.is_empty() && o.missing_bands.iter().all(|b| b.terrain.is_none()) { " Without labels of both sides: per band only." } else { "" }
+    );
+    for b in &o.missing_bands {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {:.1}% | {:.1}% | {:.1}% | {} |",
+            b.terrain.map_or("all records".to_string(), |t| format!("`{t}`")),
+            b.band,
+            b.records,
+            100.0 * b.missing[0],
+            100.0 * b.missing[1],
+            100.0 * b.missing[2],
+            b.flag.as_ref().map_or(String::new(), |f| format!("**yes**: {f}"))
+        );
+    }
 }
 
 fn blit(dst: &mut Canvas, src: &Canvas, y0: u32) {
@@ -391,6 +593,9 @@ pub fn markdown(o: &Outcome) -> String {
             );
         }
     }
+    unexplained_md(&mut s, o);
+    more_data_md(&mut s, o);
+    missing_bands_md(&mut s, o);
     let _ = writeln!(s, "\n## Pictures\n\n![sim, model(sim), real](compare.png)\n\n![missing rate per row](rows-missing.png)\n\n![heights per row](rows-height.png)");
     s
 }
