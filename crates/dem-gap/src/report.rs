@@ -344,7 +344,7 @@ fn unexplained_md(s: &mut String, o: &Outcome) {
         row("side", p, cols.to_string());
     }
     for p in &u.by_terrain {
-        let top = p.top.as_ref().map_or(String::new(), |(st, b)| format!(" ({} records; mostly `{st}`, {b})", p.records));
+        let top = p.top.as_ref().map_or(format!(" ({} records)", p.records), |(st, b)| format!(" ({} records; mostly `{st}`, {b})", p.records));
         row("terrain", p, format!("`{}`{top}", p.name));
     }
     let _ = writeln!(s, "\n![remaining gap per row](unexplained.png)");

@@ -426,7 +426,7 @@ pub fn analyse(i: &Inputs) -> Unexplained {
             let c = compare(i.out_a, i.out_b, i.sim, i.real, i.paired, &si, &ri, i.halves, &|d| *d);
             let mut p = part(t.as_str(), c.gap(), c.floor());
             p.records = ri.len();
-            p.top = Some(c.top());
+            p.top = (p.excess > 0.0).then(|| c.top());
             rows_of_terrain.push((t.as_str().to_string(), by_row(&c.gap).0.to_vec()));
             by_terrain.push(p);
         }
