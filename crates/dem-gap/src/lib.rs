@@ -146,6 +146,13 @@ pub const SAME_PART: f64 = 0.5;
 /// Rivals checked per step, closest first.
 pub const MAX_RIVALS: usize = 2;
 
+/// A gap below this is left as it is: each statistic enters as
+/// ln(1 + z^2) averaged over rows, so a sum this small means no statistic
+/// differs from real by a fifth of its physical scale (0.4 % of cells,
+/// 1 mm of height). An effect fitted to such a gap fits what is left of
+/// the others' fits, not a physical effect.
+pub const NEGLIGIBLE_GAP: f64 = 0.05;
+
 /// True when the named effect leaves a smaller gap than the rival on all
 /// records and on every half: the data orders the two. Gaps after each,
 /// all records first, then per half (no halves: all records decide).
@@ -515,6 +522,13 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
         let candidates: Vec<&str> = NAMES.iter().copied().filter(|n| !model.effects.iter().any(|e| e.name() == *n)).collect();
         if candidates.is_empty() {
             stop = "every effect of the vocabulary is in the model".into();
+            break;
+        }
+        if current.0 < NEGLIGIBLE_GAP {
+            stop = format!(
+                "the gap left, {:.4}, is below {NEGLIGIBLE_GAP}: no statistic differs by a fifth of its scale, so no effect is added for it",
+                current.0
+            );
             break;
         }
         let moved = moved_real(&model, &current.1);

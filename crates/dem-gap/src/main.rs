@@ -13,8 +13,11 @@ use dem_core::{output, DemError};
 /// Measure the gap between model(sim) and real, name the effect that
 /// closes most of it (noise, dropout, row-dropout, occlusion, fov,
 /// view-top, smoothing, bias, quantization, startup, patch-dropout,
-/// edge-holes, rim-holes, pit-fill, mixed-cells, hole-growth, drop-blend, riser-blend, floor-lift, drop-holes), fit
-/// it, add it, repeat while an effect still helps. A fit at the edge of its
+/// edge-holes, rim-holes, pit-fill, mixed-cells, hole-growth, drop-blend, riser-blend, floor-lift, drop-holes,
+/// tilt, shake, lag, drift), fit it, add it, repeat while an effect still
+/// helps and the gap left is not negligible. What no effect explains is
+/// reported with where it lives (statistic, rows, side, terrain), and a
+/// gap below the sampling floor with the records (runs) that would show it. A fit at the edge of its
 /// search box is flagged (stderr, report.md, report.json `at_edge`); a
 /// model that hides far more cells than real misses is never accepted. Writes DIR/report.json, DIR/sensor.json (usable by
 /// `dem-sensor apply`), DIR/report.md with pictures; progress on stderr.

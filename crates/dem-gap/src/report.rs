@@ -288,8 +288,8 @@ fn unexplained_md(s: &mut String, o: &Outcome) {
     if u.excess <= 0.0 {
         let _ = writeln!(
             s,
-            "Nothing above the sampling floor: the gap left, {:.3}, is within the floor {:.3} (a perfect model's own draws or two halves of real differ as much).\n",
-            u.gap, u.floor
+            "Nothing unexplained: the gap left, {:.3}, is within the sampling floor {:.3} (a perfect model's own draws or two halves of real differ as much) or below {} (no statistic differs by a fifth of its scale).\n",
+            u.gap, u.floor, crate::NEGLIGIBLE_GAP
         );
         return;
     }

@@ -433,7 +433,9 @@ pub fn analyse(i: &Inputs) -> Unexplained {
         set_shares(&mut by_terrain);
         by_terrain.sort_by(|a, b| b.excess.total_cmp(&a.excess));
     }
-    let ex = excess(i.gap, i.floor);
+    // A negligible gap (crate::NEGLIGIBLE_GAP) is explained, whatever the
+    // floor: no statistic differs by a fifth of its scale.
+    let ex = if i.gap < crate::NEGLIGIBLE_GAP { 0.0 } else { excess(i.gap, i.floor) };
     let first = |v: &[Part]| v.iter().filter(|p| p.excess > 0.0).max_by(|a, b| a.excess.total_cmp(&b.excess)).map(|p| p.name.clone());
     let side = match (by_side.first(), by_side.get(1)) {
         (Some(l), Some(r)) if l.excess + r.excess > 0.0 => Some(
@@ -501,7 +503,7 @@ impl Unexplained {
             )
         };
         if self.excess <= 0.0 {
-            return format!("unexplained: nothing above the sampling floor (gap {:.3}, floor {:.3}){weak}", self.gap, self.floor);
+            return format!("unexplained: nothing above the sampling floor or the negligible gap {} (gap {:.3}, floor {:.3}){weak}", crate::NEGLIGIBLE_GAP, self.gap, self.floor);
         }
         let l = &self.location;
         let mut at = Vec::new();
