@@ -514,8 +514,8 @@ type Mount<'a> = (&'a str, &'a str, &'a str, &'a str, bool, &'a [&'a str], f64);
 /// Leave one of the six sensor stages out, short, on camera mounts other
 /// than the default (0.45 m, 35 degrees) and other seeds, so the fitter is not tuned
 /// to one sensor: sim = the measured DEMs of `dem-synth --no-<stage>`, real
-/// = all stages, the same poses; the stage's effect is named first and the
-/// gap shrinks. (The full runs on 20 runs are in docs/results.md, made by
+/// = all stages, the same poses; the stage's effect is named first (or the
+/// first step is reported tied with it) and the gap shrinks. (The full runs on 20 runs are in docs/results.md, made by
 /// scripts/gap_demo.sh.)
 #[test]
 fn leave_one_stage_out_on_other_camera_mounts() {
@@ -571,7 +571,10 @@ fn leave_one_stage_out_on_other_camera_mounts() {
         // of some stages' gaps.
         const AT_STEPS: [&str; 2] = ["mixed-cells", "riser-blend"];
         let named = n.iter().take(2).take_while(|e| first.contains(&e.as_str()) || AT_STEPS.contains(&e.as_str()));
-        assert!(named.clone().any(|e| first.contains(&e.as_str())), "{what}; {r:#}");
+        // Or the first step reported tied with the stage's effect: unpaired,
+        // `shake`'s roll moves neighbours across the robot as noise does.
+        let tied = r["steps"][0]["tied_with"].as_array().is_some_and(|t| t.iter().any(|t| first.contains(&t["effect"].as_str().unwrap_or(""))));
+        assert!(named.clone().any(|e| first.contains(&e.as_str())) || tied, "{what}; {r:#}");
         let (g0, g1) = (r["gap_initial"].as_f64().unwrap(), r["gap_final"].as_f64().unwrap());
         assert!(g1 <= (1.0 - removed) * g0, "{what}: gap {g0} -> {g1}");
     }
