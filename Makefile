@@ -50,7 +50,7 @@ test: venv
 	DEM_PYTHON=$(abspath $(PY)) $(CARGO) test -p dem-gap --lib --bins
 
 test-long: venv
-	DEM_PYTHON=$(abspath $(PY)) $(CARGO) test -p dem-gap --test gap
+	DEM_PYTHON=$(abspath $(PY)) $(CARGO) test -p dem-gap --test gap --test unexplained
 	DEM_PYTHON=$(abspath $(PY)) $(CARGO) test -p dem-testkit --test as_written
 
 # The README's pipeline and every tool's --help examples, run as written
