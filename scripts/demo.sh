@@ -37,7 +37,9 @@ stages() {
   say "2. the same runs measured with one physical effect hidden at a time"
   local files=() labels=sim,measured named=()
   for s in "${STAGES[@]}"; do
-    "$BIN/dem-synth" --out "$OUT/no-$s" --runs 20 --real-runs 20 --seed 1 "--no-$s" 2>/dev/null
+    # testdata's world (the six sensor stages) with one more switched off.
+    "$BIN/dem-synth" --out "$OUT/no-$s" --runs 20 --real-runs 20 --seed 1 "--no-$s" \
+        --no-drift --no-latency --no-extrinsic --no-vibration 2>/dev/null
     files+=("$OUT/no-$s/real.npy")
     labels+=",no-$s"
     named+=("no-$s=$OUT/no-$s/real.npy")

@@ -71,7 +71,9 @@ if [[ $OTHER_SENSOR == none ]]; then
     echo "thesis_table: OTHER_SENSOR=none: no other-sensor row" >&2
 elif [[ ! -f "$OUT/other/real.npy" || "$(cat "$OUT/other/options" 2>/dev/null)" != "$OTHER_SENSOR" ]]; then
     # shellcheck disable=SC2086  # OTHER_SENSOR is a list of options
-    "$BIN/dem-synth" --out "$OUT/other" --runs "$n_runs" --real-runs "$n_runs" --seed 1 $OTHER_SENSOR
+    # testdata's world: the six sensor stages, the motion stages off.
+    "$BIN/dem-synth" --out "$OUT/other" --runs "$n_runs" --real-runs "$n_runs" --seed 1 \
+        --no-drift --no-latency --no-extrinsic --no-vibration $OTHER_SENSOR
     echo "$OTHER_SENSOR" > "$OUT/other/options"
 fi
 if [[ $OTHER_SENSOR == none ]]; then
