@@ -406,19 +406,7 @@ fn drift(b: &mut Builder, c: &Cells, u: &str, rate: f64, zrate: f64, x0: f64) ->
 /// `noise`: h += sigma z, z from Box-Muller pairs of the uniforms (cell
 /// 2i takes the cosine of pair i, cell 2i + 1 its sine).
 fn noise(b: &mut Builder, c: &Cells, u: &str, sigma0: f64, k: f64) -> Cells {
-    let pairs = b.reshape(u, &[-1, (GRID_ROWS * COLS / 2) as i64, 2]);
-    let u1 = b.take(&pairs, 2, 0, 1);
-    let u2 = b.take(&pairs, 2, 1, 2);
-    let one = b.scalar(1.0);
-    let x = b.bin("Sub", &one, &u1);
-    let x = b.un("Log", &x);
-    let x = b.mul_const(&x, -2.0);
-    let radius = b.un("Sqrt", &x);
-    let angle = b.mul_const(&u2, (2.0 * std::f64::consts::PI) as f32);
-    let cos = b.un("Cos", &angle);
-    let sin = b.un("Sin", &angle);
-    let z1 = b.bin("Mul", &radius, &cos);
-    let z2 = b.bin("Mul", &radius, &sin);
+    let (z1, z2) = normal_pairs(b, u, GRID_ROWS * COLS / 2);
     let z = b.concat(&[&z1, &z2], 2);
     let z = b.reshape(&z, &[-1, GRID_ROWS as i64, COLS as i64]);
     let (sx, sz) = NOISE_ORIGIN;

@@ -20,7 +20,7 @@
 //! frame of the believed camera ([`registration`]).
 
 use super::camera::CameraConfig;
-use super::pose::{Pose, TRACK_HALF_GAUGE, TRACK_LENGTH};
+use super::pose::{track_profile, Pose};
 use super::terrain::World;
 
 /// A 3x3 rotation, rows first.
@@ -151,25 +151,7 @@ pub fn registration(truth: &Pose, err: &CameraError, believed: &Pose, cfg: &Came
 /// a pallet or of its boards under the tracks; 0 on flat ground, below
 /// 1 cm on ramps and rubble.
 pub fn edge_under_tracks(world: &World, pose: &Pose) -> f64 {
-    let n = 71;
-    let half = TRACK_LENGTH / 2.0;
-    let mut prev: Option<f64> = None;
-    let mut step: f64 = 0.0;
-    for i in 0..n {
-        let fx = -half + TRACK_LENGTH * i as f64 / (n - 1) as f64;
-        let h = [-TRACK_HALF_GAUGE, 0.0, TRACK_HALF_GAUGE]
-            .iter()
-            .map(|&fy| {
-                let (wx, wy) = pose.to_world(fx, fy);
-                world.height(wx, wy)
-            })
-            .fold(f64::MIN, f64::max);
-        if let Some(p) = prev {
-            step = step.max((h - p).abs());
-        }
-        prev = Some(h);
-    }
-    step
+    track_profile(world, pose).windows(2).map(|w| (w[1].1 - w[0].1).abs()).fold(0.0, f64::max)
 }
 
 /// Height step under the tracks (m) above which they ride on an edge: the

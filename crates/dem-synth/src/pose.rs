@@ -46,21 +46,8 @@ impl Pose {
     pub fn rest_on(world: &World, x: f64, y: f64, yaw: f64) -> Pose {
         let mut pose = Pose { x, y, z: 0.0, yaw, pitch: 0.0, flippers: [0.0; 4] };
         // Terrain profile under the tracks: highest point across the gauge.
-        let n = 71;
         let half = TRACK_LENGTH / 2.0;
-        let profile: Vec<(f64, f64)> = (0..n)
-            .map(|i| {
-                let fx = -half + TRACK_LENGTH * i as f64 / (n - 1) as f64;
-                let h = [-TRACK_HALF_GAUGE, 0.0, TRACK_HALF_GAUGE]
-                    .iter()
-                    .map(|&fy| {
-                        let (wx, wy) = pose.to_world(fx, fy);
-                        world.height(wx, wy)
-                    })
-                    .fold(f64::MIN, f64::max);
-                (fx, h)
-            })
-            .collect();
+        let profile = track_profile(world, &pose);
         let hull = upper_hull(&profile);
         let seg = hull.windows(2).find(|w| w[0].0 <= 0.0 && w[1].0 >= 0.0).expect("hull spans C");
         let (a, b) = (seg[0], seg[1]);
@@ -81,6 +68,30 @@ impl Pose {
         pose.flippers = [front, front, rear, rear];
         pose
     }
+}
+
+/// Samples along the tracks' footprint under `pose`.
+const TRACK_SAMPLES: usize = 71;
+
+/// The terrain under the tracks: (x ahead of C, the highest point across the
+/// gauge) at [`TRACK_SAMPLES`] points 1 cm apart along the track length,
+/// from the rear end to the front (position and yaw of `pose` only).
+pub fn track_profile(world: &World, pose: &Pose) -> Vec<(f64, f64)> {
+    let n = TRACK_SAMPLES;
+    let half = TRACK_LENGTH / 2.0;
+    (0..n)
+        .map(|i| {
+            let fx = -half + TRACK_LENGTH * i as f64 / (n - 1) as f64;
+            let h = [-TRACK_HALF_GAUGE, 0.0, TRACK_HALF_GAUGE]
+                .iter()
+                .map(|&fy| {
+                    let (wx, wy) = pose.to_world(fx, fy);
+                    world.height(wx, wy)
+                })
+                .fold(f64::MIN, f64::max);
+            (fx, h)
+        })
+        .collect()
 }
 
 /// Upper convex hull of points sorted by x (Andrew's monotone chain).
