@@ -743,8 +743,7 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
     let terrains = per_terrain(sets, &cfg.start, &model, cfg.seed);
     // The final model's two draws, once: the draw floor (as `draw_floor`
     // takes it) and what the model leaves unexplained, where.
-    let (out_a, stats_a) = measure(&model, &sets.sim, paired, cfg.seed);
-    let (out_b, stats_b) = measure(&model, &sets.sim, paired, other_draws(cfg.seed));
+    let [(out_a, stats_a), (out_b, stats_b)] = two_draws(&model, &sets.sim, times, paired, cfg.seed);
     let floor = if model == cfg.start { floor_initial } else { split_floor.max(gap(&stats_a, &stats_b)) };
     drop((stats_a, stats_b));
     let real_h = (!paired && sets.real.len() >= 100).then(|| real_halves(sets));
@@ -839,9 +838,14 @@ pub fn below_floor(gap: f64, floor: f64) -> String {
 /// The gap a perfect model would still show from its own random draws:
 /// model(sim) with the run's seed against model(sim) with another seed.
 pub fn draw_floor(model: &SensorModel, sim: &[Dem], times: Option<&[f64]>, paired: bool, seed: u64) -> f64 {
-    let (_, a) = measure_at(model, sim, times, paired, seed);
-    let (_, b) = measure_at(model, sim, times, paired, other_draws(seed));
+    let [(_, a), (_, b)] = two_draws(model, sim, times, paired, seed);
     gap(&a, &b)
+}
+
+/// model(sim) and its statistics with the draws of `seed` and of
+/// [`other_draws`]: the two outputs [`draw_floor`] compares.
+pub fn two_draws(model: &SensorModel, sim: &[Dem], times: Option<&[f64]>, paired: bool, seed: u64) -> [(Vec<Dem>, Stats); 2] {
+    [measure_at(model, sim, times, paired, seed), measure_at(model, sim, times, paired, other_draws(seed))]
 }
 
 /// The seed of a model's second set of random draws: the draw floor and
