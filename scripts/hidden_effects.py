@@ -72,7 +72,7 @@ heights relative to the robot centre; missing = mask -1, height 0):
                higher height; each half of the higher cell whose centre
                -(s + e) reaches reads the lower height (a raise wins)
   tilt         per record a = pitch z1, b = roll z2 (standard normals):
-               h += a (max(x, x0) - x0) + b y
+               h += a (range + max(x, x0) - x0) + b y
   shake        per record s = sigma + edge J, J the largest |height step|
                between valid x-neighbours in rows 2..9 (|x| <= 0.35 m),
                capped at 0.5 m (0 if none); a = s z1, b = s z2:
@@ -388,9 +388,9 @@ def _plane(d, a, b, lever):
     d[:20, :, 0] = np.where(valid, h, d[:20, :, 0])
 
 
-def tilt(d, rng, pitch, roll, x0):
+def tilt(d, rng, pitch, roll, x0, range):
     z1, z2 = rng.standard_normal(2)
-    _plane(d, pitch * z1, roll * z2, np.maximum(X, x0) - x0)
+    _plane(d, pitch * z1, roll * z2, range + np.maximum(X, x0) - x0)
 
 
 def shake(d, rng, sigma, edge):

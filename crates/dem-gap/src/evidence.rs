@@ -355,16 +355,16 @@ pub fn evidence(effect: &Effect, before: &Stats, after: &Stats, real: &Stats, ga
                 pct(ba),
             )
         }
-        Effect::Tilt { pitch, roll, x0 } => {
-            // Rows just ahead of x0 (the pivot) against the far rows: a
-            // tilt's spread grows with the distance past x0.
+        Effect::Tilt { pitch, roll, x0, range } => {
+            // Rows just ahead of x0 against the far rows: a tilt's spread
+            // grows with the range, range at x0 and more past it.
             let first = (0..GRID_ROWS).find(|&r| row_center_x(r) > x0).unwrap_or(GRID_ROWS).min(12);
             let near = first..first + 3;
             let sd = |s: &Stats, rows: std::ops::Range<usize>| s.mean_over("spread-sd", rows);
             let (rn, bn, rf, bf) = (sd(real, near.clone()), sd(before, near.clone()), sd(real, 15..20), sd(before, 15..20));
             let verdict = if rf > bf && rf - bf > rn - bn {
                 format!(
-                    "real spreads more the farther ahead of x0: heights tilted by a camera angle that differs from record to record (sd pitch {:.2}, roll {:.2} degrees)",
+                    "real spreads more the farther ahead of x0: heights tilted by a camera angle that differs from record to record (sd pitch {:.2}, roll {:.2} degrees), seen from {range:.1} m at x0 and farther beyond",
                     pitch.to_degrees(),
                     roll.to_degrees()
                 )
@@ -566,7 +566,7 @@ mod tests {
         let mut flat = empty_dem();
         (0..GRID_ROWS * COLS).for_each(|i| flat.set_valid(i / COLS, i % COLS, -0.07));
         let cases = [
-            (Effect::Tilt { pitch: 0.02, roll: 0.0, x0: 0.45 }, flat, "farther ahead of x0"),
+            (Effect::Tilt { pitch: 0.02, roll: 0.0, x0: 0.45, range: 0.0 }, flat, "farther ahead of x0"),
             (Effect::Shake { sigma: 0.01, edge: 0.0 }, flat, "rocks about its centre"),
             (Effect::Lag { s: 0.08, spread: 0.5 }, stairs, "steps read 8.0 cm ahead"),
             (Effect::Drift { rate: 0.05, zrate: 0.02, x0: 0.45 }, flat, "grows going back from x0"),
@@ -585,7 +585,7 @@ mod tests {
         // neighbours; drift's rows behind x0 step against each other.
         let sim = vec![flat; 400];
         for (e, says) in [
-            (Effect::Tilt { pitch: 0.02, roll: 0.02, x0: 0.45 }, "level ground reads tilted"),
+            (Effect::Tilt { pitch: 0.02, roll: 0.02, x0: 0.45, range: 1.0 }, "level ground reads tilted"),
             (Effect::Shake { sigma: 0.02, edge: 0.0 }, "level ground reads tilted"),
             (Effect::Drift { rate: 0.05, zrate: 0.1, x0: 0.45 }, "rows behind x0 step against each other"),
         ] {

@@ -63,8 +63,9 @@ pub fn ranges(name: &str) -> Vec<Range> {
         "floor-lift" => vec![lin(-0.3, 1.45), lin(0.0, 1.0), lin(0.0, 3.0)],
         "drop-holes" => vec![lin(0.0, 1.0)],
         // Sds of the camera's pitch and roll errors up to 3 degrees (0.05
-        // rad); x0 from behind the grid (every row tilts) to 1 m ahead.
-        "tilt" => vec![lin(0.0, 0.05), lin(0.0, 0.05), lin(-0.6, 1.0)],
+        // rad); x0 from behind the grid (every row tilts) to 1 m ahead; the
+        // lever at x0 from none to 4 m (a map fused from far views).
+        "tilt" => vec![lin(0.0, 0.05), lin(0.0, 0.05), lin(-0.6, 1.0), lin(0.0, 4.0)],
         // On even ground up to 1 degree; per metre of step under the
         // tracks up to 0.3 rad (a 0.2 m stair edge: 3.4 degrees more).
         "shake" => vec![lin(0.0, 0.02), lin(0.0, 0.3)],
@@ -112,8 +113,8 @@ pub fn limits(name: &str) -> Vec<(f64, f64, bool, bool)> {
         // No drop edge lost, or every one: natural ends.
         "drop-holes" => vec![(0.0, 1.0, true, true)],
         // No error (sd 0) is a natural end; x0 behind the grid (every row
-        // tilts) or past it (no row pitches) too.
-        "tilt" => vec![(0.0, 0.2, true, false), (0.0, 0.2, true, false), (-0.6, 1.45, true, true)],
+        // tilts) or past it (no row pitches) too, and no lever at x0.
+        "tilt" => vec![(0.0, 0.2, true, false), (0.0, 0.2, true, false), (-0.6, 1.45, true, true), (0.0, 10.0, true, false)],
         "shake" => vec![(0.0, 0.2, true, false), (0.0, 1.0, true, false)],
         // No shift is a natural end, and a backward one is allowed (a
         // robot reversing); spread none or all: natural ends.

@@ -28,7 +28,7 @@
 //! | `floor-lift` | in rows whose centre x < `x`, a valid cell whose valid neighbour behind (row r - 1) is higher by more than [`MIXED_JUMP`] (the ground just beyond a drop edge) reads, with probability p, h + min(1, u a) (h_n - h), u uniform, h_n that neighbour: the edge hides the floor nearest it, and the cell keeps points lifted toward the edge (x past the grid: every row; x at the cone's lowest ray: the rows where the map keeps that grazing view) |
 //! | `riser-blend` | at a riser along x (valid cells of rows r and r + 1, row r + 1 higher by more than [`MIXED_JUMP`]), the cell at its foot reads h + u `foot` (h_n - h) and the cell on its top h + u `top` (h_n - h), u uniform per cell, h_n the other cell (a cell beside two risers takes the larger step; the one behind only when larger by more than [`TIE_MARGIN`]); `foot`, `top` in [-1, 1], negative: away from the other surface: the stereo window over a riser's corners moves the points there along their rays, up or down the step as the view angle gives |
 //! | `mixed-cells` | a cell is the mean of its two half cells along x; at a jump of more than [`MIXED_JUMP`] between valid x-neighbours the step lies at s, uniform over the 10 cm between their centres (one draw per row boundary), and the higher surface reaches e = u r past it into the lower cell (u uniform per cell; r = `up` when the higher cell lies ahead, `down` when it lies behind, i.e. beyond a drop): a half of the lower cell whose centre the higher surface reaches reads the higher height, a half of the higher cell the lower surface reaches (the step lies in it, deeper than e) reads the lower height |
-//! | `tilt` | per record a = `pitch` z1, b = `roll` z2 (z1, z2 standard normals, one Box-Muller pair; radians, used as slopes), h += a (max(x, x0) - x0) + b y: the camera's pitch and roll off their calibration (the extrinsic error; the cells behind x0 were seen from the near range, so they keep its error); also the first-order trace of vibration |
+//! | `tilt` | per record a = `pitch` z1, b = `roll` z2 (z1, z2 standard normals, one Box-Muller pair; radians, used as slopes), h += a (`range` + max(x, x0) - x0) + b y: the camera's pitch and roll off their calibration (the extrinsic error). A point seen at horizontal range d moves by a d in height, and the map fuses each cell over the ranges it was seen from: a cell past x0 was seen from `range` + (x - x0) on average, the cells behind x0 keep the error of their last views, so the whole DEM rises or falls with the angle and tilts about a pivot `range` behind x0 |
 //! | `shake` | per record s = `sigma` + `edge` J, J the largest height step (m, capped at [`SHAKE_MAX_STEP`]) between valid x-neighbours of the rows under the tracks ([`TRACK_ROWS`], \|x\| <= 0.35 m) of the DEM as it comes in; a = s z1, b = s z2 (one Box-Muller pair), h += a x + b y: the body rocks about C, more on edges. Unlike `tilt` it pivots at C (rows behind C move the other way) and its spread follows the terrain under the tracks |
 //! | `lag` | per record shift s_r = `s` (1 + `spread` (2u - 1)), u uniform; h'(x) = h(x - s_r) + s_r tan(pitch), pitch the record's row 20 column 0 (clamped to +-[`MAX_CLIMB_PITCH`], 0 if not finite): the DEM is the map of a frame s_r / v old, cut at that older pose. See [`shift_rows`] for the interpolation; validity is kept |
 //! | `drift` | rows whose centre x < `x0` are displaced by a random walk going back from x0: per row r, from the row just behind x0 backward, dx(r) = `rate` sqrt(0.1) sum of xi_j and dz(r) = `zrate` sqrt(0.1) sum of zeta_j over the rows j from r to the last row behind x0 (xi_j, zeta_j the normals of Box-Muller pair j); h'(x) = h(x - dx) + dz by [`shift_rows`]; rows from x0 on are left alone: the map registers older frames at a believed pose that walks at random per metre travelled |
@@ -84,6 +84,8 @@ pub const MIXED_JUMP: f64 = dem_core::distribution::JUMP;
 /// Largest sd (rad) of `tilt`'s pitch and roll and of `shake`'s `sigma`:
 /// a calibration or a body that far off (29 degrees) is no sensor effect.
 pub const MAX_TILT: f64 = 0.5;
+/// Largest `range` (m) of `tilt`: a depth camera's useful range.
+pub const MAX_TILT_RANGE: f64 = 10.0;
 /// The rows under the tracks whose x-neighbour steps `shake` reads: rows
 /// 2..=9, centres from x = -0.35 to 0.35 m (tracks 0.7 m long about C).
 pub const TRACK_ROWS: (usize, usize) = (2, 9);
@@ -276,8 +278,11 @@ pub enum Effect {
         pitch: f64,
         /// Sd (rad) of the roll error.
         roll: f64,
-        /// Cells behind this x (m) keep the error of x0 (seen from near range).
+        /// Cells behind this x (m) keep the error of x0.
         x0: f64,
+        /// Mean horizontal range (m) from which the map's cells at x0 were
+        /// seen: the lever of the angle there.
+        range: f64,
     },
     /// Vibration: the body's pitch and roll noise, larger on edges.
     Shake {
@@ -382,7 +387,7 @@ impl Effect {
             Effect::DropBlend { p, a } => vec![("p", p), ("a", a)],
             Effect::RiserBlend { foot, top } => vec![("foot", foot), ("top", top)],
             Effect::FloorLift { x, p, a } => vec![("x", x), ("p", p), ("a", a)],
-            Effect::Tilt { pitch, roll, x0 } => vec![("pitch", pitch), ("roll", roll), ("x0", x0)],
+            Effect::Tilt { pitch, roll, x0, range } => vec![("pitch", pitch), ("roll", roll), ("x0", x0), ("range", range)],
             Effect::Shake { sigma, edge } => vec![("sigma", sigma), ("edge", edge)],
             Effect::Lag { s, spread } => vec![("s", s), ("spread", spread)],
             Effect::Drift { rate, zrate, x0 } => vec![("rate", rate), ("zrate", zrate), ("x0", x0)],
@@ -413,7 +418,7 @@ impl Effect {
             "riser-blend" => Effect::RiserBlend { foot: g(0)?, top: g(1)? },
             "floor-lift" => Effect::FloorLift { x: g(0)?, p: g(1)?, a: g(2)? },
             "drop-holes" => Effect::DropHoles { p: g(0)? },
-            "tilt" => Effect::Tilt { pitch: g(0)?, roll: g(1)?, x0: g(2)? },
+            "tilt" => Effect::Tilt { pitch: g(0)?, roll: g(1)?, x0: g(2)?, range: g(3)? },
             "shake" => Effect::Shake { sigma: g(0)?, edge: g(1)? },
             "lag" => Effect::Lag { s: g(0)?, spread: g(1)? },
             "drift" => Effect::Drift { rate: g(0)?, zrate: g(1)?, x0: g(2)? },
@@ -494,6 +499,9 @@ impl Effect {
             Effect::MixedCells { up, down } if up < 0.0 || down < 0.0 => Err(format!("up = {up} and down = {down} must be >= 0")),
             Effect::Tilt { pitch, roll, .. } if !(0.0..=MAX_TILT).contains(&pitch) || !(0.0..=MAX_TILT).contains(&roll) => {
                 Err(format!("pitch = {pitch} and roll = {roll} must be in [0, {MAX_TILT}] rad"))
+            }
+            Effect::Tilt { range, .. } if !(0.0..=MAX_TILT_RANGE).contains(&range) => {
+                Err(format!("range = {range} must be in [0, {MAX_TILT_RANGE}] m"))
             }
             Effect::Shake { sigma, edge } if !(0.0..=MAX_TILT).contains(&sigma) || edge < 0.0 => {
                 Err(format!("sigma = {sigma} must be in [0, {MAX_TILT}] rad and edge = {edge} >= 0"))
@@ -654,9 +662,9 @@ impl Effect {
             Effect::DropBlend { p, a } => blend_drops(d, rng, p, a),
             Effect::FloorLift { x, p, a } => lift_floors(d, rng, x, p, a),
             Effect::RiserBlend { foot, top } => blend_risers(d, rng, foot, top),
-            Effect::Tilt { pitch, roll, x0 } => {
+            Effect::Tilt { pitch, roll, x0, range } => {
                 let [z1, z2]: [f64; 2] = rng.normals();
-                tilt_plane(d, pitch * z1, roll * z2, |x| x.max(x0) - x0);
+                tilt_plane(d, pitch * z1, roll * z2, |x| range + x.max(x0) - x0);
             }
             Effect::Shake { sigma, edge } => {
                 let [z1, z2]: [f64; 2] = rng.normals();
@@ -1499,23 +1507,23 @@ mod tests {
         d
     }
 
-    /// tilt on flat ground is exactly the plane h + a (max(x, x0) - x0) +
-    /// b y, a = pitch z1, b = roll z2 from the record's Box-Muller pair; a
-    /// missing cell stays missing.
+    /// tilt on flat ground is exactly the plane h + a (range + max(x, x0) -
+    /// x0) + b y, a = pitch z1, b = roll z2 from the record's Box-Muller
+    /// pair; a missing cell stays missing.
     #[test]
     fn tilt_on_flat_ground_is_the_plane() {
-        for (u, x0) in [([0.3f32, 0.1f32], 0.45), ([0.93, 0.71], -0.6), ([0.01, 0.5], 1.2)] {
+        for (u, x0, range) in [([0.3f32, 0.1f32], 0.45, 0.0), ([0.93, 0.71], -0.6, 2.5), ([0.01, 0.5], 1.2, 0.8)] {
             let (pitch, roll) = (0.02, 0.015);
             let (z1, z2) = crate::draws::box_muller(u[0], u[1]);
             let mut d = flat();
             d.set_missing(3, 3);
-            Effect::Tilt { pitch, roll, x0 }.apply_drawn(&mut d, &u, None);
+            Effect::Tilt { pitch, roll, x0, range }.apply_drawn(&mut d, &u, None);
             let mut want = grid(&flat());
             want[3][3] = None;
             for (r, row) in want.iter_mut().enumerate() {
                 for (c, h) in row.iter_mut().enumerate() {
                     let x = row_center_x(r);
-                    *h = h.map(|h| h + pitch * z1 * (x.max(x0) - x0) + roll * z2 * col_center_y(c));
+                    *h = h.map(|h| h + pitch * z1 * (range + x.max(x0) - x0) + roll * z2 * col_center_y(c));
                 }
             }
             assert_close(&d, &want, 1e-7, "tilt");
@@ -1524,8 +1532,9 @@ mod tests {
                 assert_eq!(d.height(0, 0), d.height(1, 0));
             }
         }
-        assert!(Effect::Tilt { pitch: 0.6, roll: 0.0, x0: 0.0 }.check().is_err());
-        assert!(Effect::Tilt { pitch: 0.01, roll: -0.01, x0: 0.0 }.check().is_err());
+        assert!(Effect::Tilt { pitch: 0.6, roll: 0.0, x0: 0.0, range: 0.0 }.check().is_err());
+        assert!(Effect::Tilt { pitch: 0.01, roll: -0.01, x0: 0.0, range: 0.0 }.check().is_err());
+        assert!(Effect::Tilt { pitch: 0.01, roll: 0.01, x0: 0.0, range: -0.1 }.check().is_err());
     }
 
     /// shake: the same plane about C (x from C, every row) with sd sigma +

@@ -236,11 +236,11 @@ fn effect(b: &mut Builder, e: &Effect, c: &Cells, u: Option<&str>, time: Option<
         Effect::FloorLift { x, p, a } => floor_lift(b, c, &u(), x, p, a),
         Effect::RiserBlend { foot, top } => riser_blend(b, c, &u(), foot, top),
         Effect::MixedCells { up, down } => mixed_cells(b, c, &u(), up, down),
-        Effect::Tilt { pitch, roll, x0 } => {
+        Effect::Tilt { pitch, roll, x0, range } => {
             let (z1, z2) = normal_pairs(b, &u(), 1);
             let a = b.mul_const(&z1, pitch as f32);
             let bb = b.mul_const(&z2, roll as f32);
-            tilt_plane(b, c, &a, &bb, |x| x.max(x0) - x0)
+            tilt_plane(b, c, &a, &bb, |x| range + x.max(x0) - x0)
         }
         Effect::Shake { sigma, edge } => {
             let (z1, z2) = normal_pairs(b, &u(), 1);

@@ -237,7 +237,7 @@ fn motion_effects_equal_the_numpy_implementation_in_distribution() {
             })
             .collect()
     };
-    for spec in ["tilt:pitch=0.02,roll=0.015,x0=0.4", "shake:sigma=0.003,edge=0.1", "lag:s=0.08,spread=0.6", "drift:rate=0.08,zrate=0.03,x0=0.4"] {
+    for spec in ["tilt:pitch=0.02,roll=0.015,x0=0.4,range=1.5", "shake:sigma=0.003,edge=0.1", "lag:s=0.08,spread=0.6", "drift:rate=0.08,zrate=0.03,x0=0.4"] {
         let (name, params) = spec.split_once(':').unwrap();
         let json_params: Vec<String> =
             params.split(',').map(|kv| kv.split_once('=').unwrap()).map(|(k, v)| format!("\"{k}\": {v}")).collect();
