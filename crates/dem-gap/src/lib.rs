@@ -444,8 +444,9 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
     let times = sets.sim_time.as_deref();
     let floor_of = |m: &SensorModel| split_floor.max(draw_floor(m, &sets.sim, times, paired, cfg.seed));
     // Two halves of the comparison, sim half k against real half k.
-    // Unpaired, a gain must also hold on both, replicates at half the size
-    // (whole sim when it is too small to split); in both modes they tell a
+    // Unpaired (and paired below the sampling floor), a gain must also hold
+    // on both, replicates at half the size (whole sim when it is too small
+    // to split); in both modes they tell a
     // named effect from a close rival ([`Tie`]). Paired, sim record i is
     // real record i's pair, and the halves are real's (whole runs when
     // labelled).
@@ -560,6 +561,11 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
         // The model's own gap with other draws, measured once for both
         // candidates that may need it.
         let mut model_redrawn: Option<f64> = None;
+        // Paired, the halves decide only below the model's sampling floor
+        // (measured once, when a candidate gets that far): there what
+        // separates the sets may be the draws, and a gain that is an effect
+        // holds on both halves of the records.
+        let mut below_floor_now: Option<bool> = None;
         // The best candidate on the subsample, confirmed on all data; the
         // runner-up gets a chance when the best does not hold up.
         for (e, _, _) in ranking.iter().take(2) {
@@ -598,7 +604,8 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
             let after_halves = half_stats(&out);
             let on_halves: Vec<f64> =
                 half_gaps(&current_halves).iter().zip(half_gaps(&after_halves)).map(|(before, after)| before - after).collect();
-            if paired || on_halves.iter().all(|&x| x > 0.0) {
+            let halves_decide = !paired || *below_floor_now.get_or_insert_with(|| gap_before < floor_of(&model));
+            if !halves_decide || on_halves.iter().all(|&x| x > 0.0) {
                 added = Some((*e, trial, g, s, after_halves));
                 break;
             }
