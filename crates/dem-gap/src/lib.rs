@@ -446,10 +446,9 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
     // Two halves of the comparison, sim half k against real half k.
     // Unpaired (and paired below the sampling floor), a gain must also hold
     // on both, replicates at half the size (whole sim when it is too small
-    // to split); in both modes they tell a
-    // named effect from a close rival ([`Tie`]). Paired, sim record i is
-    // real record i's pair, and the halves are real's (whole runs when
-    // labelled).
+    // to split); in both modes they tell a named effect from a close rival
+    // ([`Tie`]). Paired, sim record i is real record i's pair, and the
+    // halves are real's (whole runs when labelled).
     let halves: Vec<(Vec<usize>, Stats)> = if sets.real.len() < 100 {
         Vec::new()
     } else if paired {
