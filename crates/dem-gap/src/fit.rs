@@ -1,5 +1,6 @@
 //! Fitting one candidate effect: a grid search over its parameter box,
-//! refined four times around the best point, of the gap between
+//! refined around the best point (four times; five for four parameters,
+//! whose first grid is coarser), of the gap between
 //! model(sim) with the candidate added and real. Every evaluation uses the
 //! same random streams (the seed), so the gap changes with the parameters,
 //! not with the draws.
@@ -271,8 +272,13 @@ fn fit_in(name: &str, base: &SensorModel, target: &Target, ranges: &[Range], fix
         // another multiple for a 3 % change of q): a fine grid.
         ("quantization", _) => 121,
         (_, 1) => 41,
+        // Four parameters (tilt): 9^4 first points cost eight times 9^3, so
+        // a coarser first grid, refined three points a side for one more
+        // round, to the same final step.
+        (_, 4..) => 5,
         _ => 9,
     };
+    let (per, rounds) = if dims >= 4 { (3, 5) } else { (5, 4) };
     let grid = |centre: &[f64], step: f64, per: usize| -> Vec<Vec<f64>> {
         let mut pts = vec![vec![]];
         for &c in centre.iter().take(dims) {
@@ -292,8 +298,8 @@ fn fit_in(name: &str, base: &SensorModel, target: &Target, ranges: &[Range], fix
     };
     let (mut best, mut best_gap) = best_of(grid(&vec![0.5; dims], 1.0 / (n - 1) as f64, n))?;
     let mut step = 1.0 / (n - 1) as f64 / 2.0;
-    for _ in 0..4 {
-        if let Some((p, g)) = best_of(grid(&best, step, 5)) {
+    for _ in 0..rounds {
+        if let Some((p, g)) = best_of(grid(&best, step, per)) {
             if g < best_gap {
                 (best, best_gap) = (p, g);
             }
