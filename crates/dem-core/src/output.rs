@@ -242,6 +242,47 @@ pub fn write_atomic(path: &str, body: impl FnOnce(&mut AtomicOutput) -> io::Resu
     out.commit()
 }
 
+/// A folder of outputs, made when missing: a run that fails (or a probe
+/// that only checks it) removes it again on drop when it made it and it is
+/// still empty, so a refused input leaves no folder behind. [`keep`] it once
+/// the run has written into it.
+///
+/// [`keep`]: OutputFolder::keep
+pub struct OutputFolder {
+    path: PathBuf,
+    made: bool,
+}
+
+impl OutputFolder {
+    /// Make `dir` (and its parents) when missing.
+    pub fn create(dir: &str) -> Result<Self> {
+        let made = !Path::new(dir).exists();
+        std::fs::create_dir_all(dir).map_err(|source| DemError::Open { path: dir.to_string(), source })?;
+        Ok(OutputFolder { path: PathBuf::from(dir), made })
+    }
+
+    /// The outputs `names` in the folder, as [`check_outputs`] checks them
+    /// against `inputs`.
+    pub fn check(&self, inputs: &[&str], names: &[&str]) -> Result<()> {
+        let outputs: Vec<String> = names.iter().map(|n| self.path.join(n).to_string_lossy().into_owned()).collect();
+        check_outputs(inputs, &outputs.iter().map(String::as_str).collect::<Vec<_>>())
+    }
+
+    /// Leave the folder in place.
+    pub fn keep(mut self) {
+        self.made = false;
+    }
+}
+
+impl Drop for OutputFolder {
+    fn drop(&mut self) {
+        if self.made {
+            // Only an empty folder goes: remove_dir refuses any other.
+            let _ = std::fs::remove_dir(&self.path);
+        }
+    }
+}
+
 /// True when `path` names an existing file (used to refuse clobbering inputs).
 pub fn exists(path: &str) -> bool {
     path != "-" && Path::new(path).exists()
@@ -250,6 +291,26 @@ pub fn exists(path: &str) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_output_folder_made_for_a_probe_or_a_failed_run_is_removed_a_kept_one_stays() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("a/b").to_string_lossy().into_owned();
+        let folder = OutputFolder::create(&out).unwrap();
+        folder.check(&[], &["x.npy", "y.csv"]).unwrap();
+        drop(folder);
+        assert!(!Path::new(&out).exists(), "a probe leaves no folder");
+        OutputFolder::create(&out).unwrap().keep();
+        assert!(Path::new(&out).is_dir(), "a kept folder stays");
+        // Existing, it is never removed, empty or not.
+        drop(OutputFolder::create(&out).unwrap());
+        assert!(Path::new(&out).is_dir());
+        let made = OutputFolder::create(&dir.path().join("c").to_string_lossy()).unwrap();
+        let err = made.check(&[], &["x.npy", "x.npy"]).unwrap_err();
+        assert!(err.to_string().contains("is given twice"), "{err}");
+        drop(made);
+        assert!(!dir.path().join("c").exists());
+    }
 
     #[test]
     fn temp_names_carry_host_and_pid_and_parse_back() {

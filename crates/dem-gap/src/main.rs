@@ -8,7 +8,7 @@ use dem_gap::{self as gap, report, GapConfig};
 use dem_sensor::SensorModel;
 use dem_core::cli::{self, value};
 use dem_core::table::Split;
-use dem_core::{output, DemError};
+use dem_core::output;
 
 /// Measure the gap between model(sim) and real, name the effect that
 /// closes most of it (noise, dropout, row-dropout, occlusion, fov,
@@ -121,20 +121,13 @@ fn main() -> ExitCode {
         }
         // Made to probe it, and removed again until there is a report to put
         // in it: a refused input leaves no folder.
-        let made = !std::path::Path::new(&a.out).exists();
-        std::fs::create_dir_all(&a.out).map_err(|source| DemError::Open { path: a.out.clone(), source })?;
         let inputs: Vec<&str> =
             [Some(&a.sim), Some(&a.real), a.pairs.as_ref(), a.labels_sim.as_ref(), a.labels_real.as_ref(), a.model.as_ref()]
                 .into_iter()
                 .flatten()
                 .map(String::as_str)
                 .collect();
-        let outputs: Vec<String> = report::FILES.iter().map(|f| std::path::Path::new(&a.out).join(f).to_string_lossy().into_owned()).collect();
-        let checked = output::check_outputs(&inputs, &outputs.iter().map(String::as_str).collect::<Vec<_>>());
-        if made {
-            let _ = std::fs::remove_dir(&a.out);
-        }
-        checked?;
+        output::OutputFolder::create(&a.out)?.check(&inputs, &report::FILES)?;
         dem_core::swap::check_files(&a.sim, &a.real, a.no_swap_check);
         let start = a.model.as_deref().map(SensorModel::read).transpose()?.unwrap_or_default();
         let cfg = GapConfig {

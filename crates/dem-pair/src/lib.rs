@@ -13,6 +13,7 @@
 //! cannot rank them).
 
 pub mod expand;
+pub mod pairing;
 
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 

@@ -4,14 +4,14 @@ use std::collections::BTreeSet;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand, ValueEnum};
-use dem_pair::{by_content, by_pose, counts, first_occurrence, pair_rows, PoseRule};
+use dem_pair::pairing::{pair, Method, PairConfig};
+use dem_pair::{counts, PoseRule};
 use dem_core::table::{self, Pair};
 use dem_core::cli::{self, value};
-use dem_core::swap::{self, MissingCells};
-use dem_core::{npy, output, DemError};
+use dem_core::output;
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
-enum Method {
+enum MethodArg {
     /// Same terrain and pose (from the labels CSVs) within tolerances.
     Pose,
     /// The k nearest sim DEMs by the height error over the real record's valid cells.
@@ -35,7 +35,7 @@ struct Args {
     cmd: Option<Cmd>,
     /// How to pair.
     #[arg(long = "match", value_name = "METHOD", value_enum, required = true)]
-    by: Option<Method>,
+    by: Option<MethodArg>,
     /// Sim NPY (needed by content; used to deduplicate keys by pose too).
     #[arg(long)]
     sim: Option<String>,
@@ -130,31 +130,16 @@ fn expand(cfg: dem_pair::expand::ExpandConfig) -> anyhow::Result<()> {
         .map(String::as_str)
         .collect();
     cli::one_stdin(inputs.iter().copied())?;
-    // The folder first: the output check tries a file in it. A folder made
-    // here is taken away again when the run fails (it is empty then).
-    let made = !std::path::Path::new(&cfg.out).exists();
-    std::fs::create_dir_all(&cfg.out).map_err(|source| DemError::Open { path: cfg.out.clone(), source })?;
-    let done = checked_expand(&cfg, &inputs);
-    if done.is_err() && made {
-        let _ = std::fs::remove_dir(&cfg.out);
-    }
-    done
-}
-
-fn checked_expand(cfg: &dem_pair::expand::ExpandConfig, inputs: &[&str]) -> anyhow::Result<()> {
-    let names = ["sim.npy", "real.npy", "pairs.csv", "sim_labels.csv", "real_labels.csv"];
-    let outputs: Vec<String> = names.iter().map(|n| std::path::Path::new(&cfg.out).join(n).to_string_lossy().into_owned()).collect();
-    output::check_outputs(inputs, &outputs.iter().map(String::as_str).collect::<Vec<_>>())?;
-    let done = dem_pair::expand::run(cfg)?;
+    // The folder first: the output check tries a file in it.
+    let folder = output::OutputFolder::create(&cfg.out)?;
+    folder.check(&inputs, &["sim.npy", "real.npy", "pairs.csv", "sim_labels.csv", "real_labels.csv"])?;
+    let done = dem_pair::expand::run(&cfg)?;
+    folder.keep();
     cli::log(format_args!("{} pairs of {} sim keys expanded into {}", done.pairs, done.sim_keys, cfg.out));
     if !done.stale_removed.is_empty() {
         cli::log(format_args!("removed {}: an earlier expansion's labels, which these records do not have", done.stale_removed.join(", ")));
     }
     Ok(())
-}
-
-fn need<'a>(v: &'a Option<String>, flag: &str, by: &str) -> anyhow::Result<&'a str> {
-    v.as_deref().ok_or_else(|| cli::usage(format!("--match {by} needs {flag}")))
 }
 
 fn main() -> ExitCode {
@@ -164,44 +149,27 @@ fn main() -> ExitCode {
             dem_core::swap::check_files(&sim, &real, no_swap_check);
             return expand(dem_pair::expand::ExpandConfig { pairs, sim, real, sim_labels, real_labels, split, out });
         }
-        let by = a.by.expect("clap requires --match without a subcommand");
         let inputs: Vec<&str> = [&a.sim, &a.real, &a.sim_labels, &a.real_labels].into_iter().flatten().map(String::as_str).collect();
         output::check_outputs(&inputs, &[&a.output])?;
-        let sim = a.sim.as_deref().map(npy::read_all).transpose()?;
-        let sim_labels = a.sim_labels.as_deref().map(table::read_labels).transpose()?;
-        let real_labels = a.real_labels.as_deref().map(table::read_labels).transpose()?;
-        if let (Some(r), Some(l), Some(f), Some(lf)) = (&sim, &sim_labels, &a.sim, &a.sim_labels) {
-            table::check_labels_cover(lf, l.len(), f, r.len() as u64)?;
-        }
-        let keys = sim.as_deref().map(first_occurrence);
-        let found = match by {
-            Method::Pose => {
-                let (s, r) = (need(&a.sim_labels, "--sim-labels", "pose")?, need(&a.real_labels, "--real-labels", "pose")?);
-                if let (Some(s), Some(r)) = (&a.sim, &a.real) {
-                    swap::check_files(s, r, a.no_swap_check);
-                }
-                let rule = PoseRule { max_dist: a.max_dist, max_yaw: a.max_yaw, same_sequence: a.same_sequence };
-                let (sl, rl) = (sim_labels.as_deref().unwrap_or_default(), real_labels.as_deref().unwrap_or_default());
-                by_pose(sl, rl, rule).map_err(|e| DemError::input(format!("{s}, {r}"), e))?
-            }
-            Method::Content => {
-                let (sim, keys) = (sim.as_deref().ok_or_else(|| cli::usage("--match content needs --sim"))?, keys.as_deref().unwrap_or_default());
-                let real_path = need(&a.real, "--real", "content")?;
-                let real = npy::read_all(real_path)?;
-                let sim_path = need(&a.sim, "--sim", "content")?;
-                swap::check(sim_path, MissingCells::of(sim), real_path, MissingCells::of(&real), a.no_swap_check);
-                for (path, n) in [(need(&a.sim, "--sim", "content")?, sim.len()), (real_path, real.len())] {
-                    if n == 0 {
-                        return Err(DemError::input(path, "holds no records: --match content needs records to pair").into());
-                    }
-                }
-                let unique: Vec<u64> = keys.iter().enumerate().filter(|&(i, &k)| i as u64 == k).map(|(_, &k)| k).collect();
-                by_content(sim, &unique, &real, a.k, a.max_distance.unwrap_or(f64::INFINITY))
-            }
+        let cfg = PairConfig {
+            by: match a.by.expect("clap requires --match without a subcommand") {
+                MethodArg::Pose => Method::Pose,
+                MethodArg::Content => Method::Content,
+            },
+            sim: a.sim,
+            real: a.real,
+            sim_labels: a.sim_labels,
+            real_labels: a.real_labels,
+            rule: PoseRule { max_dist: a.max_dist, max_yaw: a.max_yaw, same_sequence: a.same_sequence },
+            k: a.k,
+            max_distance: a.max_distance.unwrap_or(f64::INFINITY),
+            val_fraction: a.val_fraction,
+            seed: a.seed,
+            no_swap_check: a.no_swap_check,
         };
-        let rows = pair_rows(found, keys.as_deref(), a.seed, a.val_fraction);
-        table::write_rows(&a.output, &rows)?;
-        report(&rows, sim_labels.as_deref());
+        let paired = pair(&cfg)?;
+        table::write_rows(&a.output, &paired.rows)?;
+        report(&paired.rows, paired.sim_labels.as_deref());
         Ok(())
     })
 }
