@@ -1097,8 +1097,8 @@ pub fn shift_rows(d: &mut Dem, dx: &[f64; GRID_ROWS], dz: &[f64; GRID_ROWS]) {
         let m = q.floor();
         let g = q - m;
         let k = r as i64 - m as i64;
-        for c in 0..COLS {
-            let Some(own) = z[r][c] else { continue };
+        for (c, own) in z[r].iter().enumerate() {
+            let Some(own) = *own else { continue };
             let src = |k: i64| usize::try_from(k).ok().filter(|&k| k < GRID_ROWS).and_then(|k| z[k][c]).unwrap_or(own);
             let h = (1.0 - g) * src(k) + g * src(k - 1);
             d.set_valid(r, c, (h + dz[r]) as f32);
@@ -1474,9 +1474,9 @@ mod tests {
     }
 
     fn assert_close(got: &Dem, want: &[Vec<Option<f64>>], tol: f64, what: &str) {
-        for r in 0..GRID_ROWS {
-            for c in 0..COLS {
-                match want[r][c] {
+        for (r, row) in want.iter().enumerate().take(GRID_ROWS) {
+            for (c, &cell) in row.iter().enumerate().take(COLS) {
+                match cell {
                     None => assert!(!got.is_valid(r, c), "{what}: ({r}, {c}) stays missing"),
                     Some(h) => {
                         assert!(got.is_valid(r, c), "{what}: ({r}, {c}) stays valid");
@@ -1643,10 +1643,10 @@ mod tests {
                 let (mut dx, mut dz) = (vec![0.0; GRID_ROWS], vec![0.0; GRID_ROWS]);
                 for row in 0..GRID_ROWS {
                     if row_center_x(row) < x0 {
-                        for j in row..GRID_ROWS {
+                        for (j, n) in normals.iter().enumerate().take(GRID_ROWS).skip(row) {
                             if row_center_x(j) < x0 {
-                                dx[row] += rate * 0.1f64.sqrt() * normals[j].0;
-                                dz[row] += zrate * 0.1f64.sqrt() * normals[j].1;
+                                dx[row] += rate * 0.1f64.sqrt() * n.0;
+                                dz[row] += zrate * 0.1f64.sqrt() * n.1;
                             }
                         }
                     }
@@ -1668,8 +1668,8 @@ mod tests {
             Effect::Drift { rate: 0.05, zrate, x0: 0.3 }.apply_drawn(&mut d, &u, None);
             (0..GRID_ROWS).for_each(|row| sq[row] += (d.height(row, 0) as f64 - FLAT_GROUND as f64).powi(2));
         }
-        for row in 0..GRID_ROWS {
-            let sd = (sq[row] / n as f64).sqrt();
+        for (row, &s2) in sq.iter().enumerate() {
+            let sd = (s2 / n as f64).sqrt();
             let k = (0..GRID_ROWS).filter(|&j| j >= row && row_center_x(j) < 0.3).count() as f64;
             let want = zrate * (0.1 * k).sqrt();
             assert!((sd - want).abs() <= 0.04 * want + 1e-9, "row {row}: sd {sd} vs {want}");
