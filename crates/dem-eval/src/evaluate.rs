@@ -7,7 +7,7 @@ use clap::{Args as ClapArgs, ValueEnum};
 use dem_core::table::Split;
 use dem_core::cli;
 
-use crate::inputs::{self, Method, Request};
+use crate::engine::{self, Method, Request};
 use dem_core::eval::forms::{self as report, Format};
 
 /// The arguments of an evaluation (dem-eval without a subcommand).
@@ -100,7 +100,7 @@ pub(crate) struct TableOut {
 
 impl TableOut {
     /// Write `ev`'s table of `method`.
-    pub(crate) fn write(&self, ev: &crate::inputs::Evaluation, method: &str) -> anyhow::Result<()> {
+    pub(crate) fn write(&self, ev: &crate::engine::Evaluation, method: &str) -> anyhow::Result<()> {
         Ok(report::write_table(&self.output, &ev.table(method, self.by.is_some()), self.format)?)
     }
 }
@@ -162,6 +162,6 @@ pub fn run(a: EvalArgs) -> anyhow::Result<()> {
         emit_closest: a.emit_closest,
         first_index: a.first_index,
     };
-    let ev = inputs::run(&q)?;
+    let ev = engine::run(&q)?;
     a.table.write(&ev, a.name.as_deref().unwrap_or(&name))
 }

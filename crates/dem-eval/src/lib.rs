@@ -8,14 +8,15 @@
 //! - [`join`]: tables as one table, in any form.
 //! - [`transfer`]: the downstream test (policy-like models trained on each
 //!   set, tested on measured DEMs of held-out runs).
-//! - [`inputs`], [`records`], [`model`]: the selected records, the
-//!   per-record CSV, and the predictions' sources they share.
+//! - [`engine`], [`records`], [`model`]: the evaluation engine (the
+//!   selected records, read in bounded memory), the per-record CSV, and the
+//!   predictions' sources they share.
 //!
 //! The table itself (rows, measures, forms) is `dem_core::eval`.
 
 pub mod compare;
 pub mod evaluate;
-pub mod inputs;
+pub mod engine;
 pub mod join;
 pub mod merge;
 pub mod model;

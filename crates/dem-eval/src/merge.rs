@@ -13,7 +13,7 @@ use dem_core::table::Split;
 use dem_core::{cli, DemError, Terrain};
 
 use crate::evaluate::TableOut;
-use crate::inputs::{row_gaps, Evaluation, GapSample, Pairs};
+use crate::engine::{row_gaps, Evaluation, GapSample, Pairs};
 use dem_core::npy::ByIndex;
 
 /// The arguments of `dem-eval merge`.

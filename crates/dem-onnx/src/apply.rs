@@ -11,7 +11,7 @@ use dem_core::format::{cell_of, RECORD_LEN};
 use dem_core::{npy, Dem, DemError};
 use rayon::prelude::*;
 
-use crate::run::OnnxModel;
+use crate::model::OnnxModel;
 
 /// Batches per thread in a group: enough that a slow batch does not leave
 /// the other threads idle at the end of each group.

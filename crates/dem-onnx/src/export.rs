@@ -28,7 +28,7 @@ use std::io::Write;
 use dem_graph::{attr_float, attr_int, attr_ints, Builder};
 use tract_onnx::pb;
 
-use crate::run::OnnxModel;
+use crate::model::OnnxModel;
 use crate::sensor::Stored;
 
 pub use dem_graph::{IR_VERSION, OPSET};

@@ -1,7 +1,7 @@
 //! ONNX for the dem-* tools: run any model that maps DEM batches to DEM
 //! batches, and export the generator of `docs/network.md` to such a model.
 //!
-//! - [`run`]: [`OnnxModel`], a tract plan optimised once with a symbolic
+//! - [`model`]: [`OnnxModel`], a tract plan optimised once with a symbolic
 //!   batch axis `N`: `(N, 21, 5, 2) float32 -> (N, 21, 5, 2) float32`, any
 //!   `N >= 1`, callable from many threads at once (`Send + Sync`).
 //! - [`export`]: [`generator_model`] builds the ONNX graph of a generator
@@ -24,13 +24,13 @@ pub mod apply;
 pub mod export;
 pub mod heights;
 pub mod masks;
+pub mod model;
 pub mod native;
-pub mod run;
 pub mod sensor;
 
 pub use heights::{Heights, HEIGHTS_KEY};
 pub use export::{export_checked, export_checked_with, generator_model, read_info, ExportReport, ModelInfo, TOLERANCE};
-pub use run::{Engine, OnnxModel};
+pub use model::{Engine, OnnxModel};
 
 /// The ONNX protobuf types (tract's generated `prost` messages), for callers
 /// that build or inspect models.
