@@ -6,6 +6,8 @@
 //! largest index each stride pattern reaches lies inside its slice. The one
 //! other `unsafe` here, [`with_avx2`], calls a `target_feature` function
 //! after checking the CPU has the features.
+//!
+//! Layer 0 (gemm), the bottom: uses nothing else of the crate.
 #![allow(unsafe_code)]
 
 use gemm::Parallelism;

@@ -1,9 +1,12 @@
 //! A slow, obviously correct forward pass of both networks, one sample at a
 //! time in f64, straight from `docs/network.md` (and the PyTorch peer). The
 //! fast kernels, the export and the ONNX runners are all tested against it.
+//!
+//! Layer 3 (reference): uses weights and layers; the crate's own code calls it only from tests.
 
 use dem_core::Dem;
 
+use crate::layers::conv::same_pad;
 use crate::weights::{Arch, CORRECTION_SCALE, GATE_SHARPNESS, Conv2d, DiscriminatorWeights, GeneratorWeights, InstanceNorm, Linear, LEAK, NORM_EPS};
 
 /// A feature map of one sample: `c` channels of `h x w`, NCHW order.
@@ -22,13 +25,6 @@ impl Map {
         }
         self.v[(c * self.h + y as usize) * self.w + x as usize]
     }
-}
-
-/// PyTorch's "same" padding of the reference: (before, after) on one axis.
-pub fn same_pad(n: usize, k: usize, s: usize) -> (usize, usize, usize) {
-    let out = n.div_ceil(s);
-    let total = ((out - 1) * s + k).saturating_sub(n);
-    (out, total / 2, total - total / 2)
 }
 
 fn conv(x: &Map, l: &Conv2d, pad_y: usize, pad_x: usize, oh: usize, ow: usize) -> Map {
@@ -173,20 +169,4 @@ pub fn discriminator(d: &DiscriminatorWeights, dem: &Dem) -> [f64; 10] {
         *d = 1.0 / (1.0 + (-v).exp());
     }
     out
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn same_padding_matches_the_reference_shapes() {
-        // 20x5 -> 10x3 -> 5x2 -> 5x2, as the discriminator's head expects.
-        assert_eq!(same_pad(20, 4, 2), (10, 1, 1));
-        assert_eq!(same_pad(5, 4, 2), (3, 1, 2));
-        assert_eq!(same_pad(10, 4, 2), (5, 1, 1));
-        assert_eq!(same_pad(3, 4, 2), (2, 1, 2));
-        assert_eq!(same_pad(5, 4, 1), (5, 1, 2));
-        assert_eq!(same_pad(2, 4, 1), (2, 1, 2));
-    }
 }

@@ -10,7 +10,10 @@
 //!   tanh on channel 1 (the mask);
 //! - discriminator head input (1344): the 128x5x2 feature map at
 //!   `c*10 + r*2 + col`, then the 64 attitude features.
+//!
+//! Layer 1 (weights): uses nothing else of the crate.
 
+use dem_core::format::{GRID_CELLS, GRID_LEN, RECORD_LEN};
 use rand::Rng;
 use serde::{Deserialize, Serialize};
 
@@ -220,12 +223,11 @@ impl GeneratorWeights {
             .collect();
         let dec = (0..3).map(|i| Conv2d::init(rng, dec_ch[i], dec_ch[i + 1], 3, 1)).collect();
         let dec_norm = (0..2).map(|i| InstanceNorm::init(dec_ch[i + 1])).collect();
-        let (grid, cells) = (crate::net::generator::GRID, dem_core::format::GRID_CELLS);
-        let mut fc = Linear::init(rng, dem_core::format::RECORD_LEN, grid);
+        let mut fc = Linear::init(rng, RECORD_LEN, GRID_LEN);
         if arch == Arch::Residual {
             // The height rows of the head start at zero: the correction starts at none.
-            fc.weight[..cells * dem_core::format::RECORD_LEN].fill(0.0);
-            fc.bias[..cells].fill(0.0);
+            fc.weight[..GRID_CELLS * RECORD_LEN].fill(0.0);
+            fc.bias[..GRID_CELLS].fill(0.0);
         }
         GeneratorWeights { width: w, arch, enc, enc_norm, res, dec, dec_norm, fc }
     }

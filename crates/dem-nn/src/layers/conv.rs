@@ -10,6 +10,8 @@
 //! y   = col W + b
 //! dW += col^T dy,   db += sum_m dy,   dx = col2im(dy W^T)
 //! ```
+//!
+//! Layer 2 (layers): may use gemm and weights.
 
 use rayon::prelude::*;
 
@@ -46,11 +48,10 @@ impl ConvGeom {
         ConvGeom { h, w, c_in, c_out, k: 3, stride: 1, pad_top: 1, pad_left: 1, oh: h, ow: w }
     }
 
-    /// PyTorch-style "same" padding of the reference discriminator (the odd
-    /// pad goes after).
+    /// PyTorch-style "same" padding ([`same_pad`]), the discriminator's.
     pub fn same(h: usize, w: usize, c_in: usize, c_out: usize, k: usize, stride: usize) -> Self {
-        let (oh, pad_top, _) = crate::reference::same_pad(h, k, stride);
-        let (ow, pad_left, _) = crate::reference::same_pad(w, k, stride);
+        let (oh, pad_top, _) = same_pad(h, k, stride);
+        let (ow, pad_left, _) = same_pad(w, k, stride);
         ConvGeom { h, w, c_in, c_out, k, stride, pad_top, pad_left, oh, ow }
     }
 
@@ -81,6 +82,16 @@ impl ConvGeom {
         let ix = (ox * self.stride + kx).checked_sub(self.pad_left)?;
         (iy < self.h && ix < self.w).then_some(iy * self.w + ix)
     }
+}
+
+/// PyTorch-style "same" padding of one axis of length `n` for kernel size `k`
+/// and stride `s`: `(output length, zeros before, zeros after)`, the odd zero
+/// after. The kernels and the f64 reference both take it from here, so they
+/// cannot disagree on the discriminator's shapes.
+pub fn same_pad(n: usize, k: usize, s: usize) -> (usize, usize, usize) {
+    let out = n.div_ceil(s);
+    let total = ((out - 1) * s + k).saturating_sub(n);
+    (out, total / 2, total - total / 2)
 }
 
 /// `col [n*oh*ow, K]` from `x [n, h, w, c_in]`.
@@ -172,6 +183,17 @@ pub fn backward(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn same_padding_gives_the_discriminators_shapes() {
+        // 20x5 -> 10x3 -> 5x2 -> 5x2, as the discriminator's head expects.
+        assert_eq!(same_pad(20, 4, 2), (10, 1, 1));
+        assert_eq!(same_pad(5, 4, 2), (3, 1, 2));
+        assert_eq!(same_pad(10, 4, 2), (5, 1, 1));
+        assert_eq!(same_pad(3, 4, 2), (2, 1, 2));
+        assert_eq!(same_pad(5, 4, 1), (5, 1, 2));
+        assert_eq!(same_pad(2, 4, 1), (2, 1, 2));
+    }
 
     /// im2col and col2im are adjoint: <im2col(x), c> = <x, col2im(c)>.
     #[test]

@@ -1,6 +1,8 @@
 //! Fully connected layer on a batch: `y [n, out] = x [n, in] W [in, out] + b`.
 //!
 //! Backward: `dW += x^T dy`, `db += sum_n dy`, `dx = dy W^T`.
+//!
+//! Layer 2 (layers): may use gemm and weights.
 
 use crate::gemm::{matmul, Mat};
 

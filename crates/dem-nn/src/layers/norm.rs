@@ -10,6 +10,8 @@
 //! ```
 //! The activation's derivative is read off its output: leaky ReLU and ReLU
 //! keep the sign of their input (a zero output of ReLU means "was <= 0").
+//!
+//! Layer 2 (layers): may use gemm and weights.
 
 use rayon::prelude::*;
 

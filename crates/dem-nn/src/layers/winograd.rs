@@ -16,6 +16,8 @@
 //!           dV_xi = dM_xi U_xi^T;  dx = sum over tiles of B dV B^T
 //! ```
 //! The backward pass is the exact adjoint of this forward computation.
+//!
+//! Layer 2 (layers): may use gemm and weights.
 
 use crate::gemm::{matmul, Mat};
 use crate::layers::conv::ConvGeom;

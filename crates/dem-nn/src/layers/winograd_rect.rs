@@ -28,6 +28,8 @@
 //! the points `0, +-1, +-2` (rows) and `0, +-1, 2` (columns) keep every
 //! transform entry a small dyadic fraction or 1/3, 1/6, 1/12, 1/24, so the
 //! f32 error stays of the order of the direct convolution's (tested).
+//!
+//! Layer 2 (layers): may use gemm and weights.
 
 use crate::gemm::{matmul, Mat};
 use crate::layers::conv::ConvGeom;

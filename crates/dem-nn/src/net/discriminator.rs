@@ -4,8 +4,12 @@
 //! conv 4x4/2 + IN + leaky -> `[n, 5, 2, 128]` -> conv 4x4/1 + IN + leaky ->
 //! `[n, 5, 2, 128]`; attitude `[n, 10]` -> dense 64 + leaky; both -> dense
 //! 1344 -> 10 logits. The sigmoid lives in the loss (BCE on logits).
+//!
+//! Layer 4 (net): may use layers, weights and gemm.
 
-use super::generator::{split2, ATT, GRID};
+use dem_core::format::GRID_LEN;
+
+use super::generator::{split2, ATT};
 use super::params::{channels_first, same_order, Alloc, ConvLayer, DenseLayer, NormLayer};
 use crate::layers::conv::{self, ConvGeom};
 use crate::layers::dense;
@@ -180,7 +184,7 @@ impl Discriminator {
         let mut dx = Vec::new();
         conv::backward(&c1.g, &p[c1.w.clone()], &t.cols[0], &d[0], cg, want_input.then_some(&mut dx), &mut s.dcol);
         s.d = d;
-        debug_assert!(!want_input || dx.len() == t.att.len() / ATT * GRID);
+        debug_assert!(!want_input || dx.len() == t.att.len() / ATT * GRID_LEN);
         want_input.then_some(dx)
     }
 }

@@ -5,6 +5,10 @@
 //! order). Output: the grid `[n, 20, 5, 2]` with tanh on the mask channel
 //! and, for [`Arch::Residual`], heights `(x_h + s o_h) sigmoid(k o_m)` (see
 //! [`Arch`]); the caller copies row 20 through. Shapes inside: `[n, 100, c]`.
+//!
+//! Layer 4 (net): may use layers, weights and gemm.
+
+use dem_core::format::{GRID_CELLS, GRID_LEN, RECORD_LEN};
 
 use super::params::{channels_first, Alloc, ConvLayer, DenseLayer, NormLayer};
 use crate::layers::conv::ConvGeom;
@@ -13,12 +17,10 @@ use crate::layers::dense;
 use crate::layers::norm::{self, Act, NormCache};
 use crate::weights::{Arch, GeneratorWeights, ResBlock, CORRECTION_SCALE, GATE_SHARPNESS};
 
-/// Grid values of one record (rows 0..19, both channels).
-pub const GRID: usize = dem_core::format::GRID_CELLS * dem_core::format::CHANNELS;
 /// Attitude values of one record (row 20).
-pub const ATT: usize = dem_core::format::RECORD_LEN - GRID;
+pub const ATT: usize = RECORD_LEN - GRID_LEN;
 /// Cells of the grid: heights come first in the head's output, masks after.
-const POS: usize = dem_core::format::GRID_CELLS;
+const POS: usize = GRID_CELLS;
 
 /// Layer layout of a generator of width w.
 #[derive(Clone, Debug)]
@@ -96,7 +98,7 @@ impl Generator {
                 norms.push(NormLayer::new(&mut a, dec[i + 1]));
             }
         }
-        let torch_in = channels_first(POS, 2).chain(channels_first(5, 2).map(|t| GRID + t)).collect();
+        let torch_in = channels_first(POS, 2).chain(channels_first(5, 2).map(|t| GRID_LEN + t)).collect();
         let fc = DenseLayer::new(&mut a, torch_in, channels_first(POS, 2).collect());
         Generator { width: w, arch, convs, norms, fc, len: a.len() }
     }
@@ -150,7 +152,7 @@ impl Generator {
     /// Forward pass of a batch: `grid [n, 200]`, `att [n, 10]`; the output
     /// grid is `tape.out`.
     pub fn forward(&self, p: &[f32], grid: &[f32], att: &[f32], t: &mut GenTape) {
-        let n = grid.len() / GRID;
+        let n = grid.len() / GRID_LEN;
         assert_eq!(att.len(), n * ATT, "attitude rows");
         t.n = n;
         t.convs.resize_with(12, WinoCache::default);
@@ -189,11 +191,11 @@ impl Generator {
         t.zs[DEC + 1] = z;
         // Head: [decoder output (200), attitude (10)] -> 200, tanh on masks.
         t.feat.clear();
-        for (row, a) in t.ys[DEC + 2].chunks_exact(GRID).zip(att.chunks_exact(ATT)) {
+        for (row, a) in t.ys[DEC + 2].chunks_exact(GRID_LEN).zip(att.chunks_exact(ATT)) {
             t.feat.extend_from_slice(row);
             t.feat.extend_from_slice(a);
         }
-        dense::forward(&p[self.fc.w.clone()], &p[self.fc.b.clone()], &t.feat, GRID + ATT, &mut t.out);
+        dense::forward(&p[self.fc.w.clone()], &p[self.fc.b.clone()], &t.feat, GRID_LEN + ATT, &mut t.out);
         match self.arch {
             Arch::Thesis => t.out.iter_mut().skip(1).step_by(2).for_each(|m| *m = m.tanh()),
             Arch::Residual => {
@@ -244,10 +246,10 @@ impl Generator {
             }
         }
         let (gw, gb) = split2(grads, &self.fc.w, &self.fc.b);
-        dense::backward(&p[self.fc.w.clone()], &t.feat, GRID + ATT, &u, Some((gw, gb)), Some(&mut s.dfeat));
+        dense::backward(&p[self.fc.w.clone()], &t.feat, GRID_LEN + ATT, &u, Some((gw, gb)), Some(&mut s.dfeat));
         s.dh.clear();
-        for row in s.dfeat.chunks_exact(GRID + ATT) {
-            s.dh.extend_from_slice(&row[..GRID]);
+        for row in s.dfeat.chunks_exact(GRID_LEN + ATT) {
+            s.dh.extend_from_slice(&row[..GRID_LEN]);
         }
         let mut dh = std::mem::take(&mut s.dh);
         let mut next = Vec::new();

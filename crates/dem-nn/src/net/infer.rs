@@ -24,11 +24,13 @@
 //! zero records, whose outputs are dropped), so every matrix product has the
 //! same shape whatever the caller's batch, and a record's output does not
 //! depend on the batch it came in nor on its place in it (tested).
+//!
+//! Layer 4 (net): may use layers, weights and gemm.
 
-use dem_core::format::{GRID_CELLS, RECORD_LEN};
+use dem_core::format::{GRID_CELLS, GRID_LEN, RECORD_LEN};
 use dem_core::Dem;
 
-use super::generator::{ATT, GRID};
+use super::generator::ATT;
 use super::params::{channels_first, ConvLayer, DenseLayer, Alloc};
 use crate::gemm::{matmul, Mat};
 use crate::layers::conv::ConvGeom;
@@ -111,7 +113,7 @@ impl GeneratorInference {
             w.enc_norm.iter().chain(w.res.iter().flat_map(|r| [&r.na, &r.nb])).chain(&w.dec_norm).cloned().collect();
         assert_eq!(norms.len(), 11, "11 instance norms");
         let mut a = Alloc::default();
-        let torch_in = channels_first(POS, 2).chain(channels_first(5, 2).map(|t| GRID + t)).collect();
+        let torch_in = channels_first(POS, 2).chain(channels_first(5, 2).map(|t| GRID_LEN + t)).collect();
         let fc = DenseLayer::new(&mut a, torch_in, channels_first(POS, 2).collect());
         let mut p = vec![0.0; a.len()];
         fc.load(&mut p, &w.fc);
@@ -148,19 +150,19 @@ impl GeneratorInference {
         for chunk in records.chunks(self.block) {
             s.grid.clear();
             for d in chunk {
-                s.grid.extend_from_slice(&d[..GRID]);
+                s.grid.extend_from_slice(&d[..GRID_LEN]);
             }
-            s.grid.resize(self.block * GRID, 0.0);
+            s.grid.resize(self.block * GRID_LEN, 0.0);
             s.feat.clear();
-            s.feat.resize(self.block * (GRID + ATT), 0.0);
-            for (f, d) in s.feat.chunks_exact_mut(GRID + ATT).zip(chunk) {
-                f[GRID..].copy_from_slice(&d[GRID..]);
+            s.feat.resize(self.block * (GRID_LEN + ATT), 0.0);
+            for (f, d) in s.feat.chunks_exact_mut(GRID_LEN + ATT).zip(chunk) {
+                f[GRID_LEN..].copy_from_slice(&d[GRID_LEN..]);
             }
             crate::gemm::with_avx2(Block(self, s));
-            for (d, o) in chunk.iter().zip(s.out.chunks_exact(GRID)) {
+            for (d, o) in chunk.iter().zip(s.out.chunks_exact(GRID_LEN)) {
                 let mut r = [0.0f32; RECORD_LEN];
-                r[..GRID].copy_from_slice(o);
-                r[GRID..].copy_from_slice(&d[GRID..]);
+                r[..GRID_LEN].copy_from_slice(o);
+                r[GRID_LEN..].copy_from_slice(&d[GRID_LEN..]);
                 out.push(r);
             }
         }
@@ -193,14 +195,14 @@ impl GeneratorInference {
         self.conv(9, h, a, v, Some(Act::Leaky));
         self.conv(10, a, b, v, Some(Act::Leaky));
         self.conv(11, b, a, v, None);
-        for (f, y) in feat.chunks_exact_mut(GRID + ATT).zip(a.chunks_exact(GRID)) {
-            f[..GRID].copy_from_slice(y);
+        for (f, y) in feat.chunks_exact_mut(GRID_LEN + ATT).zip(a.chunks_exact(GRID_LEN)) {
+            f[..GRID_LEN].copy_from_slice(y);
         }
         out.clear();
         for _ in 0..self.block {
             out.extend_from_slice(&self.fc_b);
         }
-        matmul(out, Mat::new(feat, self.block, GRID + ATT), Mat::new(&self.fc_w, GRID + ATT, GRID), true);
+        matmul(out, Mat::new(feat, self.block, GRID_LEN + ATT), Mat::new(&self.fc_w, GRID_LEN + ATT, GRID_LEN), true);
         match self.arch {
             Arch::Thesis => out.iter_mut().skip(1).step_by(2).for_each(|m| *m = m.tanh()),
             Arch::Residual => {
@@ -238,7 +240,7 @@ mod tests {
             .map(|_| {
                 let mut d = [0.0f32; RECORD_LEN];
                 for (k, v) in d.iter_mut().enumerate() {
-                    *v = if k % 2 == 1 && k < GRID { rng.gen_range(-1.0f32..1.0).signum() } else { rng.gen_range(-0.5..0.5) };
+                    *v = if k % 2 == 1 && k < GRID_LEN { rng.gen_range(-1.0f32..1.0).signum() } else { rng.gen_range(-0.5..0.5) };
                 }
                 d
             })
@@ -268,7 +270,7 @@ mod tests {
                 for (j, (a, b)) in y.iter().zip(want.iter()).enumerate() {
                     assert!((a - b).abs() <= 1e-4, "{arch:?} value {j}: {a} vs {b}");
                 }
-                assert_eq!(y[GRID..], x[GRID..], "row 20 passes through");
+                assert_eq!(y[GRID_LEN..], x[GRID_LEN..], "row 20 passes through");
             }
         }
     }

@@ -1,6 +1,8 @@
 //! The two networks on batches: layouts of their flat parameter vectors,
 //! forward passes that keep a tape, and backward passes over it; and the
 //! generator's inference-only forward pass ([`infer`]).
+//!
+//! Layer 4 (net): may use layers, weights and gemm.
 
 pub mod discriminator;
 pub mod generator;

@@ -6,6 +6,8 @@
 //! [`crate::layers::conv`]); a dense layer's are `W [in, out]`, with inputs and
 //! outputs in the order of the channels-last maps, which differs from
 //! PyTorch's flatten order by the permutations each layer carries.
+//!
+//! Layer 4 (net): may use layers, weights and gemm.
 
 use std::ops::Range;
 

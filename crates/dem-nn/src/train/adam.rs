@@ -4,6 +4,8 @@
 //! m = b1 m + (1 - b1) g;   v = b2 v + (1 - b2) g^2
 //! p -= lr / (1 - b1^t) * m / (sqrt(v) / sqrt(1 - b2^t) + eps)
 //! ```
+//!
+//! Layer 5 (train), the top: may use net, layers, weights and gemm.
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};

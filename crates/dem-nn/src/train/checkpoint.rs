@@ -5,6 +5,8 @@
 //! Layout: the 8 bytes `DEMCKPT1`, a little-endian u64 length, that many
 //! bytes of JSON ([`Meta`]), then for G_X, G_Y, D_X, D_Y in turn the
 //! parameters, Adam's first and second moments as little-endian f32.
+//!
+//! Layer 5 (train), the top: may use net, layers, weights and gemm.
 
 use std::io::{Read, Write};
 

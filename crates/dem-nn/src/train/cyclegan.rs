@@ -21,6 +21,8 @@
 //! the generators' update: between the two the discriminators do not change,
 //! so it is the same forward pass. The generators' backward through D asks
 //! for input gradients only.
+//!
+//! Layer 5 (train), the top: may use net, layers, weights and gemm.
 
 use dem_core::format::GRID_LEN;
 use dem_core::Dem;
@@ -31,7 +33,6 @@ use serde::{Deserialize, Serialize};
 
 use super::adam::{Adam, AdamConfig};
 use super::loss;
-use crate::net::generator::GRID;
 use crate::net::{DiscScratch, DiscTape, Discriminator, GenScratch, GenTape, Generator};
 use crate::weights::{Arch, DiscriminatorWeights, GeneratorWeights};
 
@@ -116,8 +117,8 @@ pub struct Batch<'a> {
 impl<'a> Batch<'a> {
     /// A batch from records; `pairs[i]` are the reals of sim row i.
     pub fn new(x: &[&Dem], y: &[&Dem], pairs: Vec<Vec<&'a [f32]>>) -> Self {
-        let grid = |v: &[&Dem]| v.iter().flat_map(|d| d[..GRID].iter().copied()).collect();
-        let att = |v: &[&Dem]| v.iter().flat_map(|d| d[GRID..].iter().copied()).collect();
+        let grid = |v: &[&Dem]| v.iter().flat_map(|d| d[..GRID_LEN].iter().copied()).collect();
+        let att = |v: &[&Dem]| v.iter().flat_map(|d| d[GRID_LEN..].iter().copied()).collect();
         Batch { x_grid: grid(x), x_att: att(x), y_grid: grid(y), y_att: att(y), pairs }
     }
 }

@@ -6,9 +6,12 @@
 //! `round(batch * paired_fraction)` rows are train pairs (a sim key and one
 //! of its reals, drawn from a per-epoch permutation of the keys); the other
 //! rows take sims and reals from per-epoch permutations of all records.
+//!
+//! Layer 5 (train), the top: may use net, layers, weights and gemm.
 
 use std::collections::BTreeMap;
 
+use dem_core::format::GRID_LEN;
 use dem_core::table::{Pair, Split};
 use dem_core::{Dem, DemError};
 use rand::seq::SliceRandom;
@@ -16,7 +19,6 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use super::cyclegan::Batch;
-use crate::net::generator::GRID;
 
 /// Sim key with all its reals.
 pub type KeyReals = (usize, Vec<usize>);
@@ -139,7 +141,7 @@ impl Sampler {
                 let (key, reals) = &data.train[keys[(k * np + j) % keys.len()]];
                 x.push(&data.sim[*key]);
                 y.push(&data.real[reals[rng.gen_range(0..reals.len())]]);
-                pairs.push(reals.iter().map(|&r| &data.real[r][..GRID]).collect());
+                pairs.push(reals.iter().map(|&r| &data.real[r][..GRID_LEN]).collect());
             }
         }
         if nu > 0 {
@@ -157,7 +159,7 @@ impl Sampler {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use dem_core::format::{GRID_LEN, RECORD_LEN};
+    use dem_core::format::RECORD_LEN;
 
     fn rec(v: f32) -> Dem {
         let mut d = [0.0; RECORD_LEN];

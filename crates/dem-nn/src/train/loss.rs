@@ -16,6 +16,8 @@
 //!   dominate.
 //! - Paired G_X term: mean over pairs of the squared error between G_X(y)
 //!   and x over both channels (sum over cells / 100, the scale of e).
+//!
+//! Layer 5 (train), the top: may use net, layers, weights and gemm.
 
 /// Values per record in the loss means (the whole 21x5x2 record).
 pub const RECORD: f32 = 210.0;

@@ -1,5 +1,7 @@
 //! Training: losses, Adam, the Cycle GAN step, batches and checkpoints.
 //! The run loop (a run directory, progress, losses.csv) is dem-train's.
+//!
+//! Layer 5 (train), the top: may use net, layers, weights and gemm.
 
 pub mod adam;
 pub mod checkpoint;
