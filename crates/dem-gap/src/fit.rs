@@ -274,11 +274,13 @@ fn fit_in(name: &str, base: &SensorModel, target: &Target, ranges: &[Range], fix
         (_, 1) => 41,
         // Four parameters (tilt): 9^4 first points cost eight times 9^3, so
         // a coarser first grid, refined three points a side for one more
-        // round, to the same final step.
+        // round, to the same final step, from the best few points of it
+        // that are not neighbours (a coarse grid's best cell can miss the
+        // deepest valley).
         (_, 4..) => 5,
         _ => 9,
     };
-    let (per, rounds) = if dims >= 4 { (3, 5) } else { (5, 4) };
+    let (per, rounds, starts) = if dims >= 4 { (3, 5, 3) } else { (5, 4, 1) };
     let grid = |centre: &[f64], step: f64, per: usize| -> Vec<Vec<f64>> {
         let mut pts = vec![vec![]];
         for &c in centre.iter().take(dims) {
@@ -290,22 +292,50 @@ fn fit_in(name: &str, base: &SensorModel, target: &Target, ranges: &[Range], fix
         }
         pts
     };
+    let order = |a: &(Vec<f64>, f64), b: &(Vec<f64>, f64)| {
+        a.1.total_cmp(&b.1).then_with(|| a.0.partial_cmp(&b.0).unwrap_or(std::cmp::Ordering::Equal))
+    };
     let best_of = |pts: Vec<Vec<f64>>| -> Option<(Vec<f64>, f64)> {
         pts.into_par_iter().map(|p| {
             let g = eval(&p);
             (p, g)
-        }).min_by(|a, b| a.1.total_cmp(&b.1).then_with(|| a.0.partial_cmp(&b.0).unwrap_or(std::cmp::Ordering::Equal)))
+        }).min_by(order)
     };
-    let (mut best, mut best_gap) = best_of(grid(&vec![0.5; dims], 1.0 / (n - 1) as f64, n))?;
-    let mut step = 1.0 / (n - 1) as f64 / 2.0;
-    for _ in 0..rounds {
-        if let Some((p, g)) = best_of(grid(&best, step, per)) {
-            if g < best_gap {
-                (best, best_gap) = (p, g);
+    let spacing = 1.0 / (n - 1) as f64;
+    let first = grid(&vec![0.5; dims], spacing, n);
+    let mut seeds: Vec<(Vec<f64>, f64)> = if starts == 1 {
+        vec![best_of(first)?]
+    } else {
+        let mut all: Vec<(Vec<f64>, f64)> = first.into_par_iter().map(|p| {
+            let g = eval(&p);
+            (p, g)
+        }).collect();
+        all.sort_by(order);
+        let mut chosen: Vec<(Vec<f64>, f64)> = Vec::new();
+        for (p, g) in all {
+            let apart = |q: &Vec<f64>| p.iter().zip(q).any(|(a, b)| (a - b).abs() > 1.5 * spacing);
+            if chosen.len() < starts && g.is_finite() && chosen.iter().all(|(q, _)| apart(q)) {
+                chosen.push((p, g));
             }
         }
-        step /= 2.0;
+        if chosen.is_empty() {
+            return None;
+        }
+        chosen
+    };
+    for (best, best_gap) in seeds.iter_mut() {
+        let mut step = spacing / 2.0;
+        for _ in 0..rounds {
+            if let Some((p, g)) = best_of(grid(best, step, per)) {
+                if g < *best_gap {
+                    (*best, *best_gap) = (p, g);
+                }
+            }
+            step /= 2.0;
+        }
     }
+    // The best refined start; the better-ranked start on a tie.
+    let (best, best_gap) = seeds.into_iter().reduce(|a, b| if b.1 < a.1 { b } else { a })?;
     if !best_gap.is_finite() {
         return None;
     }
