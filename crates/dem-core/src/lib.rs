@@ -7,8 +7,6 @@
 //! - [`table`]: labels, pairs and index CSVs; [`raw_labels`]: a labels CSV
 //!   re-indexed a row at a time, every other byte kept.
 //! - [`metric`]: the thesis's equation 7.1 error and the pair error.
-//! - [`eval`]: validation tables of the pair error (count, lowest, highest,
-//!   mean, median; by terrain) and their comparison against a baseline.
 //! - [`seeded`]: random streams fixed by (seed, record index).
 //! - [`distribution`]: the distribution gap between two sets of DEMs (what
 //!   dem-gap fits and dem-eval's `gap` column reports).
@@ -16,12 +14,14 @@
 //! - [`swap`]: the warning when `--sim` and `--real` look swapped.
 //! - [`cli`]: exit codes, error printing, logs and progress for the binaries.
 //! - [`error`]: the typed errors everything returns.
+//!
+//! dem-eval's validation tables (rows, measures, their forms and the
+//! comparison against a baseline) live in dem-eval's library, `dem_eval::table`.
 #![deny(missing_docs)]
 
 pub mod cli;
 pub mod distribution;
 pub mod error;
-pub mod eval;
 pub mod format;
 pub mod metric;
 pub mod npy;

@@ -1,8 +1,8 @@
 //! `dem-eval compare`: two tables side by side, exit 1 when a row got worse.
 
 use dem_core::cli;
-use dem_core::eval::forms::{self as report, read_table, Format};
-use dem_core::eval::{self, Compared, Status, Tolerances};
+use crate::table::forms::{self as report, read_table, Format};
+use crate::table::{self, Compared, Status, Tolerances};
 
 /// Compare `current` against `baseline`, print the comparison, fail when a row
 /// is worse or missing; the message names the measures that failed.
@@ -13,7 +13,7 @@ pub fn run(baseline: &str, current: &str, tol: &Tolerances, format: Format) -> a
         }
     }
     let (b, c) = (read_table(baseline)?, read_table(current)?);
-    let rows = eval::compare(&b, &c, tol);
+    let rows = table::compare(&b, &c, tol);
     report::write_comparison("-", &rows, format)?;
     for r in rows.iter().filter(|r| r.status == Status::Ok) {
         if let (Some(b), Some(c)) = (&r.baseline, &r.current) {

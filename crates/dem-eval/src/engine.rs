@@ -10,7 +10,7 @@
 
 use std::collections::{BTreeSet, HashMap};
 
-use dem_core::eval::{self, RowAcc, Selection, TableRow};
+use crate::table::{self as validation, RowAcc, Selection, TableRow};
 use dem_core::distribution;
 use dem_core::npy::{self, ByIndex, RecordIndex, CHUNK_RECORDS};
 use dem_core::table::{self, Split};
@@ -92,7 +92,7 @@ impl Evaluation {
     /// `by_terrain` one per terrain present, in label order.
     pub fn table(&self, method: &str, by_terrain: bool) -> Vec<TableRow> {
         let row = |key: Option<Terrain>, name: &str| self.rows.get(&key).and_then(|acc| acc.row(method, name, self.gaps.get(&key).copied()));
-        let mut rows: Vec<TableRow> = row(None, eval::ALL).into_iter().collect();
+        let mut rows: Vec<TableRow> = row(None, validation::ALL).into_iter().collect();
         if by_terrain {
             rows.extend(Terrain::ALL.into_iter().filter_map(|t| row(Some(t), t.as_str())));
         }
@@ -122,7 +122,7 @@ impl Largest {
     }
 }
 
-/// The pairs to evaluate ([`eval::select`]), sorted by sim index.
+/// The pairs to evaluate ([`validation::select`]), sorted by sim index.
 pub(crate) struct Pairs {
     pub(crate) pairs: Vec<(u64, u64)>,
 }
@@ -142,7 +142,7 @@ impl Pairs {
                 real_max = Largest { index: p.real_index, line };
             }
         }
-        let kept = eval::select(&all, split);
+        let kept = validation::select(&all, split);
         drop(all);
         Ok((Pairs { pairs: kept }, sim_max, real_max))
     }
@@ -418,7 +418,7 @@ fn evaluate_block(ctx: &BlockCtx, mut block: Vec<(u64, Dem, Dem)>, reals: &mut B
     let wanted: BTreeSet<u64> = sub.values().flatten().copied().collect();
     let real = reals.fetch(&wanted)?;
     let pred: HashMap<u64, Dem> = block.iter().map(|b| (b.0, b.2)).collect();
-    let results = eval::evaluate(&sub, |i| &pred[&i], |j| &real[&j], ctx.terrain_of);
+    let results = validation::evaluate(&sub, |i| &pred[&i], |j| &real[&j], ctx.terrain_of);
     for (r, b) in results.iter().zip(&block) {
         debug_assert_eq!(r.sim_index, b.0);
         if let Some(w) = &mut emit.records {

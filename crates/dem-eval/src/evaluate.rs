@@ -8,7 +8,7 @@ use dem_core::table::Split;
 use dem_core::cli;
 
 use crate::engine::{self, Method, Request};
-use dem_core::eval::forms::{self as report, Format};
+use crate::table::forms::{self as report, Format};
 
 /// The arguments of an evaluation (dem-eval without a subcommand).
 #[derive(ClapArgs)]

@@ -5,8 +5,8 @@
 
 use clap::Args;
 use dem_core::cli;
-use dem_core::eval::forms::{read_table, write_pivot, write_table, Format};
-use dem_core::eval::{check_table, Measure, TableRow};
+use crate::table::forms::{read_table, write_pivot, write_table, Format};
+use crate::table::{check_table, Measure, TableRow};
 use dem_core::{output, DemError};
 
 /// Arguments of `dem-eval join`.

@@ -11,8 +11,10 @@
 //! - [`engine`], [`records`], [`model`]: the evaluation engine (the
 //!   selected records, read in bounded memory), the per-record CSV, and the
 //!   predictions' sources they share.
-//!
-//! The table itself (rows, measures, forms) is `dem_core::eval`.
+//! - [`table`]: the validation table itself: its rows (count, lowest,
+//!   highest, mean, median of the pair errors, [`table::ErrorSummary`]; the
+//!   measures that see heights; by terrain), the comparison against a
+//!   baseline, and [`table::forms`], the forms it is written and read in.
 
 pub mod compare;
 pub mod evaluate;
@@ -21,4 +23,5 @@ pub mod join;
 pub mod merge;
 pub mod model;
 pub mod records;
+pub mod table;
 pub mod transfer;

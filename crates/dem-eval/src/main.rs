@@ -5,9 +5,9 @@
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
-use dem_core::{cli, eval};
-use dem_core::eval::forms::Format;
-use dem_eval::{compare, evaluate, join, merge, transfer};
+use dem_core::cli;
+use dem_eval::table::forms::Format;
+use dem_eval::{compare, evaluate, join, merge, table, transfer};
 
 /// Score predictions of real DEMs for the sim records of a pairs CSV: each
 /// sim record's pair error is the smallest DEM error (docs/format.md) of its
@@ -116,7 +116,7 @@ enum Cmd {
         #[arg(long, default_value_t = 0.5, value_parser = cli::value::non_negative::<f64>)]
         rough_tolerance: f64,
         /// Largest allowed growth of the gap.
-        #[arg(long, default_value_t = eval::DEFAULT_GAP_TOLERANCE, value_parser = cli::value::non_negative::<f64>)]
+        #[arg(long, default_value_t = table::DEFAULT_GAP_TOLERANCE, value_parser = cli::value::non_negative::<f64>)]
         gap_tolerance: f64,
         /// Output format.
         #[arg(long, value_enum, default_value = "text")]
@@ -135,9 +135,9 @@ fn main() -> ExitCode {
                 dem_core::output::check_outputs(&[&baseline, &current], &["-"])?;
                 // Infinite errors are refused as join refuses them (stdin is read once, by compare).
                 for t in [&baseline, &current].into_iter().filter(|t| *t != "-") {
-                    join::check_finite(t, &eval::forms::read_table(t)?)?;
+                    join::check_finite(t, &table::forms::read_table(t)?)?;
                 }
-                let tol = eval::Tolerances { pair: tolerance, height_cm: height_tolerance, rough_cm: rough_tolerance, gap: gap_tolerance };
+                let tol = table::Tolerances { pair: tolerance, height_cm: height_tolerance, rough_cm: rough_tolerance, gap: gap_tolerance };
                 compare::run(&baseline, &current, &tol, format)
             }
             Some(Cmd::Transfer(t)) => transfer::run(t),

@@ -7,7 +7,7 @@
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 
 use clap::Args as ClapArgs;
-use dem_core::eval::{RecordResult, RowAcc};
+use crate::table::{RecordResult, RowAcc};
 use dem_core::npy::{self, CHUNK_RECORDS};
 use dem_core::table::Split;
 use dem_core::{cli, DemError, Terrain};
@@ -162,7 +162,7 @@ pub fn run(a: MergeArgs) -> anyhow::Result<()> {
             for (k, (t, n)) in total.iter_mut().zip(add).enumerate() {
                 *t = t.checked_add(n).ok_or_else(|| {
                     let column = ["height_n", "rough_across_n", "rough_along_n", "real_rough_across_n", "real_rough_along_n"][k];
-                    let row = key.map_or(dem_core::eval::ALL, |t| t.as_str());
+                    let row = key.map_or(crate::table::ALL, |t| t.as_str());
                     DemError::input(a.records.join(", "), format!("the {column} of the {row} row add up past {}", u64::MAX))
                 })?;
             }
@@ -177,7 +177,7 @@ pub fn run(a: MergeArgs) -> anyhow::Result<()> {
         if !keep {
             cli::log(format_args!(
                 "gap of the {} row not computed: its statistics overflow (heights near float32's limit)",
-                key.map_or(dem_core::eval::ALL, |t| t.as_str())
+                key.map_or(crate::table::ALL, |t| t.as_str())
             ));
         }
         keep

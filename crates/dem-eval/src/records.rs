@@ -12,7 +12,7 @@
 
 use std::io::Write;
 
-use dem_core::eval::{RecordResult, Sum};
+use crate::table::{RecordResult, Sum};
 use dem_core::format::{COLS, GRID_CELLS, GRID_ROWS};
 use dem_core::output::AtomicOutput;
 use dem_core::DemError;
@@ -239,13 +239,13 @@ mod tests {
         let mut w = RecordsWriter::create(&path).unwrap();
         let mut rs = Vec::new();
         for pred in [p, q] {
-            let ((rough_across, rough_along), (real_rough_across, real_rough_along)) = (dem_core::eval::roughness(&pred), dem_core::eval::roughness(&y));
+            let ((rough_across, rough_along), (real_rough_across, real_rough_along)) = (crate::table::roughness(&pred), crate::table::roughness(&y));
             let r = RecordResult {
                 sim_index: rs.len() as u64,
                 real_index: 0,
                 error: dem_core::metric::dem_error(&y, &pred),
                 terrain: None,
-                height: dem_core::eval::height_error(&y, &pred),
+                height: crate::table::height_error(&y, &pred),
                 rough_across,
                 rough_along,
                 real_rough_across,

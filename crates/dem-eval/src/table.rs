@@ -4,13 +4,13 @@
 //! For every sim record of a selection (the sim side of a pairs CSV, often
 //! its `val` split) a prediction p is scored by its pair error, the smallest
 //! equation 7.1 error against the real records paired with it
-//! ([`crate::metric::pair_error`]). A [`TableRow`] summarises a method over
+//! ([`dem_core::metric::pair_error`]). A [`TableRow`] summarises a method over
 //! those records: count, lowest, highest, mean and median (numpy's median:
 //! the mean of the two middle values for an even count), all in f64.
 //!
 //! ```
-//! use dem_core::eval::Stats;
-//! let s = Stats::of(&[0.4, 0.1, 0.3, 0.2]).unwrap();
+//! use dem_eval::table::ErrorSummary;
+//! let s = ErrorSummary::of(&[0.4, 0.1, 0.3, 0.2]).unwrap();
 //! assert_eq!((s.count, s.lowest, s.highest), (4, 0.1, 0.4));
 //! assert!((s.mean - 0.25).abs() < 1e-15 && (s.median - 0.25).abs() < 1e-15);
 //! ```
@@ -27,12 +27,12 @@
 //!   |h(r,c) - h(r,c+1)| (across the robot) and |h(r,c) - h(r+1,c)| (along
 //!   it) over neighbour pairs of rows 0..19 both valid; `real_rough_*_cm`
 //!   the same of the closest real records;
-//! - `gap`: [`crate::distribution::gap`] of the row's predictions against its
+//! - `gap`: [`dem_core::distribution::gap`] of the row's predictions against its
 //!   real set (the unique real records paired with the row's sim records),
 //!   unpaired; computed by the caller, which holds the records ([`table_with`]).
 //!
 //! ```
-//! use dem_core::eval::Sum;
+//! use dem_eval::table::Sum;
 //! let s = Sum { sum: 0.03, count: 2 } + Sum { sum: 0.01, count: 2 };
 //! assert!((s.mean_cm().unwrap() - 1.0).abs() < 1e-12);
 //! assert_eq!(Sum::default().mean_cm(), None);
@@ -55,10 +55,10 @@ use std::collections::{BTreeMap, HashMap};
 
 use serde::{Deserialize, Serialize};
 
-use crate::error::{DemError, Result};
-use crate::format::{Dem, DemCells, Terrain, COLS, GRID_ROWS};
-use crate::metric::dem_error;
-use crate::table::{Pair, Split};
+use dem_core::error::{DemError, Result};
+use dem_core::format::{Dem, DemCells, Terrain, COLS, GRID_ROWS};
+use dem_core::metric::dem_error;
+use dem_core::table::{Pair, Split};
 
 /// The `terrain` value of a row over all records.
 pub const ALL: &str = "all";
@@ -213,7 +213,7 @@ pub fn evaluate<'a>(
 
 /// Summary of a set of pair errors.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Stats {
+pub struct ErrorSummary {
     /// Number of records.
     pub count: u64,
     /// Smallest error.
@@ -226,9 +226,9 @@ pub struct Stats {
     pub median: f64,
 }
 
-impl Stats {
+impl ErrorSummary {
     /// Summarise `errors`; None when empty.
-    pub fn of(errors: &[f64]) -> Option<Stats> {
+    pub fn of(errors: &[f64]) -> Option<ErrorSummary> {
         if errors.is_empty() {
             return None;
         }
@@ -236,7 +236,7 @@ impl Stats {
         sorted.sort_by(f64::total_cmp);
         let n = sorted.len();
         let median = if n % 2 == 1 { sorted[n / 2] } else { (sorted[n / 2 - 1] + sorted[n / 2]) / 2.0 };
-        Some(Stats {
+        Some(ErrorSummary {
             count: n as u64,
             lowest: sorted[0],
             highest: sorted[n - 1],
@@ -332,7 +332,7 @@ impl RowAcc {
 
     /// The row; None when no record was added.
     pub fn row(&self, method: &str, terrain: &str, gap: Option<f64>) -> Option<TableRow> {
-        let s = Stats::of(&self.errors)?;
+        let s = ErrorSummary::of(&self.errors)?;
         Some(TableRow {
             method: method.into(),
             terrain: terrain.into(),
@@ -406,7 +406,7 @@ pub const OLD_TABLE_HEADER: [&str; 7] = ["method", "terrain", "count", "lowest",
 /// later in the file are skipped and switch the columns, so `cat a.csv
 /// b.csv` is a table, old and new alike; a (method, terrain) key may appear once.
 pub fn read_table_csv(path: &str) -> Result<Vec<TableRow>> {
-    let src = crate::table::open_input(path)?;
+    let src = dem_core::table::open_input(path)?;
     let bad = |line: u64, reason: String| DemError::Table { path: path.into(), line, reason };
     let mut rdr = csv::ReaderBuilder::new().has_headers(false).flexible(true).trim(csv::Trim::All).from_reader(src);
     let (new, old) = (csv::StringRecord::from(TABLE_HEADER.to_vec()), csv::StringRecord::from(OLD_TABLE_HEADER.to_vec()));
@@ -455,7 +455,7 @@ pub fn check_table(path: &str, rows: Vec<TableRow>) -> Result<Vec<TableRow>> {
 
 /// Write a table as CSV (`-` for stdout), atomically for files.
 pub fn write_table_csv(path: &str, rows: &[TableRow]) -> Result<()> {
-    crate::table::write_rows(path, rows)
+    dem_core::table::write_rows(path, rows)
 }
 
 /// How a row of the current table stands against the baseline.
@@ -635,7 +635,7 @@ pub fn compare(baseline: &[TableRow], current: &[TableRow], tol: &Tolerances) ->
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::format::{at, empty_dem, DemCells, FLAT_GROUND};
+    use dem_core::format::{at, empty_dem, DemCells, FLAT_GROUND};
 
     fn flat() -> Dem {
         let mut d = empty_dem();
@@ -699,10 +699,10 @@ mod tests {
 
     #[test]
     fn median_is_numpys() {
-        assert_eq!(Stats::of(&[3.0, 1.0, 2.0]).unwrap().median, 2.0);
-        assert_eq!(Stats::of(&[4.0, 1.0, 2.0, 3.0]).unwrap().median, 2.5);
-        assert_eq!(Stats::of(&[0.7]).unwrap(), Stats { count: 1, lowest: 0.7, highest: 0.7, mean: 0.7, median: 0.7 });
-        assert!(Stats::of(&[]).is_none());
+        assert_eq!(ErrorSummary::of(&[3.0, 1.0, 2.0]).unwrap().median, 2.0);
+        assert_eq!(ErrorSummary::of(&[4.0, 1.0, 2.0, 3.0]).unwrap().median, 2.5);
+        assert_eq!(ErrorSummary::of(&[0.7]).unwrap(), ErrorSummary { count: 1, lowest: 0.7, highest: 0.7, mean: 0.7, median: 0.7 });
+        assert!(ErrorSummary::of(&[]).is_none());
     }
 
     #[test]

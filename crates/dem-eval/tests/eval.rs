@@ -178,7 +178,7 @@ print(json.dumps(out))
     // Every pair (no --split), CSV output read back with dem-core.
     let out = arg(d, "t.csv");
     ok(&dem_eval(&eval_args(d, &["--pred", &arg(d, "pred.npy"), "--format", "csv", "-o", &out])));
-    let rows = dem_core::eval::read_table_csv(&out).unwrap();
+    let rows = dem_eval::table::read_table_csv(&out).unwrap();
     check_rows(&serde_json::to_value(&rows).unwrap(), &want["all"]);
     assert_eq!(rows[0].method, "pred");
 }
@@ -442,14 +442,14 @@ fn compare_fails_on_a_worse_table_and_passes_on_an_equal_one() {
 fn compare_fails_when_a_height_measure_grows_and_names_it() {
     let dir = tempdir();
     let d = dir.path();
-    let head = dem_core::eval::TABLE_HEADER.join(",");
+    let head = dem_eval::table::TABLE_HEADER.join(",");
     // Real roughness 0.33 across, 0.45 along; the model's 0.08 and 0.5.
     let write = |name: &str, height: f64, across: f64, gap: f64| {
         let path = arg(d, name);
         std::fs::write(&path, format!("{head}\nm,all,56,0.005,2.6,0.3,0.2,{height},{across},0.5,0.33,0.45,{gap}\n")).unwrap();
         path
     };
-    let gap_tol = dem_core::eval::DEFAULT_GAP_TOLERANCE;
+    let gap_tol = dem_eval::table::DEFAULT_GAP_TOLERANCE;
     let base = write("base.csv", 1.5, 0.08, 3.0);
     let cmp = |cur: &str, extra: &[&str]| run("dem-eval", &[&["compare", &base, cur][..], extra].concat(), None);
     // Better or within: height +0.4 cm, roughness closer to the real one, gap equal.

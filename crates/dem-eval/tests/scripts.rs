@@ -35,15 +35,15 @@ fn eval_ci_passes_on_the_committed_baseline_and_fails_on_a_better_one() {
     let text = String::from_utf8_lossy(ok(&o)).into_owned();
     assert!(text.contains("identity") && text.contains(" ok"), "{text}");
     // The identity row is deterministic: exactly the baseline's.
-    let base = dem_core::eval::read_table_csv(&testdata("eval_baseline.csv").to_string_lossy()).unwrap();
-    let now = dem_core::eval::read_table_csv(&arg(&out, "table.csv")).unwrap();
+    let base = dem_eval::table::read_table_csv(&testdata("eval_baseline.csv").to_string_lossy()).unwrap();
+    let now = dem_eval::table::read_table_csv(&arg(&out, "table.csv")).unwrap();
     assert_eq!(now.iter().find(|r| r.method == "identity"), base.iter().find(|r| r.method == "identity"));
 
     // A baseline 0.1 better than what we get: the script fails (exit 1).
     let better = arg(dir.path(), "better.csv");
     let mut rows = now.clone();
     rows[0].mean -= 0.1;
-    dem_core::eval::write_table_csv(&better, &rows).unwrap();
+    dem_eval::table::write_table_csv(&better, &rows).unwrap();
     let o = run_cmd(script("eval_ci.sh", &bin, &out).env("BASELINE", &better), None);
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(String::from_utf8_lossy(&o.stdout).contains("WORSE"));

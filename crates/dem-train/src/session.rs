@@ -14,8 +14,8 @@ use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
-use dem_core::eval::Stats;
 use dem_core::{cli, metric, npy, Dem, DemError};
+use dem_eval::table::ErrorSummary;
 
 use dem_nn::train::checkpoint::{self, Meta};
 use dem_nn::train::cyclegan::{CycleGan, Losses};
@@ -68,17 +68,17 @@ pub fn epochs_of(opts: &RunOptions, steps_per_epoch: u64) -> u64 {
 
 /// The pair error table of `preds[i]` (G_Y of key i) against `reals[i]`,
 /// summarised as dem-eval does.
-pub fn pair_table(preds: &[Dem], reals: &[Vec<&Dem>]) -> Option<Stats> {
+pub fn pair_table(preds: &[Dem], reals: &[Vec<&Dem>]) -> Option<ErrorSummary> {
     let e: Vec<f64> = preds
         .iter()
         .zip(reals)
         .filter_map(|(p, ys)| metric::pair_error(ys.iter().copied(), p).map(|(_, e)| e))
         .collect();
-    Stats::of(&e)
+    ErrorSummary::of(&e)
 }
 
 /// G_Y's validation table on the val split, if there is one.
-pub fn validate(gan: &CycleGan, data: &TrainData) -> Option<Stats> {
+pub fn validate(gan: &CycleGan, data: &TrainData) -> Option<ErrorSummary> {
     if data.val.is_empty() {
         return None;
     }
@@ -179,7 +179,7 @@ fn fmt_losses(l: &Losses) -> String {
 }
 
 /// Train from `meta.step` to the end of the run; returns the last table.
-pub fn run(gan: &mut CycleGan, data: &TrainData, sampler: Sampler, mut meta: Meta, opts: &RunOptions) -> Result<Option<Stats>> {
+pub fn run(gan: &mut CycleGan, data: &TrainData, sampler: Sampler, mut meta: Meta, opts: &RunOptions) -> Result<Option<ErrorSummary>> {
     let spe = meta.steps_per_epoch;
     // The schedule is planned over the epochs; --max-steps only cuts it short,
     // so a run stopped early and resumed equals one that was not.

@@ -10,8 +10,8 @@ use std::io::Write;
 
 use clap::ValueEnum;
 use super::{check_table, read_table_csv, Compared, Measure, Status, TableRow, TABLE_HEADER};
-use crate::error::{DemError, Result};
-use crate::output::AtomicOutput;
+use dem_core::error::{DemError, Result};
+use dem_core::output::AtomicOutput;
 use serde::Serialize;
 
 /// Output format of a table.

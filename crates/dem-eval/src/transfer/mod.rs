@@ -32,7 +32,7 @@ use dem_core::{cli, npy, Dem, DemError, Terrain};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use dem_core::eval::forms::{self as report, Format, Grid};
+use crate::table::forms::{self as report, Format, Grid};
 use linear::{features, Linear, FEATURES};
 
 /// The arguments of `dem-eval transfer`.
@@ -206,7 +206,7 @@ pub fn run(a: TransferArgs) -> anyhow::Result<()> {
     }
     let scores: Vec<Scores> = sets.iter().map(|s| score(s, &test, a.ridge)).collect::<anyhow::Result<_>>()?;
     let all: Vec<usize> = (0..test.x.len()).collect();
-    let mut rows = rows_for(&sets, &scores, &test, &all, dem_core::eval::ALL, &a);
+    let mut rows = rows_for(&sets, &scores, &test, &all, crate::table::ALL, &a);
     if a.by_terrain {
         for t in Terrain::ALL {
             let idx: Vec<usize> = all.iter().copied().filter(|&i| test.terrain[i] == t).collect();
