@@ -1,6 +1,7 @@
 //! Fitting one candidate effect: a grid search over its parameter box,
-//! refined around the best point (four times; five for four parameters,
-//! whose first grid is coarser), of the gap between
+//! refined around the best point (four times; for four parameters, whose
+//! first grid is coarser, five times around each of its three best), of
+//! the gap between
 //! model(sim) with the candidate added and real. Every evaluation uses the
 //! same random streams (the seed), so the gap changes with the parameters,
 //! not with the draws.
