@@ -62,7 +62,7 @@ expect = {
     "drift": {"drift"},
     "latency": {"lag"},
     "extrinsic": {"tilt"},
-    "vibration": {"shake"},
+    "vibration": {"shake", "step-jitter"},
 }
 cases = [(f"no-{s}-{m}", f"{s} ({m})", s) for s in stages for m in ("paired", "unpaired")]
 cases += [("exact-paired", "exact sim -> all (paired)", None), ("exact-unpaired", "exact sim -> all (unpaired)", None)]

@@ -77,6 +77,10 @@ heights relative to the robot centre; missing = mask -1, height 0):
                between valid x-neighbours in rows 2..9 (|x| <= 0.35 m),
                capped at 0.5 m (0 if none); a = s z1, b = s z2:
                h += a x + b y
+  step-jitter  per record s = sigma + edge J (J as in shake); per cell dx =
+               clip(s z, -0.1, 0.1), z a standard normal: h += dx (h(r + 1)
+               - h(r - 1)) / 0.2, a neighbour missing or outside the grid
+               read as the cell's own height
   lag          per record s_r = s (1 + spread (2u - 1)), u uniform;
                h'(x) = h(x - s_r) + s_r tan(pitch), pitch = row 20, column
                0, clamped to +-1 rad; linear interpolation between the two
@@ -393,15 +397,30 @@ def tilt(d, rng, pitch, roll, x0, range):
     _plane(d, pitch * z1, roll * z2, range + np.maximum(X, x0) - x0)
 
 
-def shake(d, rng, sigma, edge):
-    z1, z2 = rng.standard_normal(2)
+def _step_under_tracks(d):
     z = d[:20, :, 0].astype(np.float64)
     valid = d[:20, :, 1] > 0
     both = valid[2:9] & valid[3:10]
     steps = np.abs(z[3:10] - z[2:9])[both]
-    j = min(steps.max(), 0.5) if steps.size else 0.0
-    s = sigma + edge * j
+    return min(steps.max(), 0.5) if steps.size else 0.0
+
+
+def shake(d, rng, sigma, edge):
+    z1, z2 = rng.standard_normal(2)
+    s = sigma + edge * _step_under_tracks(d)
     _plane(d, s * z1, s * z2, X)
+
+
+def step_jitter(d, rng, sigma, edge):
+    s = sigma + edge * _step_under_tracks(d)
+    dx = np.clip(s * rng.standard_normal((20, 5)), -0.1, 0.1)
+    z = d[:20, :, 0].astype(np.float64)
+    valid = d[:20, :, 1] > 0
+    ahead, behind = z.copy(), z.copy()
+    ahead[:-1] = np.where(valid[1:], z[1:], z[:-1])
+    behind[1:] = np.where(valid[:-1], z[:-1], z[1:])
+    h = z + dx * (ahead - behind) / 0.2
+    d[:20, :, 0] = np.where(valid, h, d[:20, :, 0])
 
 
 def lag(d, rng, s, spread):
@@ -427,7 +446,7 @@ EFFECTS = {"noise": noise, "dropout": dropout, "row-dropout": row_dropout, "occl
            "startup": startup, "patch-dropout": patch_dropout, "edge-holes": edge_holes,
            "mixed-cells": mixed_cells, "rim-holes": rim_holes, "pit-fill": pit_fill, "view-top": view_top,
            "hole-growth": hole_growth, "drop-blend": drop_blend, "riser-blend": riser_blend, "floor-lift": floor_lift,
-           "drop-holes": drop_holes, "tilt": tilt, "shake": shake, "lag": lag, "drift": drift}
+           "drop-holes": drop_holes, "tilt": tilt, "shake": shake, "step-jitter": step_jitter, "lag": lag, "drift": drift}
 
 
 def main():

@@ -4,7 +4,7 @@
 use dem_core::format::{row_center_x, GRID_ROWS};
 use dem_sensor::Effect;
 
-use dem_core::distribution::Stats;
+use dem_core::distribution::{Stats, STEP_SIDES};
 
 fn pct(x: f64) -> String {
     format!("{:.1}%", 100.0 * x)
@@ -471,6 +471,38 @@ pub fn evidence(effect: &Effect, before: &Stats, after: &Stats, real: &Stats, ga
                 mm(sd(before, ahead.clone())),
             )
         }
+        Effect::StepJitter { sigma, edge } => {
+            let fitted = format!(
+                "each cell beside a step reads a random distance off along x (a frame's misregistration kept where fusion does not average), sd {:.0} mm plus {:.0} mm per 10 cm of step under the tracks",
+                1000.0 * sigma,
+                100.0 * edge
+            );
+            if real.paired {
+                // Both ways across the step: cells moved > 2 cm toward the
+                // other surface (component 2) and away from it (3).
+                let share = |st: &Stats, k: usize| STEP_SIDES.iter().map(|n| st.term(n).map_or(0.0, |t| t.values[k])).sum::<f64>() / 4.0;
+                let (rt, bt, ra, ba) = (share(real, 2), share(before, 2), share(real, 3), share(before, 3));
+                let verdict = if rt > bt && ra > ba {
+                    format!("cells beside steps move both toward and away from the other surface: {fitted}")
+                } else {
+                    "real moves no more step cells both ways than the model: the jitter is the closest effect, not a clear one".to_string()
+                };
+                format!(
+                    "cells beside steps moved more than 2 cm toward the other surface real {} vs model {}, away from it real {} vs model {}: {verdict}",
+                    pct(rt),
+                    pct(bt),
+                    pct(ra),
+                    pct(ba),
+                )
+            } else {
+                let verdict = if mid(real) > mid(before) {
+                    format!("steps read part of the way across: {fitted}")
+                } else {
+                    "no more part-way steps in real: the jitter is the closest effect, not a clear one".to_string()
+                };
+                format!("steps between neighbouring rows of 0.02-0.1 m: real {} vs model {}: {verdict}", pct(mid(real)), pct(mid(before)))
+            }
+        }
         Effect::Smoothing { .. } => {
             let (r10, b10) = (real.mean_over("edge-10cm", 0..19), before.mean_over("edge-10cm", 0..19));
             let verdict = if r10 < b10 {
@@ -569,6 +601,7 @@ mod tests {
             (Effect::Tilt { pitch: 0.02, roll: 0.0, x0: 0.45, range: 0.0 }, flat, "farther ahead of x0"),
             (Effect::Shake { sigma: 0.01, edge: 0.0 }, flat, "rocks about its centre"),
             (Effect::Lag { s: 0.08, spread: 0.5 }, stairs, "steps read 8.0 cm ahead"),
+            (Effect::StepJitter { sigma: 0.04, edge: 0.0 }, stairs, "both toward and away"),
             (Effect::Drift { rate: 0.05, zrate: 0.02, x0: 0.45 }, flat, "grows going back from x0"),
         ];
         for (e, terrain, says) in cases {

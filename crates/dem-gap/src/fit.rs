@@ -71,6 +71,9 @@ pub fn ranges(name: &str) -> Vec<Range> {
         // On even ground up to 1 degree; per metre of step under the
         // tracks up to 0.3 rad (a 0.2 m stair edge: 3.4 degrees more).
         "shake" => vec![lin(0.0, 0.02), lin(0.0, 0.3)],
+        // A frame misregistered by up to 3 cm sd on even ground, 0.3 m per
+        // metre of step under the tracks (a 0.2 m stair edge: 6 cm more).
+        "step-jitter" => vec![lin(0.0, 0.03), lin(0.0, 0.3)],
         // Speed times latency: up to 0.15 m, spread from none to all of it.
         "lag" => vec![lin(0.0, 0.15), lin(0.0, 1.0)],
         // Walks up to 0.1 m per sqrt(m) along x, 0.05 in height; x0 as tilt's.
@@ -118,6 +121,8 @@ pub fn limits(name: &str) -> Vec<(f64, f64, bool, bool)> {
         // tilts) or past it (no row pitches) too, and no lever at x0.
         "tilt" => vec![(0.0, 0.2, true, false), (0.0, 0.2, true, false), (-0.6, 1.45, true, true), (0.0, 10.0, true, false)],
         "shake" => vec![(0.0, 0.2, true, false), (0.0, 1.0, true, false)],
+        // A cell read more than 0.1 m off is clamped there: 0.1 is no edge.
+        "step-jitter" => vec![(0.0, 0.1, true, false), (0.0, 1.0, true, false)],
         // No shift is a natural end, and a backward one is allowed (a
         // robot reversing); spread none or all: natural ends.
         "lag" => vec![(-0.3, 0.5, true, false), (0.0, 1.0, true, true)],

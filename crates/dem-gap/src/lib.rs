@@ -28,6 +28,7 @@
 
 pub mod evidence;
 pub mod fit;
+pub mod mix;
 pub mod report;
 pub mod unexplained;
 
@@ -242,6 +243,8 @@ pub struct Outcome {
     /// Missing-cell rates behind and ahead of the robot, for all records
     /// and per terrain (labels).
     pub missing_bands: Vec<unexplained::BandRow>,
+    /// The kinds of terrain each set holds, read from the heights.
+    pub record_kinds: mix::RecordKinds,
 }
 
 /// The compared sets: model side (sim) and real side, aligned when paired.
@@ -775,6 +778,10 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
     let missing_bands = unexplained::missing_bands(&sets.sim, &out_a, &sets.real, both_terrains, sets.sim_time.is_some());
     drop(out_a);
     let more_data = unexplained::more_data(sets, &cfg.start, gap_initial, floor_initial, cfg.seed);
+    let record_kinds = mix::record_kinds(&sets.sim, &sets.real);
+    if record_kinds.differs() {
+        log(format!("warning: {}", record_kinds.sentence()));
+    }
     if let Some(m) = &more_data {
         log(m.sentence(sets.real.len(), sets.sim.len()));
     }
@@ -798,6 +805,7 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
         unexplained,
         more_data,
         missing_bands,
+        record_kinds,
     }
 }
 

@@ -15,7 +15,8 @@
 //!                  "by_statistic": [...], "by_row_band": [...], "by_side": [...], "by_terrain": [...], "by_row": [...],
 //!                  "weak_steps": [{"step", "effect", "removed"}]},
 //!  "records_needed": n | null, "runs_needed": n | null, "records_estimate": {...} | null,
-//!  "missing_by_band": [{"terrain", "band", "records", "sim", "model", "real", "flag", "reason"}]}
+//!  "missing_by_band": [{"terrain", "band", "records", "sim", "model", "real", "flag", "reason"}],
+//!  "record_kinds": {"level_sim", "level_real", "tall_sim", "tall_real", "differs", "level_sd", "tall_sd"}}
 //! ```
 //!
 //! `unexplained`: the final gap above the sampling floor and where it
@@ -93,7 +94,10 @@ pub fn report_json(o: &Outcome) -> Value {
             "sim_records": m.sim_records, "runs": m.runs, "runs_now": m.runs_now})),
         "missing_by_band": o.missing_bands.iter().map(|b| json!({"terrain": b.terrain.map(|t| t.as_str()), "band": b.band,
             "records": b.records, "sim": b.missing[0], "model": b.missing[1], "real": b.missing[2],
-            "flag": b.flag.is_some(), "reason": b.flag})).collect::<Vec<_>>()})
+            "flag": b.flag.is_some(), "reason": b.flag})).collect::<Vec<_>>(),
+        "record_kinds": {"level_sim": o.record_kinds.level[0], "level_real": o.record_kinds.level[1], "tall_sim": o.record_kinds.tall[0],
+            "tall_real": o.record_kinds.tall[1], "differs": o.record_kinds.differs(), "level_sd": crate::mix::LEVEL_SD,
+            "tall_sd": crate::mix::TALL_SD}})
 }
 
 /// `unexplained` of report.json.
@@ -498,6 +502,11 @@ pub fn markdown(o: &Outcome) -> String {
         );
     }
     let _ = writeln!(s, "Final sensor model (`sensor.json`): {}\n", o.model.summary());
+    if o.record_kinds.differs() {
+        let _ = writeln!(s, "**Warning: {}.**\n", o.record_kinds.sentence());
+    } else {
+        let _ = writeln!(s, "Terrain: {}.\n", o.record_kinds.sentence());
+    }
     let flagged: Vec<String> =
         o.steps.iter().filter(|st| !st.at_edge.is_empty()).map(|st| format!("`{}` ({})", st.effect.name(), st.at_edge.join(", "))).collect();
     if !flagged.is_empty() {

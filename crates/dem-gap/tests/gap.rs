@@ -126,6 +126,23 @@ fn hidden_quantization() {
 }
 
 #[test]
+fn hidden_step_jitter() {
+    // Only the cells beside steps move, so the data fix the sd where the
+    // steps are: sigma and edge trade off (paired: sigma 0.0155, edge
+    // 0.033). The sd at a 0.15 m step under the tracks, sigma + 0.15 edge,
+    // within 20 % of the hidden 0.02, paired and unpaired.
+    let dir = tempdir();
+    let (sim, pairs) = setup(dir.path());
+    let real = hide(dir.path(), &sim, "real.npy", &["step-jitter:sigma=0.02,edge=0"]);
+    for (pairs, out) in [(Some(pairs.as_str()), "paired"), (None, "unpaired")] {
+        let r = gap(dir.path(), &sim, &real, pairs, &[], out);
+        check_single(&r, "step-jitter", &[]);
+        let sd = param(&r, 0, "sigma") + 0.15 * param(&r, 0, "edge");
+        assert!((sd - 0.02).abs() <= 0.004, "{out}: sd at a 0.15 m step {sd}, hidden 0.02");
+    }
+}
+
+#[test]
 fn hidden_startup() {
     // Per-record form (no labels): 35 % of records are startup frames whose
     // blind edge starts at x0 = 0.42 m.
@@ -442,6 +459,7 @@ fn the_report_has_the_schema_pictures_and_a_usable_model() {
             "missing_by_band",
             "over_pairs",
             "real_records",
+            "record_kinds",
             "records_estimate",
             "records_needed",
             "refits",

@@ -30,6 +30,7 @@
 //! | `mixed-cells` | a cell is the mean of its two half cells along x; at a jump of more than [`MIXED_JUMP`] between valid x-neighbours the step lies at s, uniform over the 10 cm between their centres (one draw per row boundary), and the higher surface reaches e = u r past it into the lower cell (u uniform per cell; r = `up` when the higher cell lies ahead, `down` when it lies behind, i.e. beyond a drop): a half of the lower cell whose centre the higher surface reaches reads the higher height, a half of the higher cell the lower surface reaches (the step lies in it, deeper than e) reads the lower height |
 //! | `tilt` | per record a = `pitch` z1, b = `roll` z2 (z1, z2 standard normals, one Box-Muller pair; radians, used as slopes), h += a (`range` + max(x, x0) - x0) + b y: the camera's pitch and roll off their calibration (the extrinsic error). A point seen at horizontal range d moves by a d in height, and the map fuses each cell over the ranges it was seen from: a cell past x0 was seen from `range` + (x - x0) on average, the cells behind x0 keep the error of their last views, so the whole DEM rises or falls with the angle and tilts about a pivot `range` behind x0 |
 //! | `shake` | per record s = `sigma` + `edge` J, J the largest height step (m, capped at [`SHAKE_MAX_STEP`]) between valid x-neighbours of the rows under the tracks ([`TRACK_ROWS`], \|x\| <= 0.35 m) of the DEM as it comes in; a = s z1, b = s z2 (one Box-Muller pair), h += a x + b y: the body rocks about C, more on edges. Unlike `tilt` it pivots at C (rows behind C move the other way) and its spread follows the terrain under the tracks |
+//! | `step-jitter` | per record s = `sigma` + `edge` J (J as in `shake`); each valid cell reads dx = clamp(s z, +-0.1 m) off along x, z a standard normal per cell (as `noise` draws them): h += dx (h(r + 1) - h(r - 1)) / 0.2, a neighbour missing or outside the grid read as the cell's own height ([`jitter_steps`]): each map cell beside a step keeps the points of the few frames whose heights agree, so one frame's horizontal misregistration (the body's vibration) stays in it, a different one in each cell; even ground averages it out and reads nothing |
 //! | `lag` | per record shift s_r = `s` (1 + `spread` (2u - 1)), u uniform; h'(x) = h(x - s_r) + s_r tan(pitch), pitch the record's row 20 column 0 (clamped to +-[`MAX_CLIMB_PITCH`], 0 if not finite): the DEM is the map of a frame s_r / v old, cut at that older pose. See [`shift_rows`] for the interpolation; validity is kept |
 //! | `drift` | rows whose centre x < `x0` are displaced by a random walk going back from x0: per row r, from the row just behind x0 backward, dx(r) = `rate` sqrt(0.1) sum of xi_j and dz(r) = `zrate` sqrt(0.1) sum of zeta_j over the rows j from r to the last row behind x0 (xi_j, zeta_j the normals of Box-Muller pair j); h'(x) = h(x - dx) + dz by [`shift_rows`]; rows from x0 on are left alone: the map registers older frames at a believed pose that walks at random per metre travelled |
 
@@ -291,6 +292,18 @@ pub enum Effect {
         /// Extra sd per metre of step under the tracks (rad per m).
         edge: f64,
     },
+    /// Vibration seen at steps: a map cell beside a step holds the points
+    /// of the few frames whose heights agree (fusion replaces where they do
+    /// not), so one frame's horizontal misregistration stays there, a
+    /// different one in each cell; on even ground many frames average out.
+    /// Each cell reads at a random distance off along x: h += clamp(s z,
+    /// +-0.1 m) times the local slope along x, s = sigma + edge J.
+    StepJitter {
+        /// Sd (m) of the misregistration on even ground.
+        sigma: f64,
+        /// Extra sd per metre of step under the tracks (m per m).
+        edge: f64,
+    },
     /// Latency: the DEM is an older frame's map, cut at that older pose.
     Lag {
         /// Mean shift ahead (m): speed times latency.
@@ -311,7 +324,7 @@ pub enum Effect {
 }
 
 /// Every effect name, in the vocabulary's order.
-pub const NAMES: [&str; 24] = [
+pub const NAMES: [&str; 25] = [
     "noise",
     "dropout",
     "row-dropout",
@@ -336,6 +349,7 @@ pub const NAMES: [&str; 24] = [
     "shake",
     "lag",
     "drift",
+    "step-jitter",
 ];
 
 impl Effect {
@@ -364,6 +378,7 @@ impl Effect {
             Effect::DropHoles { .. } => "drop-holes",
             Effect::Tilt { .. } => "tilt",
             Effect::Shake { .. } => "shake",
+            Effect::StepJitter { .. } => "step-jitter",
             Effect::Lag { .. } => "lag",
             Effect::Drift { .. } => "drift",
         }
@@ -388,7 +403,7 @@ impl Effect {
             Effect::RiserBlend { foot, top } => vec![("foot", foot), ("top", top)],
             Effect::FloorLift { x, p, a } => vec![("x", x), ("p", p), ("a", a)],
             Effect::Tilt { pitch, roll, x0, range } => vec![("pitch", pitch), ("roll", roll), ("x0", x0), ("range", range)],
-            Effect::Shake { sigma, edge } => vec![("sigma", sigma), ("edge", edge)],
+            Effect::Shake { sigma, edge } | Effect::StepJitter { sigma, edge } => vec![("sigma", sigma), ("edge", edge)],
             Effect::Lag { s, spread } => vec![("s", s), ("spread", spread)],
             Effect::Drift { rate, zrate, x0 } => vec![("rate", rate), ("zrate", zrate), ("x0", x0)],
         }
@@ -420,6 +435,7 @@ impl Effect {
             "drop-holes" => Effect::DropHoles { p: g(0)? },
             "tilt" => Effect::Tilt { pitch: g(0)?, roll: g(1)?, x0: g(2)?, range: g(3)? },
             "shake" => Effect::Shake { sigma: g(0)?, edge: g(1)? },
+            "step-jitter" => Effect::StepJitter { sigma: g(0)?, edge: g(1)? },
             "lag" => Effect::Lag { s: g(0)?, spread: g(1)? },
             "drift" => Effect::Drift { rate: g(0)?, zrate: g(1)?, x0: g(2)? },
             _ => return None,
@@ -449,7 +465,7 @@ impl Effect {
             Effect::RiserBlend { .. } => 8,
             Effect::Smoothing { .. } => 9,
             // Registration: heights tilted as the points are placed.
-            Effect::Bias { .. } | Effect::Tilt { .. } | Effect::Shake { .. } => 10,
+            Effect::Bias { .. } | Effect::Tilt { .. } | Effect::Shake { .. } | Effect::StepJitter { .. } => 10,
             Effect::Noise { .. } => 11,
             Effect::Quantization { .. } => 12,
             Effect::Dropout { .. } => 13,
@@ -506,6 +522,7 @@ impl Effect {
             Effect::Shake { sigma, edge } if !(0.0..=MAX_TILT).contains(&sigma) || edge < 0.0 => {
                 Err(format!("sigma = {sigma} must be in [0, {MAX_TILT}] rad and edge = {edge} >= 0"))
             }
+            Effect::StepJitter { sigma, edge } if sigma < 0.0 || edge < 0.0 => Err(format!("sigma = {sigma} and edge = {edge} must be >= 0")),
             Effect::Lag { s, spread } if s.abs() > MAX_LAG || !(0.0..=1.0).contains(&spread) => {
                 Err(format!("s = {s} must be in [-{MAX_LAG}, {MAX_LAG}] m and spread = {spread} in [0, 1]"))
             }
@@ -526,7 +543,8 @@ impl Effect {
     /// floor-lift, drop-holes: two per cell), 20 (row-dropout: one per
     /// row), 2 (startup), 3 per slot (patch-dropout), 19 x 6 (mixed-cells:
     /// per row boundary a step position, then a reach per column), 2 (tilt,
-    /// shake: one Box-Muller pair), 1 (lag), 40 (drift: a Box-Muller pair
+    /// shake: one Box-Muller pair), 100 (step-jitter: one normal per cell, as
+    /// noise), 1 (lag), 40 (drift: a Box-Muller pair
     /// per row, its x and its height step), 0 (the deterministic effects).
     pub fn draws(&self) -> usize {
         match self {
@@ -536,7 +554,8 @@ impl Effect {
             | Effect::RimHoles { .. }
             | Effect::PitFill { .. }
             | Effect::HoleGrowth { .. }
-            | Effect::RiserBlend { .. } => GRID_ROWS * COLS,
+            | Effect::RiserBlend { .. }
+            | Effect::StepJitter { .. } => GRID_ROWS * COLS,
             Effect::DropBlend { .. } | Effect::FloorLift { .. } | Effect::DropHoles { .. } => 2 * GRID_ROWS * COLS,
             Effect::RowDropout { .. } => GRID_ROWS,
             Effect::Startup { .. } => 2,
@@ -670,6 +689,10 @@ impl Effect {
                 let [z1, z2]: [f64; 2] = rng.normals();
                 let s = sigma + edge * step_under_tracks(d);
                 tilt_plane(d, s * z1, s * z2, |x| x);
+            }
+            Effect::StepJitter { sigma, edge } => {
+                let normals: [f64; GRID_ROWS * COLS] = rng.normals();
+                jitter_steps(d, &normals, sigma + edge * step_under_tracks(d));
             }
             Effect::Lag { s, spread } => {
                 let shift = s * (1.0 + spread * (2.0 * rng.gen() - 1.0));
@@ -1033,6 +1056,25 @@ fn tilt_plane(d: &mut Dem, a: f64, b: f64, lever: impl Fn(f64) -> f64) {
             if d.is_valid(r, c) {
                 d.set_valid(r, c, (d.height(r, c) as f64 + ax + b * col_center_y(c)) as f32);
             }
+        }
+    }
+}
+
+/// `step-jitter` with sd `s`: each valid cell reads dx = clamp(s z, +-0.1
+/// m) off along x (`z` its normal, row-major):
+/// h += dx (src(r + 1) - src(r - 1)) / 0.2, where src(k) is row k's height
+/// where row k lies in the grid and is valid, else the cell's own (a
+/// one-sided slope at an edge of what was seen, none on even ground).
+pub fn jitter_steps(d: &mut Dem, z: &[f64; GRID_ROWS * COLS], s: f64) {
+    let h = heights(d);
+    let cell = dem_core::format::CELL;
+    for r in 0..GRID_ROWS {
+        for c in 0..COLS {
+            let Some(own) = h[r][c] else { continue };
+            let src = |k: Option<usize>| k.filter(|&k| k < GRID_ROWS).and_then(|k| h[k][c]).unwrap_or(own);
+            let slope = (src(Some(r + 1)) - src(r.checked_sub(1))) / (2.0 * cell);
+            let dx = (s * z[r * COLS + c]).clamp(-cell, cell);
+            d.set_valid(r, c, (own + dx * slope) as f32);
         }
     }
 }
@@ -1560,6 +1602,43 @@ mod tests {
             assert_close(&d, &want, 1e-6, "shake");
         }
         assert!(Effect::Shake { sigma: 0.01, edge: -0.1 }.check().is_err());
+    }
+
+    /// step-jitter on a 0.12 m riser between rows 8 and 9 (under the
+    /// tracks, so s = sigma + edge 0.12): flat cells away from the step keep
+    /// their heights; the foot and the top move by dx 0.12 / 0.2 each, dx
+    /// their own draw clamped to one cell; a missing neighbour reads as the
+    /// cell's own height; row 0 and row 19 use the one-sided slope.
+    #[test]
+    fn step_jitter_moves_only_cells_beside_steps() {
+        let (sigma, edge) = (0.01, 0.2);
+        let u: Vec<f32> = (0..GRID_ROWS * COLS).map(|i| ((i * 37 % 97) as f32 + 0.5) / 97.0).collect();
+        let z: [f64; GRID_ROWS * COLS] = Draws::new(&u).normals();
+        let mut d = flat();
+        for r in 9..GRID_ROWS {
+            (0..COLS).for_each(|c| d.set_valid(r, c, FLAT_GROUND + 0.12));
+        }
+        d.set_missing(8, 4);
+        d.set_valid(19, 0, FLAT_GROUND + 0.2);
+        let before = grid(&d);
+        Effect::StepJitter { sigma, edge }.apply_drawn(&mut d, &u, None);
+        let s = sigma + edge * 0.12;
+        let dx = |r: usize, c: usize| (s * z[r * COLS + c]).clamp(-0.1, 0.1);
+        let mut want = before.clone();
+        for c in 0..COLS {
+            if c != 4 {
+                want[8][c] = Some(before[8][c].unwrap() + dx(8, c) * 0.12 / 0.2);
+            }
+            // Row 9's foot neighbour at (8, 4) is missing: it reads its own height.
+            let drop = if c == 4 { 0.0 } else { 0.12 };
+            want[9][c] = Some(before[9][c].unwrap() + dx(9, c) * drop / 0.2);
+        }
+        want[19][0] = Some(before[19][0].unwrap() + dx(19, 0) * (0.2 - 0.12) / 0.2);
+        want[18][0] = Some(before[18][0].unwrap() + dx(18, 0) * (0.2 - 0.12) / 0.2);
+        assert_close(&d, &want, 1e-6, "step-jitter");
+        assert!(!d.is_valid(8, 4), "a missing cell stays missing");
+        assert!((0..COLS).any(|c| (d.height(8, c) as f64 - before[8][c].unwrap_or(0.0)).abs() > 1e-3), "the foot moves");
+        assert!(Effect::StepJitter { sigma: 0.01, edge: -0.1 }.check().is_err());
     }
 
     /// lag of a step moves it by s: at s = 0.1 m the row beyond the riser

@@ -251,6 +251,7 @@ fn effect(b: &mut Builder, e: &Effect, c: &Cells, u: Option<&str>, time: Option<
             let bb = b.bin("Mul", &s, &z2);
             tilt_plane(b, c, &a, &bb, |x| x)
         }
+        Effect::StepJitter { sigma, edge } => step_jitter(b, c, &u(), sigma, edge),
         Effect::Lag { s, spread } => lag(b, c, &u(), s, spread),
         Effect::Drift { rate, zrate, x0 } => drift(b, c, &u(), rate, zrate, x0),
     }
@@ -403,12 +404,42 @@ fn drift(b: &mut Builder, c: &Cells, u: &str, rate: f64, zrate: f64, x0: f64) ->
     shift_rows(b, c, &q, &dz)
 }
 
-/// `noise`: h += sigma z, z from Box-Muller pairs of the uniforms (cell
-/// 2i takes the cosine of pair i, cell 2i + 1 its sine).
-fn noise(b: &mut Builder, c: &Cells, u: &str, sigma0: f64, k: f64) -> Cells {
+/// One standard normal per cell `(N, 20, 5)` from 50 Box-Muller pairs of
+/// the uniforms (cell 2i takes the cosine of pair i, cell 2i + 1 its sine).
+fn cell_normals(b: &mut Builder, u: &str) -> String {
     let (z1, z2) = normal_pairs(b, u, GRID_ROWS * COLS / 2);
     let z = b.concat(&[&z1, &z2], 2);
-    let z = b.reshape(&z, &[-1, GRID_ROWS as i64, COLS as i64]);
+    b.reshape(&z, &[-1, GRID_ROWS as i64, COLS as i64])
+}
+
+/// `step-jitter`: dx = clamp((sigma + edge J) z, +-0.1 m) per cell, h +=
+/// dx (h ahead - h behind) / 0.2, a missing or outside neighbour read as
+/// the cell's own height.
+fn step_jitter(b: &mut Builder, c: &Cells, u: &str, sigma: f64, edge: f64) -> Cells {
+    let cell = dem_core::format::CELL as f32;
+    let z = cell_normals(b, u);
+    let j = step_under_tracks(b, c);
+    let s = b.mul_const(&j, edge as f32);
+    let s = b.add_const(&s, sigma as f32);
+    let dx = b.bin("Mul", &s, &z);
+    let (lo, hi) = (b.scalar(-cell), b.scalar(cell));
+    let dx = b.bin("Max", &dx, &lo);
+    let dx = b.bin("Min", &dx, &hi);
+    let (va, ha) = neighbour(b, c, Side::Ahead);
+    let (vb, hb) = neighbour(b, c, Side::Behind);
+    let ahead = b.select(&va, &ha, &c.h);
+    let behind = b.select(&vb, &hb, &c.h);
+    let rise = b.bin("Sub", &ahead, &behind);
+    let slope = b.mul_const(&rise, 1.0 / (2.0 * cell));
+    let dh = b.bin("Mul", &dx, &slope);
+    let moved = b.bin("Add", &c.h, &dh);
+    let valid = is_valid(b, &c.v);
+    set_heights(b, c, &valid, &moved)
+}
+
+/// `noise`: h += sigma z, z one normal per cell ([`cell_normals`]).
+fn noise(b: &mut Builder, c: &Cells, u: &str, sigma0: f64, k: f64) -> Cells {
+    let z = cell_normals(b, u);
     let (sx, sz) = NOISE_ORIGIN;
     // d^2 = (x - sx)^2 + y^2 + (clamp(h) - sz)^2: the first two are constants.
     let flat = per_cell(b, |r, col| (row_center_x(r) - sx).powi(2) + col_center_y(col).powi(2));

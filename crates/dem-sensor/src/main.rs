@@ -9,7 +9,7 @@ use dem_sensor::{apply_shard_emit, SensorModel};
 /// Sensor models of named effects (noise, dropout, row-dropout, occlusion,
 /// fov, view-top, smoothing, bias, quantization, startup, patch-dropout,
 /// edge-holes, rim-holes, pit-fill, mixed-cells, hole-growth, drop-blend, riser-blend, floor-lift, drop-holes,
-/// tilt, shake, lag, drift) as JSON, applied to NPY streams.
+/// tilt, shake, step-jitter, lag, drift) as JSON, applied to NPY streams.
 #[derive(Parser)]
 #[command(version, after_long_help = "Examples:
   dem-sensor apply --sensor sensor.json --seed 1 < sim.npy > model_sim.npy
