@@ -8,7 +8,7 @@ PY := $(VENV)/bin/python
 BIN := target/release
 OUT := out
 
-.PHONY: all build install venv venv-torch torch-check test test-long readme-check demo tour bench clean testdata eval-ci eval-baseline thesis-table fuzz
+.PHONY: all build install venv venv-torch torch-check test test-long lint readme-check demo tour bench clean testdata eval-ci eval-baseline thesis-table fuzz
 
 all: build
 
@@ -48,6 +48,11 @@ test: venv
 	$(CARGO) build --workspace --bins
 	DEM_PYTHON=$(abspath $(PY)) $(CARGO) test --workspace --exclude dem-gap -- $(LONG_SKIP)
 	DEM_PYTHON=$(abspath $(PY)) $(CARGO) test -p dem-gap --lib --bins
+
+# Formatting (rustfmt.toml) and lints, as CI checks them.
+lint:
+	$(CARGO) fmt --all --check
+	$(CARGO) clippy --workspace --all-targets -- -D warnings
 
 test-long: venv
 	DEM_PYTHON=$(abspath $(PY)) $(CARGO) test -p dem-gap --test gap --test unexplained

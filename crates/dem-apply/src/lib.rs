@@ -18,9 +18,9 @@
 //! output) draws the measured heights' effects.
 
 use dem_core::format::Dem;
+use dem_core::npy::F32ArrayWriter;
 use dem_core::{table, DemError};
 use dem_onnx::apply::{apply, After, ApplyStats, MaskSampling};
-use dem_core::npy::F32ArrayWriter;
 use dem_onnx::sensor::Stored;
 use dem_onnx::{Heights, OnnxModel};
 use rayon::prelude::*;
@@ -85,10 +85,7 @@ pub fn stored(path: &str) -> Result<Stored, DemError> {
 /// `progress` gets the records done so far.
 pub fn run(c: &Config, model: &OnnxModel, progress: impl FnMut(u64)) -> Result<Report, DemError> {
     let file = stored(&c.model)?;
-    let tail = Stored {
-        residual: if c.network_only { None } else { file.residual.clone() },
-        heights: c.heights.unwrap_or(file.heights),
-    };
+    let tail = Stored { residual: if c.network_only { None } else { file.residual.clone() }, heights: c.heights.unwrap_or(file.heights) };
     let times = match &c.labels {
         Some(p) => Some((p.as_str(), table::times(&table::read_labels(p)?))),
         None => None,
@@ -155,10 +152,7 @@ pub fn runtime_line(path: &str, info: &dem_onnx::ModelInfo) -> Result<String, De
     let whole = info.metadata.iter().any(|(k, v)| k == GRAPH_KEY && (v == GRAPH_SENSOR || v == GRAPH_SENSOR_ONLY));
     let model = stored.residual_or_empty();
     Ok(if whole {
-        format!(
-            "in another runtime: the whole virtual sensor, as dem-apply runs it; inputs: {}",
-            dem_sensor::graph::input_list(&model)
-        )
+        format!("in another runtime: the whole virtual sensor, as dem-apply runs it; inputs: {}", dem_sensor::graph::input_list(&model))
     } else if stored.has_tail() {
         "in another runtime: the network alone (raw masks, the network's heights); what dem-apply adds after it \
          (dem.residual, dem.heights) is only in the metadata: re-export with dem-train export for one graph"

@@ -25,7 +25,9 @@ use dem_onnx::OnnxModel;
 /// network, each record's time taken from --labels, the same bytes as
 /// `dem-apply --network-only | dem-sensor apply --sensor SENSOR.json`.
 #[derive(Parser)]
-#[command(version, after_long_help = "Examples:
+#[command(
+    version,
+    after_long_help = "Examples:
   dem-apply --model g_y.onnx sim.npy -o realistic.npy
   dem-apply --model g_y.onnx --info                 # what it was trained on, how, its val table
   dem-apply --model g_y.onnx --sample-masks --seed 1 sim.npy -o realistic.npy   # holes drawn at the model's rate
@@ -35,7 +37,8 @@ use dem_onnx::OnnxModel;
   dem-apply --model g_y.onnx --network-only --heights input sim.npy -o holes.npy   # its holes, the sim's heights
   dem-synth --out w --runs 20 --seed 3 && dem-apply --model g_y.onnx w/sim.npy | dem-render - -o fake.png
   dem-filter --labels l.csv --terrain pallet sim.npy | dem-apply --model g_y.onnx --threads 2 > pallets_real.npy
-  dem-render --compare sim.npy <(dem-apply --model g_y.onnx sim.npy) real.npy --row-labels 'sim,G(sim),real' -o cmp.png")]
+  dem-render --compare sim.npy <(dem-apply --model g_y.onnx sim.npy) real.npy --row-labels 'sim,G(sim),real' -o cmp.png"
+)]
 struct Args {
     /// Input NPY stream (`-` for stdin).
     #[arg(default_value = "-")]

@@ -96,8 +96,7 @@ fn the_whole_graph_in_onnxruntime_gives_dem_apply_s_output() {
 }
 
 fn npy_shape(dir: &std::path::Path, path: &str) -> String {
-    py(dir, &format!("import numpy as np; print(np.load('{path}').shape)")).trim().replace(' ', "")
-        .replace(",", ", ")
+    py(dir, &format!("import numpy as np; print(np.load('{path}').shape)")).trim().replace(' ', "").replace(",", ", ")
 }
 
 #[test]
@@ -144,7 +143,8 @@ onnx.save(m, "{twice}")
     assert!(stderr(&o).contains("dem.residual twice"), "{}", stderr(&o));
     // --info never appends to the model (`>> model`).
     let o = dem_testkit::run_cmd(
-        std::process::Command::new("bash").args(["-c", &format!("{} --model {model} --info >> {model}", dem_testkit::bin("dem-apply").display())]),
+        std::process::Command::new("bash")
+            .args(["-c", &format!("{} --model {model} --info >> {model}", dem_testkit::bin("dem-apply").display())]),
         None,
     );
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
@@ -254,10 +254,15 @@ fn a_sensor_model_alone_runs_in_dem_apply_as_in_dem_sensor() {
     ok(&run("dem-sensor", &["export", "--sensor", &json, "-o", &onnx], None));
     let files: Vec<String> = ["a.npy", "ua.npy", "b.npy", "ub.npy"].iter().map(|f| arg(dir.path(), f)).collect();
     let labels = td("sim_labels.csv");
-    let o = run("dem-apply", &["--model", &onnx, "--labels", &labels, "--seed", "4", "--emit-uniform", &files[1], &td("sim.npy"), "-o", &files[0]], None);
+    let o = run(
+        "dem-apply",
+        &["--model", &onnx, "--labels", &labels, "--seed", "4", "--emit-uniform", &files[1], &td("sim.npy"), "-o", &files[0]],
+        None,
+    );
     ok(&o);
     assert!(!stderr(&o).contains("runs on tract"), "{}", stderr(&o));
-    let args = ["apply", "--sensor", &json, "--labels", &labels, "--seed", "4", "--emit-uniform", &files[3], &td("sim.npy"), "-o", &files[2]];
+    let args =
+        ["apply", "--sensor", &json, "--labels", &labels, "--seed", "4", "--emit-uniform", &files[3], &td("sim.npy"), "-o", &files[2]];
     ok(&run("dem-sensor", &args, None));
     for (a, b) in [(0, 2), (1, 3)] {
         assert!(std::fs::read(&files[a]).unwrap() == std::fs::read(&files[b]).unwrap(), "{} and {} differ", files[a], files[b]);

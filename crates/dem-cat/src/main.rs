@@ -22,11 +22,14 @@ use dem_core::{cli, npy, output, table, DemError};
 /// byte kept; each labels CSV must cover its input exactly and all must
 /// have the same columns.
 #[derive(Parser)]
-#[command(version, after_long_help = "Examples:
+#[command(
+    version,
+    after_long_help = "Examples:
   dem-cat part1.npy part2.npy -o all.npy
   dem-synth --out run/ && dem-cat run/sim.npy | dem-render -o sim.png -
   python make_dems.py | dem-cat - > clean.npy      # float64/NaN -> contract
-  dem-cat sim.npy real.npy --labels sim_labels.csv,real_labels.csv -o both.npy --emit-labels both_labels.csv")]
+  dem-cat sim.npy real.npy --labels sim_labels.csv,real_labels.csv -o both.npy --emit-labels both_labels.csv"
+)]
 struct Args {
     /// Input NPY streams; `-` is stdin. None means stdin.
     inputs: Vec<String>,
@@ -47,7 +50,11 @@ fn main() -> ExitCode {
         let args: Args = cli::parse();
         let inputs = if args.inputs.is_empty() { vec!["-".to_string()] } else { args.inputs };
         if args.emit_labels.is_some() && args.labels.len() != inputs.len() {
-            return Err(cli::usage(format!("--labels names {} CSV(s) for {} input(s): give one per input, in order", args.labels.len(), inputs.len())));
+            return Err(cli::usage(format!(
+                "--labels names {} CSV(s) for {} input(s): give one per input, in order",
+                args.labels.len(),
+                inputs.len()
+            )));
         }
         let reads: Vec<&str> = inputs.iter().chain(&args.labels).map(String::as_str).collect();
         let writes: Vec<&str> = [Some(&args.output), args.emit_labels.as_ref()].into_iter().flatten().map(String::as_str).collect();
@@ -77,7 +84,14 @@ fn main() -> ExitCode {
 /// Append the rows of `labels` (the labels of `npy`, `records` records) to
 /// `out` with indices from `first`; the first file's header goes first, and
 /// every later file must have its columns.
-fn join_labels(labels: &str, npy: &str, records: u64, first: u64, out: &mut output::AtomicOutput, columns: &mut Option<(String, Vec<String>)>) -> anyhow::Result<()> {
+fn join_labels(
+    labels: &str,
+    npy: &str,
+    records: u64,
+    first: u64,
+    out: &mut output::AtomicOutput,
+    columns: &mut Option<(String, Vec<String>)>,
+) -> anyhow::Result<()> {
     let mut rdr = LabelsReader::open(labels)?;
     let these: Vec<String> = rdr.columns().into_iter().map(String::from).collect();
     match columns {
@@ -86,7 +100,11 @@ fn join_labels(labels: &str, npy: &str, records: u64, first: u64, out: &mut outp
             *columns = Some((labels.to_string(), these));
         }
         Some((name, cols)) if *cols != these => {
-            return Err(DemError::input(labels, format!("has the columns {} but {name} has {}: joined labels need the same columns", these.join(","), cols.join(","))).into());
+            return Err(DemError::input(
+                labels,
+                format!("has the columns {} but {name} has {}: joined labels need the same columns", these.join(","), cols.join(",")),
+            )
+            .into());
         }
         Some(_) => {}
     }

@@ -10,7 +10,15 @@ use dem_testkit::{arg, ok, run, stderr, tempdir, testdata};
 fn shards(d: &Path, file: &str, labels: &str) -> Vec<(String, String)> {
     let manifest = ok(&run(
         "dem-split",
-        &["--records", "1000", "--labels", &testdata(labels).display().to_string(), "--out", &arg(d, "part"), &testdata(file).display().to_string()],
+        &[
+            "--records",
+            "1000",
+            "--labels",
+            &testdata(labels).display().to_string(),
+            "--out",
+            &arg(d, "part"),
+            &testdata(file).display().to_string(),
+        ],
         None,
     ))
     .to_vec();
@@ -70,8 +78,23 @@ fn labels_that_do_not_fit_are_refused_with_no_output() {
     fs::write(&other_columns, changed).unwrap();
     for (args, says) in [
         (vec![sim.as_str(), real.as_str(), "--labels", rl.as_str(), "--emit-labels", csv.as_str(), "-o", npy.as_str()], "one per input"),
-        (vec![sim.as_str(), real.as_str(), "--labels", &format!("{rl},{sl}"), "--emit-labels", csv.as_str(), "-o", npy.as_str()], "rows but"),
-        (vec![sim.as_str(), real.as_str(), "--labels", &format!("{sl},{other_columns}"), "--emit-labels", csv.as_str(), "-o", npy.as_str()], "same columns"),
+        (
+            vec![sim.as_str(), real.as_str(), "--labels", &format!("{rl},{sl}"), "--emit-labels", csv.as_str(), "-o", npy.as_str()],
+            "rows but",
+        ),
+        (
+            vec![
+                sim.as_str(),
+                real.as_str(),
+                "--labels",
+                &format!("{sl},{other_columns}"),
+                "--emit-labels",
+                csv.as_str(),
+                "-o",
+                npy.as_str(),
+            ],
+            "same columns",
+        ),
         (vec![sim.as_str(), "--labels", sl.as_str(), "-o", npy.as_str()], "--emit-labels"),
     ] {
         let o = run("dem-cat", &args, None);

@@ -78,10 +78,13 @@ fn numpy_files_round_trip_byte_identical() {
         ok(&dem_cat(&[&input, "-o", &output], None));
         assert_eq!(read(&output), read(&input), "{n} records: not np.save's bytes");
         // And numpy reads ours as the same array, bit for bit.
-        let same = numpy(dir.path(), &format!(
-            "a, b = np.load('a{n}.npy'), np.load('out{n}.npy')\n\
+        let same = numpy(
+            dir.path(),
+            &format!(
+                "a, b = np.load('a{n}.npy'), np.load('out{n}.npy')\n\
              print(a.shape == b.shape and a.dtype == b.dtype and a.tobytes() == b.tobytes())"
-        ));
+            ),
+        );
         assert_eq!(same.trim(), "True", "{n} records");
     }
 }
@@ -90,12 +93,15 @@ fn numpy_files_round_trip_byte_identical() {
 fn stdout_redirected_to_a_file_is_one_array_numpy_loads_whole() {
     let dir = tempdir();
     // A three-array stream (5000, 0 and 3 records) in one file.
-    numpy(dir.path(), "\
+    numpy(
+        dir.path(),
+        "\
 parts = [dems(5000), dems(0), dems(3)]
 with open('stream.npy', 'wb') as f:
     for p in parts:
         np.save(f, p)
-np.save('whole.npy', np.concatenate(parts))");
+np.save('whole.npy', np.concatenate(parts))",
+    );
     let out_path = dir.path().join("out.npy");
     let out = dem_cat_files(&[&arg(dir.path(), "stream.npy")], None, &out_path);
     ok(&out);
@@ -114,14 +120,17 @@ fn stdout_to_a_pipe_is_a_stream_that_reads_back() {
     fs::write(dir.path().join("piped.npy"), ok(&piped)).unwrap();
     // numpy sees complete arrays back to back, one per chunk, whose
     // concatenation is the input.
-    let seen = numpy(dir.path(), "\
+    let seen = numpy(
+        dir.path(),
+        "\
 import os
 sizes, parts = [], []
 with open('piped.npy', 'rb') as f:
     while f.tell() < os.path.getsize('piped.npy'):
         a = np.load(f)
         sizes.append(a.shape[0]); parts.append(a)
-print(sizes, np.concatenate(parts).tobytes() == np.load('in.npy').tobytes())");
+print(sizes, np.concatenate(parts).tobytes() == np.load('in.npy').tobytes())",
+    );
     assert_eq!(seen.trim(), "[4096, 4096, 1808] True");
     // And dem-cat reads the stream back into the very file numpy wrote.
     let back = arg(dir.path(), "back.npy");
@@ -133,7 +142,9 @@ print(sizes, np.concatenate(parts).tobytes() == np.load('in.npy').tobytes())");
 fn concatenated_streams_from_files_and_stdin() {
     let dir = tempdir();
     // p1 is a stream of arrays of 3, 0 and 2 records; p2 one array of 4.
-    numpy(dir.path(), "\
+    numpy(
+        dir.path(),
+        "\
 a = [dems(3), dems(0), dems(2)]
 b = dems(4)
 with open('p1.npy', 'wb') as f:
@@ -141,7 +152,8 @@ with open('p1.npy', 'wb') as f:
         np.save(f, p)
 np.save('p2.npy', b)
 np.save('p1p2.npy', np.concatenate(a + [b]))
-np.save('p2p1.npy', np.concatenate([b] + a))");
+np.save('p2p1.npy', np.concatenate([b] + a))",
+    );
     let (p1, p2) = (arg(dir.path(), "p1.npy"), arg(dir.path(), "p2.npy"));
     let out = arg(dir.path(), "out.npy");
     let want = read(dir.path().join("p1p2.npy"));
@@ -165,12 +177,15 @@ np.save('p2p1.npy', np.concatenate([b] + a))");
 #[test]
 fn npy_v2_and_v3_headers_are_read() {
     let dir = tempdir();
-    numpy(dir.path(), "\
+    numpy(
+        dir.path(),
+        "\
 a = dems(6)
 np.save('v1.npy', a)
 for v in (2, 3):
     with open(f'v{v}.npy', 'wb') as f:
-        F.write_array(f, a, version=(v, 0))");
+        F.write_array(f, a, version=(v, 0))",
+    );
     let out = arg(dir.path(), "out.npy");
     for v in ["v2.npy", "v3.npy"] {
         let input = read(dir.path().join(v));
@@ -190,14 +205,17 @@ for v in (2, 3):
 fn float64_is_converted_as_numpy_converts() {
     let dir = tempdir();
     // Values that round, underflow to f32 subnormals or zero, and the largest float32.
-    numpy(dir.path(), "\
+    numpy(
+        dir.path(),
+        "\
 a = rng.standard_normal((5, 21, 5, 2))
 a.flat[:7] = [0.1, 1/3, 1e-40, 1e-50, -0.0, 3.4028234663852886e38, -3.4028234663852886e38]
 np.save('f8.npy', a)
 np.save('want.npy', a.astype('<f4'))
 b = a.copy()
 b[3, 4, 1, 0] = 1e300
-np.save('big.npy', b)");
+np.save('big.npy', b)",
+    );
     let out = arg(dir.path(), "out.npy");
     ok(&dem_cat(&[&arg(dir.path(), "f8.npy"), "-o", &out], None));
     assert_eq!(read(&out), read(dir.path().join("want.npy")));
@@ -220,7 +238,9 @@ fn nan_heights_read_as_missing_and_all_else_stays_bit_identical() {
     // NaN heights (quiet, negative and payload-carrying NaNs) in records 1
     // and 3; elsewhere -0.0, the largest floats, subnormals and arbitrary
     // bit patterns that must come through untouched.
-    numpy(dir.path(), "\
+    numpy(
+        dir.path(),
+        "\
 a = dems(8)
 bits = a.view('<u4')
 bits[0, 0, :, 0] = [0x80000000, 0x7f7fffff, 0xff7fffff, 0x00000001, 0x007fffff]
@@ -240,15 +260,19 @@ for name, (r, row, col, ch), v in [('inf.npy', (2, 0, 1, 0), 0x7f800000), ('ninf
                                    ('nanmask.npy', (5, 7, 2, 1), 0x7fc00000), ('nanatt.npy', (6, 20, 3, 1), 0x7fc00000)]:
     b = a.copy()
     b.view('<u4')[r, row, col, ch] = v
-    np.save(name, b)");
+    np.save(name, b)",
+    );
     let out = arg(dir.path(), "out.npy");
     let run = dem_cat(&[&arg(dir.path(), "nan.npy"), "-o", &out], None);
     ok(&run);
     assert_eq!(read(&out), read(dir.path().join("want.npy")));
     assert!(stderr(&run).contains("2 had NaN heights"), "{}", stderr(&run));
-    let check = numpy(dir.path(), "\
+    let check = numpy(
+        dir.path(),
+        "\
 b = np.load('out.npy')
-print(np.isnan(b).any(), b[1, 2, 3].tolist(), b[3, 0, 0].tolist())");
+print(np.isnan(b).any(), b[1, 2, 3].tolist(), b[3, 0, 0].tolist())",
+    );
     assert_eq!(check.trim(), "False [0.0, -1.0] [0.0, -1.0]");
     // Through float64 the NaN rule is the same.
     ok(&dem_cat(&[&arg(dir.path(), "f8.npy"), "-o", &out], None));
@@ -296,43 +320,95 @@ struct Bad {
 /// Inputs the contract refuses. `good` is a valid 7-record file
 /// (128 + 7 * 840 = 6008 bytes), used to place faults after valid data.
 const BAD: &[Bad] = &[
-    Bad { name: "int32.npy", make: "np.save('int32.npy', dems(3).astype('<i4'))",
-          record: 0, byte: 0, reason: "dtype \"<i4\" is not supported" },
-    Bad { name: "big_endian.npy", make: "np.save('big_endian.npy', dems(3).astype('>f4'))",
-          record: 0, byte: 0, reason: "dtype \">f4\" is not supported" },
-    Bad { name: "fortran.npy", make: "np.save('fortran.npy', np.asfortranarray(dems(3)))",
-          record: 0, byte: 0, reason: "Fortran-order array" },
-    Bad { name: "rows20.npy", make: "np.save('rows20.npy', dems(3)[:, :20])",
-          record: 0, byte: 0, reason: "shape (3, 20, 5, 2) is not (N, 21, 5, 2)" },
-    Bad { name: "one.npy", make: "np.save('one.npy', dems(1)[0])",
-          record: 0, byte: 0, reason: "shape (21, 5, 2) is not (N, 21, 5, 2)" },
-    Bad { name: "text.npy", make: "open('text.npy', 'wb').write(b'index,terrain\\n0,flat\\n')",
-          record: 0, byte: 0, reason: "not an NPY array" },
-    Bad { name: "cut_header.npy", make: "open('cut_header.npy', 'wb').write(good[:50])",
-          record: 0, byte: 0, reason: "truncated header" },
-    Bad { name: "cut_magic.npy", make: "open('cut_magic.npy', 'wb').write(good[:4])",
-          record: 0, byte: 0, reason: "truncated header" },
+    Bad {
+        name: "int32.npy",
+        make: "np.save('int32.npy', dems(3).astype('<i4'))",
+        record: 0,
+        byte: 0,
+        reason: "dtype \"<i4\" is not supported",
+    },
+    Bad {
+        name: "big_endian.npy",
+        make: "np.save('big_endian.npy', dems(3).astype('>f4'))",
+        record: 0,
+        byte: 0,
+        reason: "dtype \">f4\" is not supported",
+    },
+    Bad {
+        name: "fortran.npy",
+        make: "np.save('fortran.npy', np.asfortranarray(dems(3)))",
+        record: 0,
+        byte: 0,
+        reason: "Fortran-order array",
+    },
+    Bad {
+        name: "rows20.npy",
+        make: "np.save('rows20.npy', dems(3)[:, :20])",
+        record: 0,
+        byte: 0,
+        reason: "shape (3, 20, 5, 2) is not (N, 21, 5, 2)",
+    },
+    Bad { name: "one.npy", make: "np.save('one.npy', dems(1)[0])", record: 0, byte: 0, reason: "shape (21, 5, 2) is not (N, 21, 5, 2)" },
+    Bad {
+        name: "text.npy",
+        make: "open('text.npy', 'wb').write(b'index,terrain\\n0,flat\\n')",
+        record: 0,
+        byte: 0,
+        reason: "not an NPY array",
+    },
+    Bad { name: "cut_header.npy", make: "open('cut_header.npy', 'wb').write(good[:50])", record: 0, byte: 0, reason: "truncated header" },
+    Bad { name: "cut_magic.npy", make: "open('cut_magic.npy', 'wb').write(good[:4])", record: 0, byte: 0, reason: "truncated header" },
     // A file's size is known: a short payload is refused at its header.
-    Bad { name: "cut_payload.npy", make: "open('cut_payload.npy', 'wb').write(good[:-10])",
-          record: 0, byte: 0, reason: "header declares 7 records (5880 bytes) but only 5870 bytes follow" },
+    Bad {
+        name: "cut_payload.npy",
+        make: "open('cut_payload.npy', 'wb').write(good[:-10])",
+        record: 0,
+        byte: 0,
+        reason: "header declares 7 records (5880 bytes) but only 5870 bytes follow",
+    },
     // 10^12 records (840 TB) declared over 7 records: refused before allocating.
-    Bad { name: "liar.npy", make: "open('liar.npy', 'wb').write(liar)",
-          record: 0, byte: 0,
-          reason: "header declares 1000000000000 records (840000000000000 bytes) but only 5880 bytes follow" },
+    Bad {
+        name: "liar.npy",
+        make: "open('liar.npy', 'wb').write(liar)",
+        record: 0,
+        byte: 0,
+        reason: "header declares 1000000000000 records (840000000000000 bytes) but only 5880 bytes follow",
+    },
     // Faults after a valid array name the stream's record and byte.
-    Bad { name: "then_int32.npy", make: "open('then_int32.npy', 'wb').write(good + npy(dems(2).astype('<i4')))",
-          record: 7, byte: 6008, reason: "dtype \"<i4\"" },
-    Bad { name: "then_junk.npy", make: "open('then_junk.npy', 'wb').write(good + b'garbage!')",
-          record: 7, byte: 6008, reason: "not an NPY array" },
-    Bad { name: "then_cut_header.npy", make: "open('then_cut_header.npy', 'wb').write(good + good[:100])",
-          record: 7, byte: 6008, reason: "truncated header" },
-    Bad { name: "then_cut_payload.npy", make: "open('then_cut_payload.npy', 'wb').write(good + good[:-1])",
-          record: 7, byte: 6008, reason: "header declares 7 records (5880 bytes) but only 5879 bytes follow" },
+    Bad {
+        name: "then_int32.npy",
+        make: "open('then_int32.npy', 'wb').write(good + npy(dems(2).astype('<i4')))",
+        record: 7,
+        byte: 6008,
+        reason: "dtype \"<i4\"",
+    },
+    Bad {
+        name: "then_junk.npy",
+        make: "open('then_junk.npy', 'wb').write(good + b'garbage!')",
+        record: 7,
+        byte: 6008,
+        reason: "not an NPY array",
+    },
+    Bad {
+        name: "then_cut_header.npy",
+        make: "open('then_cut_header.npy', 'wb').write(good + good[:100])",
+        record: 7,
+        byte: 6008,
+        reason: "truncated header",
+    },
+    Bad {
+        name: "then_cut_payload.npy",
+        make: "open('then_cut_payload.npy', 'wb').write(good + good[:-1])",
+        record: 7,
+        byte: 6008,
+        reason: "header declares 7 records (5880 bytes) but only 5879 bytes follow",
+    },
 ];
 
 /// Write every [`BAD`] file into `dir`.
 fn make_bad_inputs(dir: &Path) {
-    let mut code = String::from("\
+    let mut code = String::from(
+        "\
 import io
 def npy(a):
     f = io.BytesIO(); np.save(f, a); return f.getvalue()
@@ -341,7 +417,8 @@ assert len(good) == 6008
 h = io.BytesIO()
 F.write_array_header_1_0(h, {'descr': '<f4', 'fortran_order': False, 'shape': (10**12, 21, 5, 2)})
 liar = h.getvalue() + good[128:]
-");
+",
+    );
     for b in BAD {
         code.push_str(b.make);
         code.push('\n');
@@ -392,18 +469,18 @@ fn refused_inputs_from_a_pipe() {
     // A pipe's size is unknown: a short payload is found where it ends.
     // 10 bytes short of 7 records: record 6 is the incomplete one.
     let end = HEADER + 7 * RECORD - 10;
-    assert_refused(&pipe("cut_payload.npy"), &[
-        &format!("-: record 6, byte {end}: truncated payload: stream ends 10 bytes early"),
-    ]);
-    assert_refused(&pipe("then_cut_payload.npy"), &[
-        &format!("-: record 13, byte {}: truncated payload: stream ends 1 bytes early", 2 * HEADER + 14 * RECORD - 1),
-    ]);
+    assert_refused(&pipe("cut_payload.npy"), &[&format!("-: record 6, byte {end}: truncated payload: stream ends 10 bytes early")]);
+    assert_refused(
+        &pipe("then_cut_payload.npy"),
+        &[&format!("-: record 13, byte {}: truncated payload: stream ends 1 bytes early", 2 * HEADER + 14 * RECORD - 1)],
+    );
     // The liar is read a chunk at a time, never by its declared size, and the
     // shortfall is counted against what its header declared.
     let short = 1_000_000_000_000 * RECORD - 7 * RECORD;
-    assert_refused(&pipe("liar.npy"), &[
-        &format!("-: record 7, byte {}: truncated payload: stream ends {short} bytes early", HEADER + 7 * RECORD),
-    ]);
+    assert_refused(
+        &pipe("liar.npy"),
+        &[&format!("-: record 7, byte {}: truncated payload: stream ends {short} bytes early", HEADER + 7 * RECORD)],
+    );
     assert!(!Path::new(&out).exists());
 }
 
@@ -454,10 +531,13 @@ fn output_to_a_fifo_is_written_in_place() {
     assert!(reader.wait().expect("cat").success(), "cat got no writer");
     assert!(fs::metadata(&fifo).unwrap().file_type().is_fifo(), "the FIFO was replaced");
     // Through a FIFO the output is a stream, as through a pipe.
-    let same = numpy(dir.path(), "\
+    let same = numpy(
+        dir.path(),
+        "\
 with open('got.npy', 'rb') as f:
     parts = [np.load(f), np.load(f)]
-print(np.concatenate(parts).tobytes() == np.load('good.npy').tobytes())");
+print(np.concatenate(parts).tobytes() == np.load('good.npy').tobytes())",
+    );
     assert_eq!(same.trim(), "True");
 }
 

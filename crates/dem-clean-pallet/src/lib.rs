@@ -58,8 +58,7 @@ pub fn looks_like_pallet(gaps: &[(usize, usize)], rule: &StripeRule) -> bool {
 /// Fill the gap cells of `d` (a known pallet); returns how many were filled.
 /// Reads all gaps before writing, so filling one cannot create or hide another.
 pub fn fill_gaps(d: &mut Dem, gaps: &[(usize, usize)]) -> usize {
-    let fills: Vec<(usize, usize, f32)> =
-        gaps.iter().map(|&(r, c)| (r, c, 0.5 * (d.height(r - 1, c) + d.height(r + 1, c)))).collect();
+    let fills: Vec<(usize, usize, f32)> = gaps.iter().map(|&(r, c)| (r, c, 0.5 * (d.height(r - 1, c) + d.height(r + 1, c)))).collect();
     for &(r, c, h) in &fills {
         d.set_valid(r, c, h);
     }

@@ -4,8 +4,8 @@ use std::process::ExitCode;
 
 use clap::Parser;
 use dem_clean_pallet::{fill_gaps, gap_cells, looks_like_pallet, StripeRule};
-use dem_core::npy::transform_checked;
 use dem_core::cli::{self, value};
+use dem_core::npy::transform_checked;
 use dem_core::{output, table, DemError, Terrain};
 
 /// Make sim pallets solid (the thesis's pallet cleaning): a simulated pallet
@@ -18,9 +18,12 @@ use dem_core::{output, table, DemError, Terrain};
 /// the records that show a stripe of at least --min-row-cells gap cells in
 /// one row. Every other record passes bit-identical.
 #[derive(Parser)]
-#[command(version, after_long_help = "Examples:
+#[command(
+    version,
+    after_long_help = "Examples:
   dem-clean-pallet --labels sim_labels.csv sim.npy -o sim_clean.npy
-  dem-filter --labels l.csv --terrain pallet sim.npy | dem-clean-pallet | dem-render - -o solid.png")]
+  dem-filter --labels l.csv --terrain pallet sim.npy | dem-clean-pallet | dem-render - -o solid.png"
+)]
 struct Args {
     /// Input NPY stream (`-` for stdin).
     #[arg(default_value = "-")]
@@ -56,31 +59,36 @@ fn main() -> ExitCode {
         }
         let labels = a.labels.as_deref().map(table::read_labels).transpose()?;
         let (mut pallets, mut changed, mut cells) = (0u64, 0u64, 0u64);
-        let (read, _) = transform_checked(&a.input, &a.output, |first, chunk| {
-            for (k, d) in chunk.iter_mut().enumerate() {
-                let index = first + k as u64;
-                let gaps = gap_cells(d, &rule);
-                let is_pallet = match (&labels, a.labels.as_deref()) {
-                    (Some(l), Some(path)) => {
-                        let label = l.get(index as usize).ok_or_else(|| {
-                            DemError::input(path, format!("has {} rows but {} has more records (record {index})", l.len(), a.input))
-                        })?;
-                        label.terrain == Terrain::Pallet
+        let (read, _) = transform_checked(
+            &a.input,
+            &a.output,
+            |first, chunk| {
+                for (k, d) in chunk.iter_mut().enumerate() {
+                    let index = first + k as u64;
+                    let gaps = gap_cells(d, &rule);
+                    let is_pallet = match (&labels, a.labels.as_deref()) {
+                        (Some(l), Some(path)) => {
+                            let label = l.get(index as usize).ok_or_else(|| {
+                                DemError::input(path, format!("has {} rows but {} has more records (record {index})", l.len(), a.input))
+                            })?;
+                            label.terrain == Terrain::Pallet
+                        }
+                        _ => looks_like_pallet(&gaps, &rule),
+                    };
+                    if is_pallet {
+                        pallets += 1;
+                        let n = fill_gaps(d, &gaps);
+                        changed += u64::from(n > 0);
+                        cells += n as u64;
                     }
-                    _ => looks_like_pallet(&gaps, &rule),
-                };
-                if is_pallet {
-                    pallets += 1;
-                    let n = fill_gaps(d, &gaps);
-                    changed += u64::from(n > 0);
-                    cells += n as u64;
                 }
-            }
-            Ok(())
-        }, |read| match (&labels, &a.labels) {
-            (Some(l), Some(path)) => Ok(dem_core::table::check_labels_cover(path, l.len(), &a.input, read)?),
-            _ => Ok(()),
-        })?;
+                Ok(())
+            },
+            |read| match (&labels, &a.labels) {
+                (Some(l), Some(path)) => Ok(dem_core::table::check_labels_cover(path, l.len(), &a.input, read)?),
+                _ => Ok(()),
+            },
+        )?;
         let how = if labels.is_some() { "labelled" } else { "found by shape" };
         cli::log(format_args!("{pallets} of {read} records are pallets ({how}); cleaned {changed}, filling {cells} gap cells"));
         Ok(())

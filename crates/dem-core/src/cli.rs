@@ -25,9 +25,7 @@ pub fn run(body: impl FnOnce() -> anyhow::Result<()>) -> ExitCode {
 
 /// 2 when the chain holds a [`DemError`] about input or usage, else 1.
 pub fn exit_code(e: &anyhow::Error) -> u8 {
-    e.chain()
-        .find_map(|c| c.downcast_ref::<DemError>())
-        .map_or(1, DemError::exit_code)
+    e.chain().find_map(|c| c.downcast_ref::<DemError>()).map_or(1, DemError::exit_code)
 }
 
 /// A closed stdout anywhere in the chain, also when a CSV or JSON writer

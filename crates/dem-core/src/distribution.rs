@@ -461,9 +461,8 @@ pub fn hides_too_much(model: &Stats, real: &Stats) -> Option<String> {
         return Some(format!("it hides {:.1}% of cells where real misses {:.1}%", 100.0 * m, 100.0 * r));
     }
     let (tm, tr) = (model.term("missing")?, real.term("missing")?);
-    let worst = (0..GRID_ROWS.min(tm.values.len()).min(tr.values.len())).max_by(|&i, &j| {
-        (tm.values[i] - tr.values[i]).total_cmp(&(tm.values[j] - tr.values[j]))
-    })?;
+    let worst = (0..GRID_ROWS.min(tm.values.len()).min(tr.values.len()))
+        .max_by(|&i, &j| (tm.values[i] - tr.values[i]).total_cmp(&(tm.values[j] - tr.values[j])))?;
     let excess = tm.values[worst] - tr.values[worst];
     (excess > 0.3).then(|| {
         format!(

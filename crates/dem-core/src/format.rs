@@ -162,8 +162,16 @@ pub fn cell_of(j: usize) -> (usize, usize, usize) {
 fn first_unreadable(d: &Dem) -> Option<String> {
     let (j, v) = d.iter().enumerate().find(|&(j, v)| v.is_infinite() || (v.is_nan() && j % 2 == 1))?;
     let (row, col, ch) = cell_of(j);
-    let what = if ch == 0 { "height" } else if row == ATTITUDE_ROW { "attitude mask" } else { "mask" };
-    Some(format!("{v} in the {what} at row {row}, column {col}, channel {ch} (the contract allows no infinite value, and NaN only as a height)"))
+    let what = if ch == 0 {
+        "height"
+    } else if row == ATTITUDE_ROW {
+        "attitude mask"
+    } else {
+        "mask"
+    };
+    Some(format!(
+        "{v} in the {what} at row {row}, column {col}, channel {ch} (the contract allows no infinite value, and NaN only as a height)"
+    ))
 }
 
 /// Where a record about to be written holds a value the contract forbids on
@@ -191,13 +199,7 @@ pub enum Terrain {
 
 impl Terrain {
     /// Every terrain, in label order.
-    pub const ALL: [Terrain; 5] = [
-        Terrain::Flat,
-        Terrain::StairsUp,
-        Terrain::StairsDown,
-        Terrain::Pallet,
-        Terrain::Other,
-    ];
+    pub const ALL: [Terrain; 5] = [Terrain::Flat, Terrain::StairsUp, Terrain::StairsDown, Terrain::Pallet, Terrain::Other];
 
     /// The label spelling (`flat`, `stairs-up`, ...).
     pub fn as_str(self) -> &'static str {
@@ -223,9 +225,7 @@ impl std::str::FromStr for Terrain {
         Terrain::ALL
             .into_iter()
             .find(|t| t.as_str() == s)
-            .ok_or_else(|| {
-                format!("unknown terrain {s:?} (expected flat, stairs-up, stairs-down, pallet or other)")
-            })
+            .ok_or_else(|| format!("unknown terrain {s:?} (expected flat, stairs-up, stairs-down, pallet or other)"))
     }
 }
 

@@ -35,11 +35,7 @@ pub fn dem_error(y: &Dem, p: &Dem) -> f64 {
 /// the smallest [`dem_error`] over them, with the index (into `measured`)
 /// of the best one. None when `measured` is empty.
 pub fn pair_error<'a>(measured: impl IntoIterator<Item = &'a Dem>, p: &Dem) -> Option<(usize, f64)> {
-    measured
-        .into_iter()
-        .map(|y| dem_error(y, p))
-        .enumerate()
-        .min_by(|a, b| a.1.total_cmp(&b.1))
+    measured.into_iter().map(|y| dem_error(y, p)).enumerate().min_by(|a, b| a.1.total_cmp(&b.1))
 }
 
 #[cfg(test)]

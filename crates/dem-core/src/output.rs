@@ -100,10 +100,7 @@ fn remove_stale_temps(dir: &Path) {
             continue;
         }
         if std::fs::remove_file(entry.path()).is_ok() {
-            crate::cli::log(format_args!(
-                "removed {}, a temp file left by a killed run (pid {pid})",
-                entry.path().display()
-            ));
+            crate::cli::log(format_args!("removed {}, a temp file left by a killed run (pid {pid})", entry.path().display()));
         }
     }
 }
@@ -141,11 +138,7 @@ pub fn check_outputs(inputs: &[&str], outputs: &[&str]) -> Result<()> {
         }
         let Some(out_id) = id(out, true) else { continue };
         if let Some(i) = inputs.iter().find(|&&i| id(i, false) == Some(out_id)) {
-            return Err(DemError::Usage(format!(
-                "output {} would overwrite the input {}",
-                name(out, true),
-                name(i, false)
-            )));
+            return Err(DemError::Usage(format!("output {} would overwrite the input {}", name(out, true), name(i, false))));
         }
         if let Some(o) = outputs[..k].iter().find(|&&o| id(o, true) == Some(out_id) || (o == out && o != "-")) {
             return Err(DemError::Usage(format!("two outputs are the same file: {} and {out}", name(o, true))));

@@ -40,7 +40,11 @@ impl LabelsReader {
         let src: Box<dyn BufRead> = Box::new(std::io::BufReader::new(table::open_input(path)?));
         let mut r = LabelsReader { path: path.into(), src, header: Vec::new(), headers: csv::StringRecord::new(), line: 0, rows: 0 };
         let Some((line, header)) = r.next_record()? else {
-            return Err(DemError::Table { path: path.into(), line: 1, reason: "is empty: a labels CSV starts with the header index,terrain".into() });
+            return Err(DemError::Table {
+                path: path.into(),
+                line: 1,
+                reason: "is empty: a labels CSV starts with the header index,terrain".into(),
+            });
         };
         let fields = r.parse(line, &header)?;
         if fields.get(0) != Some("index") || fields.get(1) != Some("terrain") {

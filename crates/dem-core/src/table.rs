@@ -264,7 +264,15 @@ mod tests {
         let p = dir.path().join("l.csv").to_string_lossy().into_owned();
         let rows = vec![
             Label { index: 0, terrain: Terrain::Pallet, x: Some(1.5), y: Some(0.0), yaw: Some(0.1), sequence: Some(3), time: Some(0.2) },
-            Label { index: 1, terrain: Terrain::StairsDown, x: Some(1.6), y: Some(0.0), yaw: Some(0.1), sequence: Some(3), time: Some(0.4) },
+            Label {
+                index: 1,
+                terrain: Terrain::StairsDown,
+                x: Some(1.6),
+                y: Some(0.0),
+                yaw: Some(0.1),
+                sequence: Some(3),
+                time: Some(0.4),
+            },
         ];
         write_rows(&p, &rows).unwrap();
         assert_eq!(read_labels(&p).unwrap(), rows);

@@ -1,13 +1,18 @@
 //! `dem-eval compare`: two tables side by side, exit 1 when a row got worse.
 
-use dem_core::cli;
 use crate::table::forms::{self as report, read_table, Format};
 use crate::table::{self, Compared, Status, Tolerances};
+use dem_core::cli;
 
 /// Compare `current` against `baseline`, print the comparison, fail when a row
 /// is worse or missing; the message names the measures that failed.
 pub fn run(baseline: &str, current: &str, tol: &Tolerances, format: Format) -> anyhow::Result<()> {
-    for (flag, v) in [("--tolerance", tol.pair), ("--height-tolerance", tol.height_cm), ("--rough-tolerance", tol.rough_cm), ("--gap-tolerance", tol.gap)] {
+    for (flag, v) in [
+        ("--tolerance", tol.pair),
+        ("--height-tolerance", tol.height_cm),
+        ("--rough-tolerance", tol.rough_cm),
+        ("--gap-tolerance", tol.gap),
+    ] {
         if v.is_nan() || v < 0.0 {
             return Err(cli::usage(format!("{flag} must be a number >= 0")));
         }

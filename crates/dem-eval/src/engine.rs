@@ -91,7 +91,8 @@ impl Evaluation {
     /// The table of `method`: the row over all records, then with
     /// `by_terrain` one per terrain present, in label order.
     pub fn table(&self, method: &str, by_terrain: bool) -> Vec<TableRow> {
-        let row = |key: Option<Terrain>, name: &str| self.rows.get(&key).and_then(|acc| acc.row(method, name, self.gaps.get(&key).copied()));
+        let row =
+            |key: Option<Terrain>, name: &str| self.rows.get(&key).and_then(|acc| acc.row(method, name, self.gaps.get(&key).copied()));
         let mut rows: Vec<TableRow> = row(None, validation::ALL).into_iter().collect();
         if by_terrain {
             rows.extend(Terrain::ALL.into_iter().filter_map(|t| row(Some(t), t.as_str())));
@@ -239,7 +240,10 @@ pub(crate) fn row_gaps(
         let n = sizes.get(&key).copied().unwrap_or(0);
         if n > GAP_SAMPLE {
             let row = key.map_or("all".to_string(), |t| t.to_string());
-            cli::log(format_args!("gap of row {row}: a sample of {} of its {n} pairs (at most {GAP_SAMPLE}, chosen by index)", sample.preds.len()));
+            cli::log(format_args!(
+                "gap of row {row}: a sample of {} of its {n} pairs (at most {GAP_SAMPLE}, chosen by index)",
+                sample.preds.len()
+            ));
         }
         // In index order (the summation order of the statistics): with
         // pairs 1:1 the set is the one the sims' partners always gave.
@@ -285,7 +289,8 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
     // Labels are the sim file's own (a shard's are indexed from 0).
     let first_index = q.first_index.unwrap_or(0);
     let terrain_of = |i: u64| -> Option<Terrain> { terrains.as_ref().and_then(|t| t.get((i - first_index) as usize)).copied() };
-    let time_of = |i: u64| -> Option<f64> { times.as_ref().and_then(|t| t.get((i - first_index) as usize)).copied().filter(|t| t.is_finite()) };
+    let time_of =
+        |i: u64| -> Option<f64> { times.as_ref().and_then(|t| t.get((i - first_index) as usize)).copied().filter(|t| t.is_finite()) };
     // The sims this run scores: the whole set, or a shard's range (its
     // length from the labels or the file; a shard on stdin runs to the end).
     let scored = if q.first_index.is_none() {
@@ -329,7 +334,16 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
         Method::Pred(path) => Some((path, npy::open(path)?)),
         _ => None,
     };
-    let ctx = BlockCtx { q, pairs: &pairs, model: model.as_ref(), residual: residual.as_ref(), heights, terrain_of: &terrain_of, time_of: &time_of, row_sizes: &row_sizes };
+    let ctx = BlockCtx {
+        q,
+        pairs: &pairs,
+        model: model.as_ref(),
+        residual: residual.as_ref(),
+        heights,
+        terrain_of: &terrain_of,
+        time_of: &time_of,
+        row_sizes: &row_sizes,
+    };
     let (mut chunk, mut pchunk) = (Vec::with_capacity(CHUNK_RECORDS), Vec::with_capacity(CHUNK_RECORDS));
     let mut block: Vec<(u64, Dem, Dem)> = Vec::with_capacity(BLOCK);
     loop {
@@ -340,7 +354,11 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
             pchunk.clear();
             let got = r.read_up_to(&mut pchunk, n)?;
             if got < n {
-                return Err(DemError::input(path.as_str(), format!("has {} records but {} has more: a prediction file holds one record per sim record", r.records_read(), q.sim)).into());
+                return Err(DemError::input(
+                    path.as_str(),
+                    format!("has {} records but {} has more: a prediction file holds one record per sim record", r.records_read(), q.sim),
+                )
+                .into());
             }
         }
         for g in pairs.within(first..first + n as u64).chunk_by(|a, b| a.0 == b.0) {
@@ -363,7 +381,11 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
     if let Some((path, r)) = &mut pred_rdr {
         let mut rest = Vec::new();
         if r.read_up_to(&mut rest, 1)? > 0 {
-            return Err(DemError::input(path.as_str(), format!("has more records than the {n_sim} of {}: a prediction file holds one record per sim record", q.sim)).into());
+            return Err(DemError::input(
+                path.as_str(),
+                format!("has more records than the {n_sim} of {}: a prediction file holds one record per sim record", q.sim),
+            )
+            .into());
         }
     }
     if let (Some(t), Some(path)) = (&terrains, &q.labels_sim) {
@@ -397,7 +419,13 @@ struct BlockCtx<'a> {
 
 /// Evaluate one block of (sim index, sim record, prediction); a model's
 /// predictions are made here.
-fn evaluate_block(ctx: &BlockCtx, mut block: Vec<(u64, Dem, Dem)>, reals: &mut ByIndex, emit: &mut Emit, acc: &mut Acc) -> anyhow::Result<()> {
+fn evaluate_block(
+    ctx: &BlockCtx,
+    mut block: Vec<(u64, Dem, Dem)>,
+    reals: &mut ByIndex,
+    emit: &mut Emit,
+    acc: &mut Acc,
+) -> anyhow::Result<()> {
     if let (Some(model), Method::Model(path)) = (ctx.model, &ctx.q.method) {
         let keys: Vec<u64> = block.iter().map(|b| b.0).collect();
         let inputs: Vec<Dem> = block.iter().map(|b| b.1).collect();

@@ -4,8 +4,8 @@
 use std::path::Path;
 
 use clap::{Args as ClapArgs, ValueEnum};
-use dem_core::table::Split;
 use dem_core::cli;
+use dem_core::table::Split;
 
 use crate::engine::{self, Method, Request};
 use crate::table::forms::{self as report, Format};

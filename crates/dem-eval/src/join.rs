@@ -3,10 +3,10 @@
 //! header, a CSV table as Markdown for a report, or a pivot of methods by
 //! terrain.
 
-use clap::Args;
-use dem_core::cli;
 use crate::table::forms::{read_table, write_pivot, write_table, Format};
 use crate::table::{check_table, Measure, TableRow};
+use clap::Args;
+use dem_core::cli;
 use dem_core::{output, DemError};
 
 /// Arguments of `dem-eval join`.
@@ -88,7 +88,8 @@ fn line_of(path: &str, method: &str, terrain: &str) -> Option<u64> {
 }
 
 fn measure(s: &str) -> Result<Measure, String> {
-    Measure::ALL.into_iter().find(|m| m.name() == s).ok_or_else(|| {
-        format!("no measure {s:?} (one of: {})", Measure::ALL.map(Measure::name).join(", "))
-    })
+    Measure::ALL
+        .into_iter()
+        .find(|m| m.name() == s)
+        .ok_or_else(|| format!("no measure {s:?} (one of: {})", Measure::ALL.map(Measure::name).join(", ")))
 }

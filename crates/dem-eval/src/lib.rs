@@ -17,8 +17,8 @@
 //!   baseline, and [`table::forms`], the forms it is written and read in.
 
 pub mod compare;
-pub mod evaluate;
 pub mod engine;
+pub mod evaluate;
 pub mod join;
 pub mod merge;
 pub mod model;

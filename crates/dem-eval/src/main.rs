@@ -1,7 +1,6 @@
 //! dem-eval: the validation table of a generator (pair error, equation 7.1)
 //! and `dem-eval compare`, the regression check of such tables.
 
-
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
@@ -24,7 +23,10 @@ use dem_eval::{compare, evaluate, join, merge, table, transfer};
 /// made by another tool (--pred), or an ONNX generator run on the selected
 /// sim records (--model). `dem-eval compare` checks a table against a baseline.
 #[derive(Parser)]
-#[command(version, args_conflicts_with_subcommands = true, after_long_help = "Examples:
+#[command(
+    version,
+    args_conflicts_with_subcommands = true,
+    after_long_help = "Examples:
   dem-eval --sim sim.npy --real real.npy --pairs pairs.csv --split val --identity
   dem-eval --sim sim.npy --real real.npy --pairs pairs.csv --split val --model g.onnx \\
       --sim-labels sim_labels.csv --by terrain --emit-records per_record.csv --format md
@@ -33,7 +35,8 @@ use dem_eval::{compare, evaluate, join, merge, table, transfer};
       --emit-input in.npy --emit-closest closest.npy && \\
       dem-render --compare in.npy closest.npy --row-labels input,closest --error-rows 2,1 -o fig.png
   dem-eval join identity.csv model.csv -o table.csv    # one table, one header
-  dem-eval compare testdata/eval_baseline.csv table.csv --tolerance 0.02 --height-tolerance 0.5 || echo regression")]
+  dem-eval compare testdata/eval_baseline.csv table.csv --tolerance 0.02 --height-tolerance 0.5 || echo regression"
+)]
 struct Args {
     #[command(subcommand)]
     cmd: Option<Cmd>,

@@ -6,14 +6,14 @@
 
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 
-use clap::Args as ClapArgs;
 use crate::table::{RecordResult, RowAcc};
+use clap::Args as ClapArgs;
 use dem_core::npy::{self, CHUNK_RECORDS};
 use dem_core::table::Split;
 use dem_core::{cli, DemError, Terrain};
 
-use crate::evaluate::TableOut;
 use crate::engine::{row_gaps, Evaluation, GapSample, Pairs};
+use crate::evaluate::TableOut;
 use dem_core::npy::ByIndex;
 
 /// The arguments of `dem-eval merge`.
@@ -115,7 +115,10 @@ fn gaps(a: &MergeArgs, recs: &[RecordResult]) -> anyhow::Result<HashMap<Option<T
     let n_pred = npy::open(pred_path)?.for_each_chunk(CHUNK_RECORDS, |_, chunk| {
         for pred in chunk.iter() {
             let Some(r) = rows.next() else {
-                return Err(DemError::input(pred_path.as_str(), format!("has more records than the {} rows of the records files", recs.len())));
+                return Err(DemError::input(
+                    pred_path.as_str(),
+                    format!("has more records than the {} rows of the records files", recs.len()),
+                ));
             };
             for key in keys(r, a.table.by.is_some()) {
                 let partners = pairs.within(r.sim_index..r.sim_index + 1).iter().map(|p| p.1);
@@ -136,7 +139,8 @@ fn gaps(a: &MergeArgs, recs: &[RecordResult]) -> anyhow::Result<HashMap<Option<T
 
 /// Merge as `a` asks and write the table.
 pub fn run(a: MergeArgs) -> anyhow::Result<()> {
-    let inputs: Vec<&str> = a.records.iter().chain([&a.emitted_pred, &a.real, &a.pairs].into_iter().flatten()).map(String::as_str).collect();
+    let inputs: Vec<&str> =
+        a.records.iter().chain([&a.emitted_pred, &a.real, &a.pairs].into_iter().flatten()).map(String::as_str).collect();
     cli::one_stdin(inputs.iter().copied())?;
     dem_core::output::check_outputs(&inputs, &[a.table.output.as_str()])?;
     let recs = read_all(&a.records)?;

@@ -239,7 +239,8 @@ mod tests {
         let mut w = RecordsWriter::create(&path).unwrap();
         let mut rs = Vec::new();
         for pred in [p, q] {
-            let ((rough_across, rough_along), (real_rough_across, real_rough_along)) = (crate::table::roughness(&pred), crate::table::roughness(&y));
+            let ((rough_across, rough_along), (real_rough_across, real_rough_along)) =
+                (crate::table::roughness(&pred), crate::table::roughness(&y));
             let r = RecordResult {
                 sim_index: rs.len() as u64,
                 real_index: 0,

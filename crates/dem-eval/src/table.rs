@@ -492,7 +492,8 @@ pub enum Measure {
 
 impl Measure {
     /// Every measure, in table order.
-    pub const ALL: [Measure; 6] = [Measure::Mean, Measure::Median, Measure::HeightCm, Measure::RoughAcross, Measure::RoughAlong, Measure::Gap];
+    pub const ALL: [Measure; 6] =
+        [Measure::Mean, Measure::Median, Measure::HeightCm, Measure::RoughAcross, Measure::RoughAlong, Measure::Gap];
 
     /// Its name in tables and messages.
     pub fn name(self) -> &'static str {
@@ -925,7 +926,8 @@ mod tests {
         std::fs::write(&q, text.replace(",0.3,0.4,\n", ",0.3,-0.4,\n")).unwrap();
         assert!(read_table_csv(&q).unwrap_err().to_string().contains(">= 0"));
         // JSON of an old table: the measures default to None.
-        let js: Vec<TableRow> = serde_json::from_str(r#"[{"method":"a","terrain":"all","count":3,"lowest":0,"highest":1,"mean":0.4,"median":0.3}]"#).unwrap();
+        let js: Vec<TableRow> =
+            serde_json::from_str(r#"[{"method":"a","terrain":"all","count":3,"lowest":0,"highest":1,"mean":0.4,"median":0.3}]"#).unwrap();
         assert_eq!(js, vec![row("a", 0.4, 0.3)]);
     }
 
@@ -942,10 +944,10 @@ mod tests {
         assert_eq!(worse(TableRow { height_cm: Some(2.0), ..full("a") }), Vec::<Measure>::new()); // +0.5: within
         assert_eq!(worse(TableRow { height_cm: Some(2.01), ..full("a") }), vec![Measure::HeightCm]);
         assert_eq!(worse(TableRow { height_cm: Some(0.1), ..full("a") }), Vec::<Measure>::new()); // better
-        // Roughness: the distance from the real one counts, either side.
-        // Across 0.1 vs real 0.3 (distance 0.2): 0.75 (distance 0.45, +0.25)
-        // passes, 1.05 (0.75, +0.55) fails; so does the real side moving
-        // away: real 0.9 (distance 0.8, +0.6).
+                                                                                                  // Roughness: the distance from the real one counts, either side.
+                                                                                                  // Across 0.1 vs real 0.3 (distance 0.2): 0.75 (distance 0.45, +0.25)
+                                                                                                  // passes, 1.05 (0.75, +0.55) fails; so does the real side moving
+                                                                                                  // away: real 0.9 (distance 0.8, +0.6).
         assert_eq!(worse(TableRow { rough_across_cm: Some(0.75), ..full("a") }), Vec::<Measure>::new());
         assert_eq!(worse(TableRow { rough_across_cm: Some(1.05), ..full("a") }), vec![Measure::RoughAcross]);
         assert_eq!(worse(TableRow { real_rough_across_cm: Some(0.9), ..full("a") }), vec![Measure::RoughAcross]);

@@ -149,7 +149,8 @@ print(json.dumps(out))
     for (method, flag) in [("pred", vec!["--pred".to_string(), arg(d, "pred.npy")]), ("identity", vec!["--identity".into()])] {
         let rec = arg(d, &format!("{method}_records.csv"));
         let labels = arg(d, "labels.csv");
-        let mut a = eval_args(d, &["--split", "val", "--sim-labels", &labels, "--by", "terrain", "--format", "json", "--emit-records", &rec]);
+        let mut a =
+            eval_args(d, &["--split", "val", "--sim-labels", &labels, "--by", "terrain", "--format", "json", "--emit-records", &rec]);
         a.extend(flag);
         let o = dem_eval(&a);
         let got: Value = serde_json::from_slice(ok(&o)).unwrap();
@@ -230,10 +231,27 @@ fn identity_on_the_bundled_true_pairs_by_terrain() {
     let o = run(
         "dem-eval",
         &[
-            "--sim", &td("sim.npy"), "--real", &td("real.npy"), "--pairs", &td("pairs.csv"), "--identity",
-            "--sim-labels", &td("sim_labels.csv"), "--by", "terrain", "--format", "json", "--emit-records", &rec,
-            "--emit-input", &arg(dir.path(), "in.npy"), "--emit-pred", &arg(dir.path(), "pred.npy"),
-            "--emit-closest", &arg(dir.path(), "closest.npy"),
+            "--sim",
+            &td("sim.npy"),
+            "--real",
+            &td("real.npy"),
+            "--pairs",
+            &td("pairs.csv"),
+            "--identity",
+            "--sim-labels",
+            &td("sim_labels.csv"),
+            "--by",
+            "terrain",
+            "--format",
+            "json",
+            "--emit-records",
+            &rec,
+            "--emit-input",
+            &arg(dir.path(), "in.npy"),
+            "--emit-pred",
+            &arg(dir.path(), "pred.npy"),
+            "--emit-closest",
+            &arg(dir.path(), "closest.npy"),
         ],
         None,
     );
@@ -288,8 +306,19 @@ print(json.dumps(evaluate(sim, real, pairs, None, terrain)[1]))
     let o = run(
         "dem-eval",
         &[
-            "--sim", &td("sim.npy"), "--real", &td("real.npy"), "--pairs", &td("pairs.csv"), "--identity",
-            "--sim-labels", &td("sim_labels.csv"), "--by", "terrain", "--format", "json",
+            "--sim",
+            &td("sim.npy"),
+            "--real",
+            &td("real.npy"),
+            "--pairs",
+            &td("pairs.csv"),
+            "--identity",
+            "--sim-labels",
+            &td("sim_labels.csv"),
+            "--by",
+            "terrain",
+            "--format",
+            "json",
         ],
         None,
     );
@@ -297,8 +326,11 @@ print(json.dumps(evaluate(sim, real, pairs, None, terrain)[1]))
     check_rows(&got, &want);
     let rows = got.as_array().unwrap();
     // Sim DEMs are smoother than measured ones, and close to them in height.
-    let (h, across, real_across) =
-        (rows[0]["height_cm"].as_f64().unwrap(), rows[0]["rough_across_cm"].as_f64().unwrap(), rows[0]["real_rough_across_cm"].as_f64().unwrap());
+    let (h, across, real_across) = (
+        rows[0]["height_cm"].as_f64().unwrap(),
+        rows[0]["rough_across_cm"].as_f64().unwrap(),
+        rows[0]["real_rough_across_cm"].as_f64().unwrap(),
+    );
     assert!(h > 0.1 && h < 5.0 && across < real_across, "{}", rows[0]);
     // The gap: dem-gap's stats of the row's predictions (here the sim
     // records) against the unique real records paired with them.
@@ -318,7 +350,11 @@ print(json.dumps(evaluate(sim, real, pairs, None, terrain)[1]))
     }
     // Text and Markdown show them: cm with two decimals, the gap with three.
     for fmt in ["text", "md"] {
-        let o = run("dem-eval", &["--sim", &td("sim.npy"), "--real", &td("real.npy"), "--pairs", &td("pairs.csv"), "--identity", "--format", fmt], None);
+        let o = run(
+            "dem-eval",
+            &["--sim", &td("sim.npy"), "--real", &td("real.npy"), "--pairs", &td("pairs.csv"), "--identity", "--format", fmt],
+            None,
+        );
         let out = String::from_utf8_lossy(ok(&o)).into_owned();
         for col in MEASURES.iter().chain(&["gap"]) {
             assert!(out.lines().next().unwrap().contains(col), "{fmt}: {out}");
@@ -346,7 +382,8 @@ fn the_gap_is_taken_over_the_pairs_when_records_repeat() {
     let path = arg(dir.path(), "pairs.csv");
     let text: String = pairs.iter().map(|(s, r)| format!("{s},{r}\n")).collect();
     std::fs::write(&path, format!("sim_index,real_index\n{text}")).unwrap();
-    let o = run("dem-eval", &["--sim", &td("sim.npy"), "--real", &td("real.npy"), "--pairs", &path, "--identity", "--format", "json"], None);
+    let o =
+        run("dem-eval", &["--sim", &td("sim.npy"), "--real", &td("real.npy"), "--pairs", &path, "--identity", "--format", "json"], None);
     let got: Value = serde_json::from_slice(ok(&o)).unwrap();
     let got = got[0]["gap"].as_f64().unwrap();
     let gap = |p: Vec<Dem>, r: Vec<Dem>| distribution::gap(&distribution::stats(&p, None), &distribution::stats(&r, None));
@@ -512,7 +549,19 @@ fn compare_reads_json_and_joined_csv_tables_and_refuses_bad_ones() {
     let run_eval = |fmt: &str, name: &str| {
         let o = run(
             "dem-eval",
-            &["--sim", &td("sim.npy"), "--real", &td("real.npy"), "--pairs", &td("pairs.csv"), "--identity", "--name", name, "--format", fmt],
+            &[
+                "--sim",
+                &td("sim.npy"),
+                "--real",
+                &td("real.npy"),
+                "--pairs",
+                &td("pairs.csv"),
+                "--identity",
+                "--name",
+                name,
+                "--format",
+                fmt,
+            ],
             None,
         );
         ok(&o).to_vec()
@@ -659,7 +708,11 @@ fn records_csv(d: &Path) -> String {
     let pairs = arg(d, "three.csv");
     std::fs::write(&pairs, "sim_index,real_index\n0,0\n1,1\n2,2\n").unwrap();
     let rec = arg(d, "r.csv");
-    ok(&run("dem-eval", &["--sim", &td("sim.npy"), "--real", &td("real.npy"), "--pairs", &pairs, "--identity", "--emit-records", &rec, "-o", "/dev/null"], None));
+    ok(&run(
+        "dem-eval",
+        &["--sim", &td("sim.npy"), "--real", &td("real.npy"), "--pairs", &pairs, "--identity", "--emit-records", &rec, "-o", "/dev/null"],
+        None,
+    ));
     rec
 }
 
@@ -758,7 +811,11 @@ fn the_contract_s_extremes_are_written_and_read_back() {
     npy::write_all(&real, &dem(-1.0)).unwrap();
     std::fs::write(&pairs, "sim_index,real_index\n0,0\n1,1\n2,2\n3,3\n4,4\n5,5\n").unwrap();
     let (rec, pred) = (arg(d, "r.csv"), arg(d, "p.npy"));
-    ok(&run("dem-eval", &["--sim", &sim, "--real", &real, "--pairs", &pairs, "--identity", "--emit-records", &rec, "--emit-pred", &pred, "-o", "/dev/null"], None));
+    ok(&run(
+        "dem-eval",
+        &["--sim", &sim, "--real", &real, "--pairs", &pairs, "--identity", "--emit-records", &rec, "--emit-pred", &pred, "-o", "/dev/null"],
+        None,
+    ));
     let half = |name: &str, rows: std::ops::Range<usize>| {
         let text = std::fs::read_to_string(&rec).unwrap();
         let lines: Vec<&str> = text.lines().collect();
@@ -770,7 +827,11 @@ fn the_contract_s_extremes_are_written_and_read_back() {
     let csv = arg(d, "m.csv");
     ok(&run("dem-eval", &["merge", &a, &b, "--name", "m", "--format", "csv", "-o", &csv], None));
     let json = arg(d, "m.json");
-    let o = run("dem-eval", &["merge", &a, &b, "--name", "g", "--format", "json", "-o", &json, "--emitted-pred", &pred, "--real", &real, "--pairs", &pairs], None);
+    let o = run(
+        "dem-eval",
+        &["merge", &a, &b, "--name", "g", "--format", "json", "-o", &json, "--emitted-pred", &pred, "--real", &real, "--pairs", &pairs],
+        None,
+    );
     ok(&o);
     let joined = String::from_utf8(ok(&run("dem-eval", &["join", &csv, &json, "--format", "csv"], None)).to_vec()).unwrap();
     assert_eq!(joined.lines().count(), 3, "{joined}");

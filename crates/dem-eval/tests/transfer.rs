@@ -61,7 +61,9 @@ fn transfer_matches_numpy_ridge_fits_and_reports_the_share_closed() {
     let p = |n: &str| arg(dir.path(), n);
     let args = |fmt: &str| -> Vec<String> {
         let mut a: Vec<String> = vec!["transfer".into(), "--test".into(), p("test.npy"), "--test-labels".into(), p("test_labels.csv")];
-        for (name, npy, lab) in [("sim", "sim.npy", "sim_labels.csv"), ("mid", "mid.npy", "sim_labels.csv"), ("measured", "real.npy", "real_labels.csv")] {
+        for (name, npy, lab) in
+            [("sim", "sim.npy", "sim_labels.csv"), ("mid", "mid.npy", "sim_labels.csv"), ("measured", "real.npy", "real_labels.csv")]
+        {
             a.extend(["--train".into(), name.into(), p(npy), p(lab)]);
         }
         a.extend(["--format".into(), fmt.into(), "--seed".into(), "3".into(), "--by-terrain".into()]);
@@ -102,7 +104,11 @@ fn transfer_refuses_bad_input_with_one_line() {
     let dir = tempdir();
     let (sim, siml, real, reall) = (td("sim.npy"), td("sim_labels.csv"), td("real.npy"), td("real_labels.csv"));
     // Labels of another file: counts differ.
-    let out = run("dem-eval", &["transfer", "--test", &real, "--test-labels", &reall, "--train", "sim", &sim, &reall, "--train", "m", &real, &reall], None);
+    let out = run(
+        "dem-eval",
+        &["transfer", "--test", &real, "--test-labels", &reall, "--train", "sim", &sim, &reall, "--train", "m", &real, &reall],
+        None,
+    );
     assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
     assert!(stderr(&out).contains("real_labels.csv") && stderr(&out).lines().count() == 1, "{}", stderr(&out));
     // One training set is not a comparison.
@@ -111,7 +117,11 @@ fn transfer_refuses_bad_input_with_one_line() {
     // A test set without flipper angles cannot test the regressor.
     let flat = arg(dir.path(), "zero.npy");
     py(dir.path(), &format!("import numpy as np\nd = np.load({real:?}); d[:, 20, :, 0] = 0; np.save({flat:?}, d)"));
-    let out = run("dem-eval", &["transfer", "--test", &flat, "--test-labels", &reall, "--train", "s", &sim, &siml, "--train", "m", &real, &reall], None);
+    let out = run(
+        "dem-eval",
+        &["transfer", "--test", &flat, "--test-labels", &reall, "--train", "s", &sim, &siml, "--train", "m", &real, &reall],
+        None,
+    );
     assert_eq!(out.status.code(), Some(2));
     assert!(stderr(&out).contains("flipper"), "{}", stderr(&out));
     let out = run("dem-eval", &["transfer", "--help"], None);

@@ -4,10 +4,10 @@ use std::collections::HashSet;
 use std::process::ExitCode;
 
 use clap::Parser;
-use dem_fill_nans::{fill_from_own_heights, is_large, keep_exactly, record_uniform};
-use dem_core::npy::transform;
 use dem_core::cli::{self, value};
+use dem_core::npy::transform;
 use dem_core::output;
+use dem_fill_nans::{fill_from_own_heights, is_large, keep_exactly, record_uniform};
 
 /// Fill the missing cells of records with a large missing area (the thesis's
 /// NaN removal): such records (a run's first frames, before the map has seen
@@ -19,10 +19,13 @@ use dem_core::output;
 /// Which records are kept and which heights are drawn depend only on --seed
 /// and the record index.
 #[derive(Parser)]
-#[command(version, after_long_help = "Examples:
+#[command(
+    version,
+    after_long_help = "Examples:
   dem-fill-nans --min-missing 0.3 --keep-fraction 0.2 --seed 1 real.npy -o real_filled.npy
   dem-fill-nans --keep 50 real.npy -o real_filled.npy       # exactly 50 kept (needs a file)
-  dem-synth --out run/ && dem-fill-nans run/real.npy | dem-render - -o filled.png")]
+  dem-synth --out run/ && dem-fill-nans run/real.npy | dem-render - -o filled.png"
+)]
 struct Args {
     /// Input NPY stream (`-` for stdin; a file for --keep).
     #[arg(default_value = "-")]

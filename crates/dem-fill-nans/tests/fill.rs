@@ -10,7 +10,11 @@ fn td(name: &str) -> String {
 }
 
 fn heights(d: &dem_core::Dem) -> Vec<u32> {
-    (0..GRID_ROWS).flat_map(|r| (0..COLS).map(move |c| (r, c))).filter(|&(r, c)| d.is_valid(r, c)).map(|(r, c)| d.height(r, c).to_bits()).collect()
+    (0..GRID_ROWS)
+        .flat_map(|r| (0..COLS).map(move |c| (r, c)))
+        .filter(|&(r, c)| d.is_valid(r, c))
+        .map(|(r, c)| d.height(r, c).to_bits())
+        .collect()
 }
 
 #[test]

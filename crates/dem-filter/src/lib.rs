@@ -283,8 +283,9 @@ mod tests {
             .collect();
         npy::write_all(&path("in.npy"), &records).unwrap();
         let terrain = |k: u64| if k.is_multiple_of(2) { Terrain::Flat } else { Terrain::Pallet };
-        let labels: Vec<Label> =
-            (0..5).map(|k| Label { index: k, terrain: terrain(k), x: None, y: None, yaw: None, sequence: Some(7), time: Some(k as f64) }).collect();
+        let labels: Vec<Label> = (0..5)
+            .map(|k| Label { index: k, terrain: terrain(k), x: None, y: None, yaw: None, sequence: Some(7), time: Some(k as f64) })
+            .collect();
         let rules = FilterRules { labels: Some((path("l.csv"), labels)), terrains: Some(vec![Terrain::Pallet]), ..FilterRules::default() };
         let files = FilterFiles {
             input: path("in.npy"),
@@ -301,10 +302,18 @@ mod tests {
         assert_eq!(relabelled.iter().map(|l| (l.index, l.time)).collect::<Vec<_>>(), vec![(0, Some(1.0)), (1, Some(3.0))]);
 
         // Runs: records 0..4 are runs 0, 1, 2, 0, 1 (sequence = k % 3).
-        let labels: Vec<Label> = (0..5).map(|k| Label { index: k, terrain: Terrain::Flat, x: None, y: None, yaw: None, sequence: Some(k % 3), time: None }).collect();
+        let labels: Vec<Label> = (0..5)
+            .map(|k| Label { index: k, terrain: Terrain::Flat, x: None, y: None, yaw: None, sequence: Some(k % 3), time: None })
+            .collect();
         for (except, want) in [(false, vec![1, 2, 4]), (true, vec![0, 3])] {
-            let rules = FilterRules { labels: Some((path("r.csv"), labels.clone())), runs: Some(vec![1, 2]), except_runs: except, ..FilterRules::default() };
-            let files = FilterFiles { input: path("in.npy"), output: path("runs.npy"), emit_index: Some(path("runs.csv")), emit_labels: None };
+            let rules = FilterRules {
+                labels: Some((path("r.csv"), labels.clone())),
+                runs: Some(vec![1, 2]),
+                except_runs: except,
+                ..FilterRules::default()
+            };
+            let files =
+                FilterFiles { input: path("in.npy"), output: path("runs.npy"), emit_index: Some(path("runs.csv")), emit_labels: None };
             let counts = filter_stream(rules, &files).unwrap();
             assert_eq!((counts.kept, counts.run), (want.len() as u64, 5 - want.len() as u64));
             assert_eq!(table::read_index(&path("runs.csv")).unwrap(), want);

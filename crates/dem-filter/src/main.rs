@@ -4,10 +4,10 @@ use std::process::ExitCode;
 
 use clap::Parser;
 
-use dem_filter::{filter_stream, FilterFiles, FilterRules, RowRule};
-use dem_core::table;
 use dem_core::cli::{self, value};
+use dem_core::table;
 use dem_core::{output, Terrain};
+use dem_filter::{filter_stream, FilterFiles, FilterRules, RowRule};
 
 /// Keep the records of an NPY stream that pass every rule given, in order.
 ///
@@ -16,14 +16,17 @@ use dem_core::{output, Terrain};
 /// ahead of the robot), and uniqueness. --emit-index and --emit-labels write
 /// what was kept, so labels and other files can follow the records.
 #[derive(Parser)]
-#[command(version, after_long_help = "Examples:
+#[command(
+    version,
+    after_long_help = "Examples:
   dem-filter --labels l.csv --terrain stairs-up,pallet < sim.npy | dem-render - -o stairs.png
   dem-filter --labels real_labels.csv --max-time 0 real.npy -o first_frames.npy   # each run's first frame
   dem-filter --labels sim_labels.csv --drop-other --unique --emit-index keep.csv sim.npy -o sim_clean.npy
   dem-filter --index keep.csv --invert sim.npy -o rest.npy     # the complement
   dem-filter --labels real_labels.csv --runs 3,4,5 real.npy -o test.npy --emit-labels test_labels.csv   # held-out runs
   dem-filter --labels real_labels.csv --except-runs 3,4,5 real.npy -o train.npy                      # all other runs
-  dem-filter --rows 6..20 --min-valid 0.5 real.npy -o seen_ahead.npy")]
+  dem-filter --rows 6..20 --min-valid 0.5 real.npy -o seen_ahead.npy"
+)]
 struct Args {
     /// Input NPY stream (`-` for stdin).
     #[arg(default_value = "-")]
@@ -94,7 +97,8 @@ fn main() -> ExitCode {
             return Err(cli::usage("--terrain, --drop-other, --max-time, --runs and --except-runs need --labels"));
         }
         let inputs: Vec<&str> = [Some(&a.input), a.labels.as_ref(), a.index.as_ref()].into_iter().flatten().map(String::as_str).collect();
-        let outputs: Vec<&str> = [Some(&a.output), a.emit_index.as_ref(), a.emit_labels.as_ref()].into_iter().flatten().map(String::as_str).collect();
+        let outputs: Vec<&str> =
+            [Some(&a.output), a.emit_index.as_ref(), a.emit_labels.as_ref()].into_iter().flatten().map(String::as_str).collect();
         output::check_outputs(&inputs, &outputs)?;
         let labels = a.labels.as_deref().map(|p| table::read_labels(p).map(|l| (p.to_string(), l))).transpose()?;
         let rows = a.rows.map(|rows| RowRule { min_rows: a.min_rows.unwrap_or(rows.len()), rows });

@@ -38,7 +38,18 @@ fn terrain_and_other_rules_follow_the_labels_and_labels_follow_the_records() {
     let (out, labels) = (arg(dir.path(), "o.npy"), arg(dir.path(), "l.csv"));
     let o = run(
         "dem-filter",
-        &["--labels", &td("sim_labels.csv"), "--terrain", "stairs-up,pallet,other", "--drop-other", &td("sim.npy"), "-o", &out, "--emit-labels", &labels],
+        &[
+            "--labels",
+            &td("sim_labels.csv"),
+            "--terrain",
+            "stairs-up,pallet,other",
+            "--drop-other",
+            &td("sim.npy"),
+            "-o",
+            &out,
+            "--emit-labels",
+            &labels,
+        ],
         None,
     );
     ok(&o);
@@ -62,7 +73,11 @@ fn max_time_keeps_the_first_seconds_of_every_run() {
     let real = npy::read_all(&td("real.npy")).unwrap();
     for t in ["0", "1.5"] {
         let (out, idx) = (arg(dir.path(), "t.npy"), arg(dir.path(), "t.csv"));
-        ok(&run("dem-filter", &["--labels", &td("real_labels.csv"), "--max-time", t, &td("real.npy"), "-o", &out, "--emit-index", &idx], None));
+        ok(&run(
+            "dem-filter",
+            &["--labels", &td("real_labels.csv"), "--max-time", t, &td("real.npy"), "-o", &out, "--emit-index", &idx],
+            None,
+        ));
         let max: f64 = t.parse().unwrap();
         let want: Vec<usize> = all.iter().filter(|l| l.time.unwrap() <= max).map(|l| l.index as usize).collect();
         assert_eq!(table::read_index(&idx).unwrap(), want.iter().map(|&i| i as u64).collect::<Vec<_>>());
@@ -92,7 +107,19 @@ fn runs_and_except_runs_split_the_stream_by_the_labels_sequence() {
         let (out, idx, labels) = (arg(dir.path(), "r.npy"), arg(dir.path(), "r.csv"), arg(dir.path(), "l.csv"));
         let o = run(
             "dem-filter",
-            &["--labels", &td("real_labels.csv"), flag, "10,11,17", &td("real.npy"), "-o", &out, "--emit-index", &idx, "--emit-labels", &labels],
+            &[
+                "--labels",
+                &td("real_labels.csv"),
+                flag,
+                "10,11,17",
+                &td("real.npy"),
+                "-o",
+                &out,
+                "--emit-index",
+                &idx,
+                "--emit-labels",
+                &labels,
+            ],
             None,
         );
         ok(&o);
@@ -150,7 +177,10 @@ fn bad_inputs_exit_2_naming_the_file_and_leave_no_output() {
     let cases: Vec<(Vec<String>, &str)> = vec![
         (vec!["--labels".into(), td("real_labels.csv"), "--drop-other".into(), td("sim.npy")], "real_labels.csv"),
         // Labels shorter than the stream, no rule reading them: refused, not a panic.
-        (vec!["--labels".into(), td("real_labels.csv"), "--emit-labels".into(), arg(dir.path(), "l.csv"), td("sim.npy")], "real_labels.csv: has"),
+        (
+            vec!["--labels".into(), td("real_labels.csv"), "--emit-labels".into(), arg(dir.path(), "l.csv"), td("sim.npy")],
+            "real_labels.csv: has",
+        ),
         (vec!["--index".into(), bad_idx.clone(), td("sim.npy")], "line 3"),
         (vec!["--terrain".into(), "flat".into(), td("sim.npy")], "--labels"),
         (vec!["--rows".into(), "6..25".into(), td("sim.npy")], "6..25"),

@@ -144,8 +144,7 @@ pub fn evidence(effect: &Effect, before: &Stats, after: &Stats, real: &Stats, ga
             )
         }
         Effect::Fov { x_min, x_max } => {
-            let outside: Vec<usize> =
-                (0..20).filter(|&r| !(x_min..=x_max).contains(&dem_core::format::row_center_x(r))).collect();
+            let outside: Vec<usize> = (0..20).filter(|&r| !(x_min..=x_max).contains(&dem_core::format::row_center_x(r))).collect();
             let m = |s: &Stats| {
                 let t = s.term("missing").map(|t| t.values.clone()).unwrap_or_default();
                 outside.iter().map(|&r| t.get(r).copied().unwrap_or(0.0)).sum::<f64>() / outside.len().max(1) as f64
@@ -168,7 +167,10 @@ pub fn evidence(effect: &Effect, before: &Stats, after: &Stats, real: &Stats, ga
         Effect::Startup { x0, v, p } => {
             let back = |s: &Stats| s.mean_over("missing", 0..6);
             let how = if v > 0.0 {
-                format!("a blind edge at x = {x0:.2} m at the start of a run that recedes at {v:.2} m/s ({} of records are startup frames)", pct(p))
+                format!(
+                    "a blind edge at x = {x0:.2} m at the start of a run that recedes at {v:.2} m/s ({} of records are startup frames)",
+                    pct(p)
+                )
             } else {
                 format!("{} of records are startup frames whose blind edge starts at x = {x0:.2} m", pct(p))
             };
@@ -242,7 +244,11 @@ pub fn evidence(effect: &Effect, before: &Stats, after: &Stats, real: &Stats, ga
                 "steps between neighbouring rows above 0.02 m: real {} vs model {}: {}",
                 pct(r2),
                 pct(b2),
-                if r2 < b2 { "narrow pits read as their rims" } else { "real has as many steps: the filled pits are the closest effect, not a clear one" }
+                if r2 < b2 {
+                    "narrow pits read as their rims"
+                } else {
+                    "real has as many steps: the filled pits are the closest effect, not a clear one"
+                }
             )
         }
         Effect::MixedCells { .. } => {
@@ -261,7 +267,11 @@ pub fn evidence(effect: &Effect, before: &Stats, after: &Stats, real: &Stats, ga
             )
         }
         Effect::DropBlend { .. } => {
-            let (q, spread) = if real.paired { ("spread-q99", "99th percentile of the residual (real - sim)") } else { ("spread-q90", "90th percentile of the across-robot height difference") };
+            let (q, spread) = if real.paired {
+                ("spread-q99", "99th percentile of the residual (real - sim)")
+            } else {
+                ("spread-q90", "90th percentile of the across-robot height difference")
+            };
             let tail = |s: &Stats| s.mean_over(q, 0..20);
             let verdict = if mid(real) > mid(before) && tail(real) > tail(before) {
                 "cells beside drops read part of the way across in some records"
@@ -277,15 +287,29 @@ pub fn evidence(effect: &Effect, before: &Stats, after: &Stats, real: &Stats, ga
             )
         }
         Effect::FloorLift { x, .. } => {
-            let rows = if x > row_center_x(GRID_ROWS - 1) { "in every row".to_string() } else { format!("in the rows behind x = {x:.2} m") };
-            let verdict = format!("the ground just beyond a drop edge reads part of the way up ({rows}): the edge hides the floor nearest it");
+            let rows =
+                if x > row_center_x(GRID_ROWS - 1) { "in every row".to_string() } else { format!("in the rows behind x = {x:.2} m") };
+            let verdict =
+                format!("the ground just beyond a drop edge reads part of the way up ({rows}): the edge hides the floor nearest it");
             if real.paired {
                 // The drop floors' share moved > 2 cm toward the edge (component 2).
                 let up = |s: &Stats| s.term("drop-floor").map_or(0.0, |t| t.values[2]);
-                let v = if up(real) > up(before) { verdict } else { "real moves no more cells beyond drops than the model: lifted floors are the closest effect, not a clear one".into() };
-                format!("cells beyond a drop read more than 2 cm up toward its edge: real {} vs model {}: {v}", pct(up(real)), pct(up(before)))
+                let v = if up(real) > up(before) {
+                    verdict
+                } else {
+                    "real moves no more cells beyond drops than the model: lifted floors are the closest effect, not a clear one".into()
+                };
+                format!(
+                    "cells beyond a drop read more than 2 cm up toward its edge: real {} vs model {}: {v}",
+                    pct(up(real)),
+                    pct(up(before))
+                )
             } else {
-                let v = if mid(real) > mid(before) { verdict } else { "no more part-way steps in real: lifted floors are the closest effect, not a clear one".into() };
+                let v = if mid(real) > mid(before) {
+                    verdict
+                } else {
+                    "no more part-way steps in real: lifted floors are the closest effect, not a clear one".into()
+                };
                 format!("steps between neighbouring rows of 0.02-0.1 m: real {} vs model {}: {v}", pct(mid(real)), pct(mid(before)))
             }
         }
@@ -321,7 +345,11 @@ pub fn evidence(effect: &Effect, before: &Stats, after: &Stats, real: &Stats, ga
         Effect::Tilt { pitch, roll, .. } if !real.paired => tilted_unpaired(
             real,
             before,
-            &format!("a camera angle that differs from record to record (sd pitch {:.2}, roll {:.2} degrees)", pitch.to_degrees(), roll.to_degrees()),
+            &format!(
+                "a camera angle that differs from record to record (sd pitch {:.2}, roll {:.2} degrees)",
+                pitch.to_degrees(),
+                roll.to_degrees()
+            ),
         ),
         Effect::Shake { sigma, edge } if !real.paired => tilted_unpaired(
             real,
@@ -420,7 +448,8 @@ pub fn evidence(effect: &Effect, before: &Stats, after: &Stats, real: &Stats, ga
                 let verdict = if rl > bl && rl - bl > rt - bt {
                     format!("steps read {:.1} cm {ahead} of where sim has them: the DEM is the map of an older frame", 100.0 * s.abs())
                 } else {
-                    "real moves no more cells on that side of steps than the other: the lag is the closest effect, not a clear one".to_string()
+                    "real moves no more cells on that side of steps than the other: the lag is the closest effect, not a clear one"
+                        .to_string()
                 };
                 format!(
                     "cells on the {} side of steps (riser {}, drop {}) moved more than 2 cm toward the other surface: real {} vs model {}; on the other side real {} vs model {}: {verdict}",
@@ -434,7 +463,10 @@ pub fn evidence(effect: &Effect, before: &Stats, after: &Stats, real: &Stats, ga
                 )
             } else {
                 let verdict = if mid(real) > mid(before) {
-                    format!("steps read part of the way across where a shift {ahead} of {:.1} cm puts a cell on both sides", 100.0 * s.abs())
+                    format!(
+                        "steps read part of the way across where a shift {ahead} of {:.1} cm puts a cell on both sides",
+                        100.0 * s.abs()
+                    )
                 } else {
                     "no more part-way steps in real: the lag is the closest effect, not a clear one".to_string()
                 };
@@ -576,7 +608,10 @@ mod tests {
         let (model, measured) = (stats(&sims, Some(&sims)), stats(&reals, Some(&sims)));
         let e = Effect::RiserBlend { foot: 0.3, top: 0.0 };
         let s = evidence(&e, &model, &model, &measured, 2.0, 1.0);
-        assert!(s.contains("at the foot real 100.0% vs model 0.0%") && s.contains("read part of the way across the step: the foot up"), "{s}");
+        assert!(
+            s.contains("at the foot real 100.0% vs model 0.0%") && s.contains("read part of the way across the step: the foot up"),
+            "{s}"
+        );
         let s = evidence(&e, &model, &model, &model, 2.0, 1.0);
         assert!(s.contains("not a clear one"), "{s}");
     }

@@ -301,10 +301,12 @@ fn fit_in(name: &str, base: &SensorModel, target: &Target, ranges: &[Range], fix
     let order = |a: &(Vec<f64>, f64), b: &(Vec<f64>, f64)| {
         a.1.total_cmp(&b.1).then_with(|| a.0.partial_cmp(&b.0).unwrap_or(std::cmp::Ordering::Equal))
     };
-    let scored = |pts: Vec<Vec<f64>>| pts.into_par_iter().map(|p| {
-        let g = eval(&p);
-        (p, g)
-    });
+    let scored = |pts: Vec<Vec<f64>>| {
+        pts.into_par_iter().map(|p| {
+            let g = eval(&p);
+            (p, g)
+        })
+    };
     let best_of = |pts: Vec<Vec<f64>>| -> Option<(Vec<f64>, f64)> { scored(pts).min_by(order) };
     let spacing = 1.0 / (n - 1) as f64;
     let first = grid(&vec![0.5; dims], spacing, n);

@@ -38,10 +38,10 @@ use rand_chacha::ChaCha8Rng;
 
 use dem_core::error::{DemError, Result};
 use dem_core::format::{Dem, Terrain};
-use dem_sensor::effects::NAMES;
-use dem_sensor::{Effect, SensorModel};
 use dem_core::table::Split;
 use dem_core::{distribution, metric, npy, table};
+use dem_sensor::effects::NAMES;
+use dem_sensor::{Effect, SensorModel};
 
 pub use dem_core::distribution::{gap, gap_terms, Stats};
 
@@ -321,7 +321,18 @@ pub fn load(cfg: &GapConfig) -> Result<Sets> {
                 ts = Some(pick(s, &keep));
             }
         }
-        return Ok(Sets { sim, real, paired: false, sim_terrain: ts, real_terrain: tr, sim_time: times, real_runs, sim_runs, terrain_mix: mix, over_pairs });
+        return Ok(Sets {
+            sim,
+            real,
+            paired: false,
+            sim_terrain: ts,
+            real_terrain: tr,
+            sim_time: times,
+            real_runs,
+            sim_runs,
+            terrain_mix: mix,
+            over_pairs,
+        });
     };
     let mut pairs = table::read_pairs(pp)?;
     if let Some(split) = cfg.split {
@@ -375,8 +386,25 @@ pub fn load(cfg: &GapConfig) -> Result<Sets> {
         });
     }
     // Paired: both sides share the pair's terrain; prefer the real label.
-    let t = if tr.is_some() { Some(rt) } else if ts.is_some() { Some(st) } else { None };
-    Ok(Sets { sim: s, real: r, paired: true, sim_terrain: t.clone(), real_terrain: t, sim_time: times.map(|_| tt), real_runs: real_runs.map(|_| runs), sim_runs: None, terrain_mix: None, over_pairs: false })
+    let t = if tr.is_some() {
+        Some(rt)
+    } else if ts.is_some() {
+        Some(st)
+    } else {
+        None
+    };
+    Ok(Sets {
+        sim: s,
+        real: r,
+        paired: true,
+        sim_terrain: t.clone(),
+        real_terrain: t,
+        sim_time: times.map(|_| tt),
+        real_runs: real_runs.map(|_| runs),
+        sim_runs: None,
+        terrain_mix: None,
+        over_pairs: false,
+    })
 }
 
 /// The sim records (indices, ascending, a record may repeat) to compare
@@ -484,8 +512,7 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
     // The fitting subsample (all records when few).
     let mut rng = ChaCha8Rng::seed_from_u64(dem_core::seeded::mix(cfg.seed ^ 0x5eed));
     let n = sets.sim.len();
-    let mut idx: Vec<usize> =
-        if n > cfg.fit_records { sample(&mut rng, n, cfg.fit_records).into_vec() } else { (0..n).collect() };
+    let mut idx: Vec<usize> = if n > cfg.fit_records { sample(&mut rng, n, cfg.fit_records).into_vec() } else { (0..n).collect() };
     idx.sort_unstable();
     let fit_sim = pick(&sets.sim, &idx);
     let fit_times = times.map(|t| pick(t, &idx));
@@ -535,19 +562,22 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
             break;
         }
         let moved = moved_real(&model, &current.1);
-        let target = fit::Target { sim: &fit_sim, times: fit_times.as_deref(), paired, real: moved.as_ref().unwrap_or(&fit_real), seed: cfg.seed };
+        let target =
+            fit::Target { sim: &fit_sim, times: fit_times.as_deref(), paired, real: moved.as_ref().unwrap_or(&fit_real), seed: cfg.seed };
         let base_fit = target.gap(&model);
         let mut ranking: Vec<(Effect, f64, f64)> = Vec::new();
         let mut flags: Vec<(Effect, Vec<&'static str>, Vec<&'static str>)> = Vec::new();
         for name in &candidates {
             if let Some(f) = fit::fit(name, &model, &target) {
                 let removed = share_removed(base_fit, f.gap);
-                let edge = if f.at_edge.is_empty() {
-                    String::new()
-                } else {
-                    format!(" [AT THE EDGE of its box: {}]", f.at_edge.join(", "))
-                };
-                log(format!("step {}: candidate {} removes {:.1}% of the gap on the fitting subsample{edge}", step + 1, f.effect, 100.0 * removed));
+                let edge =
+                    if f.at_edge.is_empty() { String::new() } else { format!(" [AT THE EDGE of its box: {}]", f.at_edge.join(", ")) };
+                log(format!(
+                    "step {}: candidate {} removes {:.1}% of the gap on the fitting subsample{edge}",
+                    step + 1,
+                    f.effect,
+                    100.0 * removed
+                ));
                 ranking.push((f.effect, removed, f.gap));
                 flags.push((f.effect, f.at_edge, f.widened));
             } else {
@@ -629,8 +659,7 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
             log(stop.clone());
             break;
         };
-        let (at_edge, widened) =
-            flags.iter().find(|f| f.0 == effect).map(|f| (f.1.clone(), f.2.clone())).unwrap_or_default();
+        let (at_edge, widened) = flags.iter().find(|f| f.0 == effect).map(|f| (f.1.clone(), f.2.clone())).unwrap_or_default();
         // Close rivals further down the ranking (those above it were tried
         // and did not hold up), on all records and on the halves.
         let named_share = ranking.iter().find(|r| r.0 == effect).map_or(0.0, |r| r.1);
@@ -645,11 +674,19 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
             let g = gap(&s, &real_stats);
             let gain = gap_before - g;
             if gain < RIVAL_SHARE * (gap_before - gap_after) {
-                log(format!("step {}: {effect} removes {:.3} of the gap on all records, {rival} {gain:.3}: no rival", step + 1, gap_before - gap_after));
+                log(format!(
+                    "step {}: {effect} removes {:.3} of the gap on all records, {rival} {gain:.3}: no rival",
+                    step + 1,
+                    gap_before - gap_after
+                ));
                 continue;
             }
             if named_ahead(gap_after, &named_h, g, &rival_h) {
-                log(format!("step {}: {effect} is ahead of {rival} ({:.1}% on the subsample) on all records and on both halves", step + 1, 100.0 * share));
+                log(format!(
+                    "step {}: {effect} is ahead of {rival} ({:.1}% on the subsample) on all records and on both halves",
+                    step + 1,
+                    100.0 * share
+                ));
                 continue;
             }
             // Not ordered, but two parts of the gap of a like size are no
@@ -667,7 +704,13 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
                 step + 1
             ));
             let gains = |h: &[f64]| before_h.iter().zip(h).map(|(b, a)| b - a).collect::<Vec<f64>>();
-            tied_with.push(Tie { effect: *rival, gain, gain_on_top: on_top, gains_halves: gains(&rival_h), named_gains_halves: gains(&named_h) });
+            tied_with.push(Tie {
+                effect: *rival,
+                gain,
+                gain_on_top: on_top,
+                gains_halves: gains(&rival_h),
+                named_gains_halves: gains(&named_h),
+            });
         }
         let mut ev = evidence::evidence(&effect, &before_stats, &after_stats, &real_stats, gap_before, gap_after);
         if !at_edge.is_empty() {
@@ -715,7 +758,8 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
     let mut refits = Vec::new();
     if model.effects.len() >= 2 {
         let moved = moved_real(&model, &current.1);
-        let target = fit::Target { sim: &fit_sim, times: fit_times.as_deref(), paired, real: moved.as_ref().unwrap_or(&fit_real), seed: cfg.seed };
+        let target =
+            fit::Target { sim: &fit_sim, times: fit_times.as_deref(), paired, real: moved.as_ref().unwrap_or(&fit_real), seed: cfg.seed };
         for i in 0..model.effects.len() {
             let old = model.effects[i];
             let mut base = model.clone();
@@ -728,7 +772,11 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
             let (_, s) = measure(&trial, &sets.sim, paired, cfg.seed);
             let g = gap(&s, &real_stats);
             if distribution::hides_too_much(&s, &real_stats).is_none() && g < current.0 {
-                let edge = if f.at_edge.is_empty() { String::new() } else { format!(" (WARNING: at the edge of its box in {})", f.at_edge.join(", ")) };
+                let edge = if f.at_edge.is_empty() {
+                    String::new()
+                } else {
+                    format!(" (WARNING: at the edge of its box in {})", f.at_edge.join(", "))
+                };
                 log(format!("re-fitted {old} with the others in place: {}{edge}; gap {:.3} -> {g:.3}", f.effect, current.0));
                 refits.push(Refit { before: old, after: f.effect, gap_before: current.0, gap_after: g, at_edge: f.at_edge });
                 model = trial;

@@ -4,11 +4,11 @@
 use std::process::ExitCode;
 
 use clap::Parser;
+use dem_core::cli::{self, value};
+use dem_core::output;
+use dem_core::table::Split;
 use dem_gap::{self as gap, report, GapConfig};
 use dem_sensor::SensorModel;
-use dem_core::cli::{self, value};
-use dem_core::table::Split;
-use dem_core::output;
 
 /// Measure the gap between model(sim) and real, name the effect that
 /// closes most of it (noise, dropout, row-dropout, occlusion, fov,
@@ -26,7 +26,9 @@ use dem_core::output;
 /// records are compared, with pairs the residuals per position, and with
 /// pairs and --unpaired the distributions of the pairs' records.
 #[derive(Parser)]
-#[command(version, after_long_help = "Examples:
+#[command(
+    version,
+    after_long_help = "Examples:
   dem-gap --sim testdata/sim.npy --real testdata/real.npy --out gap/
   dem-gap --sim testdata/sim.npy --real testdata/real.npy --pairs testdata/pairs.csv \\
       --sim-labels testdata/sim_labels.csv --real-labels testdata/real_labels.csv --out gap/ --seed 1
@@ -35,7 +37,8 @@ use dem_core::output;
       --real-labels all/real_labels.csv --out gap3/     # labels' time lets `startup` fit its speed
   dem-gap --sim prep/sim.npy --real prep/real.npy --pairs prep/pairs.csv --split train --unpaired \
       --sim-labels prep/sim_labels.csv --real-labels prep/real_labels.csv --out gap4/   # dem-pair's keys
-  dem-sensor apply --sensor gap/sensor.json sim.npy -o sim_as_measured.npy   # use the result")]
+  dem-sensor apply --sensor gap/sensor.json sim.npy -o sim_as_measured.npy   # use the result"
+)]
 struct Args {
     /// Sim NPY file.
     #[arg(long)]
@@ -106,7 +109,9 @@ fn main() -> ExitCode {
             return Err(cli::usage("--fit-records must be at least 50"));
         }
         if a.match_terrain_mix && (a.pairs.is_some() || a.labels_sim.is_none() || a.labels_real.is_none()) {
-            return Err(cli::usage("--match-terrain-mix draws the sim side of an unpaired comparison: give --sim-labels and --real-labels, and no --pairs"));
+            return Err(cli::usage(
+                "--match-terrain-mix draws the sim side of an unpaired comparison: give --sim-labels and --real-labels, and no --pairs",
+            ));
         }
         if (a.unpaired || a.split.is_some()) && a.pairs.is_none() {
             return Err(cli::usage("--unpaired and --split choose among the pairs: give --pairs"));

@@ -58,8 +58,11 @@ impl RecordKinds {
 
 /// The sd of a record's valid heights; `None` when no cell is valid.
 fn height_sd(d: &Dem) -> Option<f64> {
-    let h: Vec<f64> =
-        (0..GRID_ROWS).flat_map(|r| (0..COLS).map(move |c| (r, c))).filter(|&(r, c)| d.is_valid(r, c)).map(|(r, c)| d.height(r, c) as f64).collect();
+    let h: Vec<f64> = (0..GRID_ROWS)
+        .flat_map(|r| (0..COLS).map(move |c| (r, c)))
+        .filter(|&(r, c)| d.is_valid(r, c))
+        .map(|(r, c)| d.height(r, c) as f64)
+        .collect();
     if h.is_empty() {
         return None;
     }
@@ -107,7 +110,11 @@ mod tests {
         let real = vec![level, tall, level, mid];
         let k = record_kinds(&sim, &real);
         assert_eq!(k, RecordKinds { level: [0.0, 0.5], tall: [0.5, 0.25] });
-        assert!(k.differs() && k.sentence().contains("different terrain") && k.sentence().contains("sim 0.0% vs real 50.0%"), "{}", k.sentence());
+        assert!(
+            k.differs() && k.sentence().contains("different terrain") && k.sentence().contains("sim 0.0% vs real 50.0%"),
+            "{}",
+            k.sentence()
+        );
         let same = record_kinds(&real, &real);
         assert!(!same.differs() && same.sentence().contains("the same kinds"), "{}", same.sentence());
     }

@@ -43,18 +43,19 @@ use serde_json::{json, Map, Value};
 
 use dem_core::error::{DemError, Result};
 use dem_core::format::{row_center_x, Dem, GRID_ROWS};
+use dem_core::{npy, output};
 use dem_render::canvas::{Canvas, Rgb, BLACK, GRID, TEXT, WHITE};
 use dem_render::font::{draw_text, draw_text_centered, text_height, text_width};
 use dem_render::plot::line;
 use dem_render::{self as render, Captions, Pick, RenderConfig, Selection, TileStyle};
-use dem_core::{npy, output};
 
-use dem_core::distribution::gap_terms;
 use super::{Outcome, Sets};
 use crate::unexplained::{Part, BANDS, BAND_KEYS, GRID_WIDE, WEAK};
+use dem_core::distribution::gap_terms;
 
 /// Every file [`write()`] leaves in its folder.
-pub const FILES: [&str; 7] = ["report.json", "sensor.json", "report.md", "compare.png", "rows-missing.png", "rows-height.png", "unexplained.png"];
+pub const FILES: [&str; 7] =
+    ["report.json", "sensor.json", "report.md", "compare.png", "rows-missing.png", "rows-height.png", "unexplained.png"];
 
 /// `report.json` of an outcome, in the exact schema of the module doc.
 pub fn report_json(o: &Outcome) -> Value {
@@ -348,7 +349,8 @@ fn unexplained_md(s: &mut String, o: &Outcome) {
         row("side", p, cols.to_string());
     }
     for p in &u.by_terrain {
-        let top = p.top.as_ref().map_or(format!(" ({} records)", p.records), |(st, b)| format!(" ({} records; mostly `{st}`, {b})", p.records));
+        let top =
+            p.top.as_ref().map_or(format!(" ({} records)", p.records), |(st, b)| format!(" ({} records; mostly `{st}`, {b})", p.records));
         row("terrain", p, format!("`{}`{top}", p.name));
     }
     let _ = writeln!(s, "\n![remaining gap per row](unexplained.png)");
@@ -507,8 +509,12 @@ pub fn markdown(o: &Outcome) -> String {
     } else {
         let _ = writeln!(s, "Terrain: {}.\n", o.record_kinds.sentence());
     }
-    let flagged: Vec<String> =
-        o.steps.iter().filter(|st| !st.at_edge.is_empty()).map(|st| format!("`{}` ({})", st.effect.name(), st.at_edge.join(", "))).collect();
+    let flagged: Vec<String> = o
+        .steps
+        .iter()
+        .filter(|st| !st.at_edge.is_empty())
+        .map(|st| format!("`{}` ({})", st.effect.name(), st.at_edge.join(", ")))
+        .collect();
     if !flagged.is_empty() {
         let _ = writeln!(
             s,
@@ -553,7 +559,8 @@ pub fn markdown(o: &Outcome) -> String {
     if !o.refits.is_empty() {
         let _ = writeln!(s, "Re-fitted after naming, each with all other effects in place (the final model has these):\n");
         for r in &o.refits {
-            let edge = if r.at_edge.is_empty() { String::new() } else { format!(" **at the edge of its box in {}**", r.at_edge.join(", ")) };
+            let edge =
+                if r.at_edge.is_empty() { String::new() } else { format!(" **at the edge of its box in {}**", r.at_edge.join(", ")) };
             let _ = writeln!(s, "- {} -> {}{edge}: gap {:.3} -> {:.3}", r.before, r.after, r.gap_before, r.gap_after);
         }
         let _ = writeln!(s);

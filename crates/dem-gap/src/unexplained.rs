@@ -30,7 +30,8 @@ pub const WEAK: f64 = 0.2;
 
 /// Bands of rows, by the x of their centre: behind the robot, near (under
 /// its front half and just ahead), far ahead.
-pub const BANDS: [(&str, std::ops::Range<usize>); 3] = [("behind (x < 0)", 0..6), ("near (0 <= x < 0.5 m)", 6..11), ("far (x >= 0.5 m)", 11..20)];
+pub const BANDS: [(&str, std::ops::Range<usize>); 3] =
+    [("behind (x < 0)", 0..6), ("near (0 <= x < 0.5 m)", 6..11), ("far (x >= 0.5 m)", 11..20)];
 
 /// Short names of [`BANDS`], for report.json.
 pub const BAND_KEYS: [&str; 3] = ["behind", "near", "far"];
@@ -306,8 +307,11 @@ impl Compared {
     pub fn bands(&self) -> Vec<(&'static str, f64, f64)> {
         let (g, gr) = by_row(&self.gap);
         let (f, fr) = by_row(&self.floor);
-        let mut v: Vec<(&'static str, f64, f64)> =
-            BANDS.iter().zip(BAND_KEYS).map(|((_, rows), k)| (k, rows.clone().map(|r| g[r]).sum(), rows.clone().map(|r| f[r]).sum())).collect();
+        let mut v: Vec<(&'static str, f64, f64)> = BANDS
+            .iter()
+            .zip(BAND_KEYS)
+            .map(|((_, rows), k)| (k, rows.clone().map(|r| g[r]).sum(), rows.clone().map(|r| f[r]).sum()))
+            .collect();
         v.push((GRID_WIDE, gr, fr));
         v
     }
@@ -385,7 +389,15 @@ pub fn analyse(i: &Inputs) -> Unexplained {
     let all_s: Vec<usize> = (0..i.sim.len()).collect();
     let all_r: Vec<usize> = (0..i.real.len()).collect();
     let whole = compare(i.out_a, i.out_b, i.sim, i.real, i.paired, &all_s, &all_r, i.halves, &|d| *d);
-    let part = |name: &str, gap: f64, floor: f64| Part { name: name.to_string(), gap, floor, excess: excess(gap, floor), share: 0.0, records: 0, top: None };
+    let part = |name: &str, gap: f64, floor: f64| Part {
+        name: name.to_string(),
+        gap,
+        floor,
+        excess: excess(gap, floor),
+        share: 0.0,
+        records: 0,
+        top: None,
+    };
     let mut by_statistic: Vec<Part> = whole.terms().into_iter().map(|(n, g, f)| part(n, g, f)).collect();
     set_shares(&mut by_statistic);
     by_statistic.sort_by(|a, b| b.excess.total_cmp(&a.excess));
@@ -503,7 +515,12 @@ impl Unexplained {
             )
         };
         if self.excess <= 0.0 {
-            return format!("unexplained: nothing above the sampling floor or the negligible gap {} (gap {:.3}, floor {:.3}){weak}", crate::NEGLIGIBLE_GAP, self.gap, self.floor);
+            return format!(
+                "unexplained: nothing above the sampling floor or the negligible gap {} (gap {:.3}, floor {:.3}){weak}",
+                crate::NEGLIGIBLE_GAP,
+                self.gap,
+                self.floor
+            );
         }
         let l = &self.location;
         let mut at = Vec::new();
@@ -569,7 +586,14 @@ pub fn floor_at(raw: &[Vec<f64>], ratio: f64, beta: f64) -> f64 {
 /// two halves of `ri` (whole runs from `min_runs` runs on) scaled to the
 /// sizes. Returns the floor's components ([`raw_components`]), already
 /// scaled.
-pub fn floor_on(sets: &crate::Sets, model: &dem_sensor::SensorModel, si: &[usize], ri: &[usize], seed: u64, min_runs: usize) -> Vec<Vec<f64>> {
+pub fn floor_on(
+    sets: &crate::Sets,
+    model: &dem_sensor::SensorModel,
+    si: &[usize],
+    ri: &[usize],
+    seed: u64,
+    min_runs: usize,
+) -> Vec<Vec<f64>> {
     let sim: Vec<Dem> = si.iter().map(|&k| sets.sim[k]).collect();
     let times: Option<Vec<f64>> = sets.sim_time.as_ref().map(|t| si.iter().map(|&k| t[k]).collect());
     let paired = sets.paired;
@@ -713,7 +737,13 @@ pub fn missing_bands(sim: &[Dem], out: &[Dem], real: &[Dem], terrains: Option<(&
         Some(why.join("; "))
     };
     for (k, (band, _)) in HALF_BANDS.iter().enumerate() {
-        rows.push(BandRow { terrain: None, band, records: real.len(), missing: all_rates[k], flag: reason(band, None, all_rates[k], all_rates[k]) });
+        rows.push(BandRow {
+            terrain: None,
+            band,
+            records: real.len(),
+            missing: all_rates[k],
+            flag: reason(band, None, all_rates[k], all_rates[k]),
+        });
     }
     if let Some((ts, tr)) = terrains {
         for t in Terrain::ALL {

@@ -244,7 +244,10 @@ fn single_at_jumps(effect: &str, spec: &str, p: f64, g_below: f64, holes: bool) 
             );
             let v: Vec<f64> = said.split_whitespace().map(|x| x.parse().unwrap()).collect();
             let (made, hidden) = (v[0] - v[2], v[1] - v[2]);
-            assert!(hidden > 100.0 && (made - hidden).abs() <= 0.1 * hidden, "{out}: the fit makes {made} holes, the hidden effect {hidden}; {r:#}");
+            assert!(
+                hidden > 100.0 && (made - hidden).abs() <= 0.1 * hidden,
+                "{out}: the fit makes {made} holes, the hidden effect {hidden}; {r:#}"
+            );
         } else {
             check_single(&r, effect, &[("p", p, None)]);
         }
@@ -565,7 +568,8 @@ fn leave_one_stage_out_on_other_camera_mounts() {
                 // The six-stage world: the motion stages (drift, latency,
                 // extrinsic, vibration) have their own leave-one-out runs
                 // (docs/results.md).
-                let mut a = vec!["--out", &out, "--runs", "4", "--real-runs", "4", "--seed", seed, "--camera-height", h, "--camera-tilt", tilt];
+                let mut a =
+                    vec!["--out", &out, "--runs", "4", "--real-runs", "4", "--seed", seed, "--camera-height", h, "--camera-tilt", tilt];
                 a.extend_from_slice(&["--no-drift", "--no-latency", "--no-extrinsic", "--no-vibration"]);
                 a.extend_from_slice(extra);
                 ok(&run("dem-synth", &a, None));
@@ -591,7 +595,8 @@ fn leave_one_stage_out_on_other_camera_mounts() {
         let named = n.iter().take(2).take_while(|e| first.contains(&e.as_str()) || AT_STEPS.contains(&e.as_str()));
         // Or the first step reported tied with the stage's effect: unpaired,
         // `shake`'s roll moves neighbours across the robot as noise does.
-        let tied = r["steps"][0]["tied_with"].as_array().is_some_and(|t| t.iter().any(|t| first.contains(&t["effect"].as_str().unwrap_or(""))));
+        let tied =
+            r["steps"][0]["tied_with"].as_array().is_some_and(|t| t.iter().any(|t| first.contains(&t["effect"].as_str().unwrap_or(""))));
         assert!(named.clone().any(|e| first.contains(&e.as_str())) || tied, "{what}; {r:#}");
         let (g0, g1) = (r["gap_initial"].as_f64().unwrap(), r["gap_final"].as_f64().unwrap());
         assert!(g1 <= (1.0 - removed) * g0, "{what}: gap {g0} -> {g1}");
@@ -619,7 +624,8 @@ fn the_motion_stages_are_named_paired() {
         let hidden = synth(&format!("no-{stage}"), &[&format!("--no-{stage}")]);
         let f = |d: &str, n: &str| format!("{d}/{n}");
         let extra = ["--sim-labels", &f(&hidden, "real_labels.csv"), "--real-labels", &f(&all, "real_labels.csv"), "--max-steps", "2"];
-        let r = gap(dir.path(), &f(&hidden, "real.npy"), &f(&all, "real.npy"), Some(&f(&all, "pairs.csv")), &extra, &format!("gap-{stage}"));
+        let r =
+            gap(dir.path(), &f(&hidden, "real.npy"), &f(&all, "real.npy"), Some(&f(&all, "pairs.csv")), &extra, &format!("gap-{stage}"));
         let n = names(&r);
         assert_eq!(n.first().map(String::as_str), Some(effect), "--no-{stage}: named {n:?}");
         let (g0, g1) = (r["gap_initial"].as_f64().unwrap(), r["gap_final"].as_f64().unwrap());
@@ -701,10 +707,14 @@ fn pairs_compared_unpaired_give_dem_eval_s_gap_over_the_pairs() {
     let extra = ["--split", "train", "--unpaired", "--sim-labels", sl.as_str(), "--real-labels", rl.as_str(), "--max-steps", "1"];
     let r = gap(dir.path(), &sim, &real, Some(&pairs), &extra, "over");
     let n_train = rows.iter().filter(|p| p.2 == "train").count() as u64;
-    assert_eq!((r["sim_records"].as_u64(), r["real_records"].as_u64(), r["over_pairs"].as_bool()), (Some(n_train), Some(n_train), Some(true)));
+    assert_eq!(
+        (r["sim_records"].as_u64(), r["real_records"].as_u64(), r["over_pairs"].as_bool()),
+        (Some(n_train), Some(n_train), Some(true))
+    );
     let md = std::fs::read_to_string(dir.path().join("over/report.md")).unwrap();
     assert!(md.starts_with("# dem-gap report\n\nUnpaired") && md.contains("once per pair it is in"), "{md}");
-    let o = run("dem-eval", &["--sim", &sim, "--real", &real, "--pairs", &pairs, "--split", "train", "--identity", "--format", "json"], None);
+    let o =
+        run("dem-eval", &["--sim", &sim, "--real", &real, "--pairs", &pairs, "--split", "train", "--identity", "--format", "json"], None);
     let table: Value = serde_json::from_slice(ok(&o)).unwrap();
     let (want, got) = (table[0]["gap"].as_f64().unwrap(), r["gap_initial"].as_f64().unwrap());
     assert!((want - got).abs() < 1e-9 * want.max(1.0), "dem-eval {want}, dem-gap {got}");
@@ -814,11 +824,8 @@ fn riser_shares_per_run_finds_the_runs_that_change() {
     let lost: usize = std::fs::read_to_string(dir.path().join("lost.txt")).unwrap().parse().unwrap();
     let out = riser_shares(&["--stage", "dropout", "--per-run", &arg(dir.path(), "g")]);
     // | folder | run | terrain | records | changed | cells lost | cells moved > 2 cm |
-    let rows: Vec<Vec<String>> = out
-        .lines()
-        .skip(2)
-        .map(|l| l.split('|').map(|c| c.trim().to_string()).filter(|c| !c.is_empty()).collect())
-        .collect();
+    let rows: Vec<Vec<String>> =
+        out.lines().skip(2).map(|l| l.split('|').map(|c| c.trim().to_string()).filter(|c| !c.is_empty()).collect()).collect();
     assert!(lost > 50, "{lost}");
     assert_eq!(rows[0][1..2], ["3".to_string()], "{out}");
     assert_eq!(rows[0][5], lost.to_string(), "{out}");

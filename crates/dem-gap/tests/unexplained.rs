@@ -172,7 +172,20 @@ fn the_records_needed_to_show_a_gap_below_the_floor_are_estimated() {
     let synth = |name: &str, runs: u64, extra: &[&str]| -> String {
         let out = arg(dir.path(), name);
         let n = runs.to_string();
-        let mut a = vec!["--out", &out, "--runs", &n, "--real-runs", &n, "--seed", "5", "--dark-patches", "3", "--terrains", "flat,stairs-up,stairs-down,pallet"];
+        let mut a = vec![
+            "--out",
+            &out,
+            "--runs",
+            &n,
+            "--real-runs",
+            &n,
+            "--seed",
+            "5",
+            "--dark-patches",
+            "3",
+            "--terrains",
+            "flat,stairs-up,stairs-down,pallet",
+        ];
         // The sensor stages only (as testdata): the motion stages' own
         // draws would add to the sampling the estimate is about.
         a.extend(["--no-drift", "--no-latency", "--no-extrinsic", "--no-vibration"]);
@@ -184,9 +197,16 @@ fn the_records_needed_to_show_a_gap_below_the_floor_are_estimated() {
         let (no, all) = (synth(&format!("no-{runs}"), runs, &["--no-dropout"]), synth(&format!("all-{runs}"), runs, &[]));
         let f = |d: &str, f: &str| format!("{d}/{f}");
         let args = [
-            "--sim", &f(&no, "real.npy"), "--real", &f(&all, "real.npy"),
-            "--sim-labels", &f(&no, "real_labels.csv"), "--real-labels", &f(&all, "real_labels.csv"),
-            "--max-steps", "1",
+            "--sim",
+            &f(&no, "real.npy"),
+            "--real",
+            &f(&all, "real.npy"),
+            "--sim-labels",
+            &f(&no, "real_labels.csv"),
+            "--real-labels",
+            &f(&all, "real_labels.csv"),
+            "--max-steps",
+            "1",
         ];
         gap(dir.path(), &args, name).0
     };
@@ -201,6 +221,9 @@ fn the_records_needed_to_show_a_gap_below_the_floor_are_estimated() {
     let more = compare(runs, "more");
     let (g2, f2) = (more["gap_initial"].as_f64().unwrap(), more["sampling_floor_initial"].as_f64().unwrap());
     eprintln!("{runs} runs: gap {g2:.3}, floor {f2:.3}");
-    assert!(g2 > 0.5 * f2 && g2 < 2.0 * f2, "at the estimated {runs} runs the gap is at the floor within a factor of two: gap {g2}, floor {f2}");
+    assert!(
+        g2 > 0.5 * f2 && g2 < 2.0 * f2,
+        "at the estimated {runs} runs the gap is at the floor within a factor of two: gap {g2}, floor {f2}"
+    );
     assert!(more["records_needed"].is_null() || g2 < f2);
 }

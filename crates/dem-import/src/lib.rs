@@ -172,7 +172,9 @@ fn check_outputs(cfg: &ImportConfig) -> Result<(), DemError> {
     for r in &cfg.recordings {
         let (npy, labels) = outputs_of(&cfg.out, r);
         if outputs.contains(&npy) {
-            return Err(DemError::Usage(format!("two recordings would both write {npy}: rename one or import them into different folders")));
+            return Err(DemError::Usage(format!(
+                "two recordings would both write {npy}: rename one or import them into different folders"
+            )));
         }
         outputs.push(npy);
         outputs.push(labels);
@@ -208,7 +210,11 @@ pub fn import(cfg: &ImportConfig, progress: &(dyn Fn(u64) + Sync), warn: &(dyn F
         .map(|(seq, r)| {
             // A defect (a panic) costs its recording, not the batch.
             std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| import_one(cfg, r, seq as u64, &tick, warn))).unwrap_or_else(|panic| {
-                let what = panic.downcast_ref::<&str>().map(|s| s.to_string()).or_else(|| panic.downcast_ref::<String>().cloned()).unwrap_or_default();
+                let what = panic
+                    .downcast_ref::<&str>()
+                    .map(|s| s.to_string())
+                    .or_else(|| panic.downcast_ref::<String>().cloned())
+                    .unwrap_or_default();
                 Ok(RecordingReport {
                     recording: r.display().to_string(),
                     failed: Some(format!("internal error, a defect of dem-import (please report it with this file): {what}")),
@@ -275,7 +281,13 @@ struct LabelRow {
     time: f64,
 }
 
-fn import_one(cfg: &ImportConfig, path: &Path, seq: u64, tick: &(dyn Fn(u64) + Sync), warn: &(dyn Fn(&str) + Sync)) -> Result<RecordingReport, DemError> {
+fn import_one(
+    cfg: &ImportConfig,
+    path: &Path,
+    seq: u64,
+    tick: &(dyn Fn(u64) + Sync),
+    warn: &(dyn Fn(&str) + Sync),
+) -> Result<RecordingReport, DemError> {
     let name = path.display().to_string();
     let mut rec = Recording { name: name.clone(), report: RecordingReport { recording: name.clone(), ..Default::default() }, warn };
     let files = match container::files_of(path) {
@@ -322,19 +334,24 @@ fn import_one(cfg: &ImportConfig, path: &Path, seq: u64, tick: &(dyn Fn(u64) + S
                                 }
                             }
                         }
-                        "sensor_msgs/JointState" if msg::strip_slash(&conn.topic) == joint_topic => match msg::decode_joint_state(data, conn.encoding) {
-                            Ok(mut js) => {
-                                // Only the flippers are looked up: the other joints are not kept.
-                                let kept = js.names.iter().zip(&js.positions).filter(|(n, _)| cfg.flippers.contains(n));
-                                (js.names, js.positions) = kept.map(|(n, p)| (n.clone(), *p)).unzip();
-                                for (name, p) in joints.insert(&js) {
-                                    if cfg.flippers.contains(&name) {
-                                        rec.skip(SkipKind::Damaged, format!("{}: flipper joint {name} at {} rad is not an angle", at(), msg::num(p)));
+                        "sensor_msgs/JointState" if msg::strip_slash(&conn.topic) == joint_topic => {
+                            match msg::decode_joint_state(data, conn.encoding) {
+                                Ok(mut js) => {
+                                    // Only the flippers are looked up: the other joints are not kept.
+                                    let kept = js.names.iter().zip(&js.positions).filter(|(n, _)| cfg.flippers.contains(n));
+                                    (js.names, js.positions) = kept.map(|(n, p)| (n.clone(), *p)).unzip();
+                                    for (name, p) in joints.insert(&js) {
+                                        if cfg.flippers.contains(&name) {
+                                            rec.skip(
+                                                SkipKind::Damaged,
+                                                format!("{}: flipper joint {name} at {} rad is not an angle", at(), msg::num(p)),
+                                            );
+                                        }
                                     }
                                 }
+                                Err(why) => rec.skip(SkipKind::Damaged, format!("{}: {why}", at())),
                             }
-                            Err(why) => rec.skip(SkipKind::Damaged, format!("{}: {why}", at())),
-                        },
+                        }
                         "grid_map_msgs/GridMap" if index == 0 => {
                             map_topics.insert(conn.topic.clone());
                         }

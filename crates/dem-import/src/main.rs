@@ -25,13 +25,16 @@ use dem_import::{import, summary, ImportConfig};
 /// file, the topic and the message's index on it, and counted; the exit
 /// status is then 1 unless --keep-going.
 #[derive(Parser)]
-#[command(version, after_long_help = "Examples:
+#[command(
+    version,
+    after_long_help = "Examples:
   dem-import --out dems/ field/*.bag
   dem-import --map-topic /elevation_mapping/elevation_map --frame base_link \\
       --every 0.4 --terrain stairs-up --out dems/ stairs_2024-05-01.mcap
   # a folder of recordings, then one stream of all their DEMs:
   dem-import --out dems/ --keep-going recordings/*.bag && dem-cat dems/*.npy -o real.npy
-  dem-render dems/run1.npy --start 40 --count 24 -o run1.png")]
+  dem-render dems/run1.npy --start 40 --count 24 -o run1.png"
+)]
 struct Args {
     /// Recordings: .bag, .mcap or .db3 files, or ROS 2 bag folders (of .mcap or .db3 files).
     #[arg(required = true)]
@@ -53,8 +56,12 @@ struct Args {
     #[arg(long, default_value = "/joint_states")]
     joint_topic: String,
     /// Flipper joint names: front-left, front-right, rear-left, rear-right.
-    #[arg(long, value_name = "FL,FR,RL,RR", value_delimiter = ',',
-          default_value = "front_left_flipper_j,front_right_flipper_j,rear_left_flipper_j,rear_right_flipper_j")]
+    #[arg(
+        long,
+        value_name = "FL,FR,RL,RR",
+        value_delimiter = ',',
+        default_value = "front_left_flipper_j,front_right_flipper_j,rear_left_flipper_j,rear_right_flipper_j"
+    )]
     flippers: Vec<String>,
     /// Keep a map only DT seconds or more after the last one kept.
     #[arg(long, value_name = "DT", value_parser = value::positive::<f64>)]
@@ -97,7 +104,12 @@ fn main() -> ExitCode {
             recordings: a.recordings,
             out: a.out,
             map_topic: a.map_topic,
-            resampling: Resampling { layer: a.layer, variance_layer: a.variance_layer, max_variance: a.max_variance, min_valid: a.min_valid },
+            resampling: Resampling {
+                layer: a.layer,
+                variance_layer: a.variance_layer,
+                max_variance: a.max_variance,
+                min_valid: a.min_valid,
+            },
             frame: a.frame,
             joint_topic: a.joint_topic,
             flippers,

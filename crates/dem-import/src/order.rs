@@ -192,7 +192,8 @@ fn merge<T: Record>(runs: Vec<Run>, tail: Vec<T>, out: &mut dyn FnMut(T) -> io::
         heads.push(r.pop()?);
     }
     heads.push(tail.next());
-    let mut heap: BinaryHeap<Reverse<(i64, usize)>> = heads.iter().enumerate().filter_map(|(k, h)| h.as_ref().map(|h| Reverse((h.stamp(), k)))).collect();
+    let mut heap: BinaryHeap<Reverse<(i64, usize)>> =
+        heads.iter().enumerate().filter_map(|(k, h)| h.as_ref().map(|h| Reverse((h.stamp(), k)))).collect();
     while let Some(Reverse((_, k))) = heap.pop() {
         let rec = heads[k].take().expect("a head for each heap entry");
         heads[k] = if k < t { readers[k].pop()? } else { tail.next() };

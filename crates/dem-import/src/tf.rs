@@ -74,13 +74,7 @@ impl TfBuffer {
         }
         let (first, last) = (s[0].0, s[s.len() - 1].0);
         if t < first || t > last {
-            return Err(format!(
-                "no transform {} -> {child} at {} (recorded {} .. {})",
-                link.parent,
-                secs(t),
-                secs(first),
-                secs(last)
-            ));
+            return Err(format!("no transform {} -> {child} at {} (recorded {} .. {})", link.parent, secs(t), secs(first), secs(last)));
         }
         let k = s.partition_point(|x| x.0 < t);
         let (t1, b) = s[k];
@@ -128,11 +122,7 @@ impl TfBuffer {
             }
         }
         let root = |c: &[(String, Transform)]| c.last().map(|r| r.0.clone()).unwrap_or_default();
-        Err(format!(
-            "frames {target} and {frame} are not connected (their trees end at {} and {})",
-            root(&from_target),
-            root(&from_frame)
-        ))
+        Err(format!("frames {target} and {frame} are not connected (their trees end at {} and {})", root(&from_target), root(&from_frame)))
     }
 }
 

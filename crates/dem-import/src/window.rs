@@ -47,9 +47,10 @@ pub fn resample(map: &GridMap<'_>, base: &Transform, cfg: &Resampling) -> Result
     let layers = || map.layers.join(", ");
     let heights = map.layer_named(&cfg.layer).ok_or_else(|| format!("no layer {:?} (the map has: {})", cfg.layer, layers()))?;
     let variance = match cfg.max_variance {
-        Some(_) => Some(map.layer_named(&cfg.variance_layer).ok_or_else(|| {
-            format!("no layer {:?} for --max-variance (the map has: {})", cfg.variance_layer, layers())
-        })?),
+        Some(_) => Some(
+            map.layer_named(&cfg.variance_layer)
+                .ok_or_else(|| format!("no layer {:?} for --max-variance (the map has: {})", cfg.variance_layer, layers()))?,
+        ),
         None => None,
     };
     let (yaw, _) = base.rotation.heading_and_pitch();

@@ -102,9 +102,10 @@ impl<'a> Wire<'a> {
     }
 
     fn take(&mut self, n: usize, what: &str) -> Result<&'a [u8]> {
-        let end = self.pos.checked_add(n).filter(|&e| e <= self.buf.len()).ok_or_else(|| {
-            WireError(format!("message ends at byte {} inside {what} (needs {n} bytes at {})", self.buf.len(), self.pos))
-        })?;
+        let end =
+            self.pos.checked_add(n).filter(|&e| e <= self.buf.len()).ok_or_else(|| {
+                WireError(format!("message ends at byte {} inside {what} (needs {n} bytes at {})", self.buf.len(), self.pos))
+            })?;
         let s = &self.buf[self.pos..end];
         self.pos = end;
         Ok(s)

@@ -208,7 +208,10 @@ fn lengths_inside_zstd_lz4_and_plain_chunks_are_stepped_over_and_the_maps_around
     let o = import(&d.join("ot"), &[], &[&p]);
     no_panic(&o, "tail");
     let e = stderr(&o);
-    assert!(e.contains(&format!("tail.mcap: byte {at}: record op 0x05 declares 18446744073709551607 bytes")) && e.contains("6 maps -> 6 DEMs"), "{e}");
+    assert!(
+        e.contains(&format!("tail.mcap: byte {at}: record op 0x05 declares 18446744073709551607 bytes")) && e.contains("6 maps -> 6 DEMs"),
+        "{e}"
+    );
 }
 
 /// A compressed chunk of `mb` MB of zeros saying it holds `size` bytes.
@@ -350,7 +353,10 @@ fn huge_finite_values_are_skipped_naming_the_message_and_the_value() {
     assert_eq!(o.status.code(), Some(1), "{e}");
     assert!(e.contains("values.bag: topic /tf, message 9: transform odom -> base_link: translation z = 1e308 m is not a position"), "{e}");
     assert!(e.contains("values.bag: topic /tf, message 14: transform odom -> base_link: translation z = -1e38 m is not a position"), "{e}");
-    assert!(e.contains("values.bag: topic /joint_states, message 11: flipper joint front_left_flipper_j at 1e39 rad is not an angle"), "{e}");
+    assert!(
+        e.contains("values.bag: topic /joint_states, message 11: flipper joint front_left_flipper_j at 1e39 rad is not an angle"),
+        "{e}"
+    );
     assert!(e.contains("values.bag: topic /elevation_mapping/elevation_map, message 1: height 3e38 m at DEM row"), "{e}");
     assert!(e.contains("6 maps -> 5 DEMs") && e.contains("4 skipped: 4 damaged"), "{e}");
     assert_eq!(dems(&d.join("o/values.npy")), 5);
@@ -387,8 +393,18 @@ fn damaged_map_geometry_is_named_as_what_it_is() {
     let at = |k: usize| format!("maps.bag: topic /elevation_mapping/elevation_map, message {k}: ");
     assert!(e.contains(&format!("{}info.pose.orientation (0, 0, NaN, 1) is not a rotation", at(1))), "{e}");
     assert!(e.contains(&format!("{}info.pose.position x = NaN m is not a position", at(2))), "{e}");
-    assert!(e.contains(&format!("{}info: lengths 1e300 x 3 m at resolution 0.05 m are ", at(3))) && e.contains("e301 x 60 cells (1 to 65536 a side)"), "{e}");
-    assert!(e.contains(&format!("{}layer elevation: layout.data_offset 5 is out of range: 3600 cells from there need 3605 floats, the layer has 3600", at(4))), "{e}");
+    assert!(
+        e.contains(&format!("{}info: lengths 1e300 x 3 m at resolution 0.05 m are ", at(3)))
+            && e.contains("e301 x 60 cells (1 to 65536 a side)"),
+        "{e}"
+    );
+    assert!(
+        e.contains(&format!(
+            "{}layer elevation: layout.data_offset 5 is out of range: 3600 cells from there need 3605 floats, the layer has 3600",
+            at(4)
+        )),
+        "{e}"
+    );
     assert!(e.lines().all(|l| l.len() < 300), "{e}");
     assert!(e.contains("6 maps -> 2 DEMs") && e.contains("4 skipped: 4 damaged"), "{e}");
 }

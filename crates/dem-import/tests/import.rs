@@ -19,7 +19,19 @@ fn python() -> PathBuf {
 /// `extra` flags change the camera.
 fn world(dir: &Path, name: &str, seed: &str, extra: &[&str]) -> PathBuf {
     let w = dir.join(name);
-    let mut args = vec!["--out", w.to_str().unwrap(), "--runs", "2", "--real-runs", "2", "--seed", seed, "--terrains", "stairs-down,pallet", "--emit-maps"];
+    let mut args = vec![
+        "--out",
+        w.to_str().unwrap(),
+        "--runs",
+        "2",
+        "--real-runs",
+        "2",
+        "--seed",
+        seed,
+        "--terrains",
+        "stairs-down,pallet",
+        "--emit-maps",
+    ];
     args.extend_from_slice(extra);
     ok(&run("dem-synth", &args, None));
     w
@@ -60,7 +72,12 @@ fn assert_same(got: &[Dem], want: &[Dem], what: &str) {
             }
         }
         for c in 0..5 {
-            assert!((g[200 + 2 * c] - w[200 + 2 * c]).abs() < 1e-6, "{what}: record {k} attitude {c}: {} vs {}", g[200 + 2 * c], w[200 + 2 * c]);
+            assert!(
+                (g[200 + 2 * c] - w[200 + 2 * c]).abs() < 1e-6,
+                "{what}: record {k} attitude {c}: {} vs {}",
+                g[200 + 2 * c],
+                w[200 + 2 * c]
+            );
         }
     }
     assert!(worst <= 1e-5, "{what}: heights differ by up to {worst} m");
@@ -104,8 +121,28 @@ fn ros1_bags_and_ros2_mcap_reproduce_the_emulators_dems() {
     let sx: f64 = synth_first.split(',').nth(2).unwrap().parse().unwrap();
     assert!((first[2].parse::<f64>().unwrap() - sx).abs() < 1e-5);
     // Every other tool reads the output.
-    ok(&run("dem-cat", &[out.join("stairs.npy").to_str().unwrap(), out.join("pallet.npy").to_str().unwrap(), "-o", dir.path().join("all.npy").to_str().unwrap()], None));
-    ok(&run("dem-filter", &["--labels", out.join("stairs_labels.csv").to_str().unwrap(), "--drop-other", out.join("stairs.npy").to_str().unwrap(), "-o", dir.path().join("f.npy").to_str().unwrap()], None));
+    ok(&run(
+        "dem-cat",
+        &[
+            out.join("stairs.npy").to_str().unwrap(),
+            out.join("pallet.npy").to_str().unwrap(),
+            "-o",
+            dir.path().join("all.npy").to_str().unwrap(),
+        ],
+        None,
+    ));
+    ok(&run(
+        "dem-filter",
+        &[
+            "--labels",
+            out.join("stairs_labels.csv").to_str().unwrap(),
+            "--drop-other",
+            out.join("stairs.npy").to_str().unwrap(),
+            "-o",
+            dir.path().join("f.npy").to_str().unwrap(),
+        ],
+        None,
+    ));
 }
 
 #[test]
@@ -140,7 +177,11 @@ fn bad_recordings_are_named_skipped_and_counted() {
     let o = import(&out, &[], &[&bag]);
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     let log = stderr(&o);
-    assert!(log.contains("notf.bag: topic /elevation_mapping/elevation_map, message") && log.contains("no transform base_footprint -> base_link at 1699999970.000 s (recorded"), "{log}");
+    assert!(
+        log.contains("notf.bag: topic /elevation_mapping/elevation_map, message")
+            && log.contains("no transform base_footprint -> base_link at 1699999970.000 s (recorded"),
+        "{log}"
+    );
     assert!(log.contains("1 without a transform"), "{log}");
     assert_same(&read_npy(&out.join("notf.npy")), &want, "the other maps");
     ok(&import(&dir.path().join("o2"), &["--keep-going"], &[&bag]));
@@ -152,7 +193,10 @@ fn bad_recordings_are_named_skipped_and_counted() {
     let o = import(&out, &[], &[&cut_msg]);
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     let log = stderr(&o);
-    assert!(log.contains("cutmsg.bag: topic /elevation_mapping/elevation_map, message 3: layer elevation: data: 6400 elements cannot fit"), "{log}");
+    assert!(
+        log.contains("cutmsg.bag: topic /elevation_mapping/elevation_map, message 3: layer elevation: data: 6400 elements cannot fit"),
+        "{log}"
+    );
     assert!(log.contains("1 skipped: 1 damaged"), "{log}");
     let without_3: Vec<_> = want.iter().enumerate().filter(|(k, _)| *k != 3).map(|(_, d)| *d).collect();
     assert_same(&read_npy(&out.join("cutmsg.npy")), &without_3, "the undamaged maps");

@@ -10,7 +10,8 @@ use dem_testkit::{ok, py, run, stderr, workspace_root};
 
 fn world(dir: &Path) -> PathBuf {
     let w = dir.join("w");
-    let args = ["--out", w.to_str().unwrap(), "--runs", "2", "--real-runs", "2", "--seed", "5", "--terrains", "stairs-down,pallet", "--emit-maps"];
+    let args =
+        ["--out", w.to_str().unwrap(), "--runs", "2", "--real-runs", "2", "--seed", "5", "--terrains", "stairs-down,pallet", "--emit-maps"];
     ok(&run("dem-synth", &args, None));
     w
 }
@@ -133,7 +134,8 @@ fn hostile_db3_files_are_refused_in_one_line_naming_the_file() {
     let topics = "CREATE TABLE topics(id INTEGER PRIMARY KEY, name TEXT NOT NULL, type TEXT NOT NULL, \
                   serialization_format TEXT NOT NULL, offered_qos_profiles TEXT NOT NULL);\
                   INSERT INTO topics VALUES (1, '/elevation_mapping/elevation_map', 'grid_map_msgs/msg/GridMap', 'cdr', '');";
-    let messages = "CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id INTEGER NOT NULL, timestamp INTEGER NOT NULL, data BLOB NOT NULL);";
+    let messages =
+        "CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id INTEGER NOT NULL, timestamp INTEGER NOT NULL, data BLOB NOT NULL);";
     let make = |name: &str, sql: String| {
         let p = d.join(name);
         py(d, &format!("import sqlite3\nc = sqlite3.connect({:?})\nc.executescript({sql:?})\nc.commit()\n", p.to_str().unwrap()));
@@ -141,7 +143,10 @@ fn hostile_db3_files_are_refused_in_one_line_naming_the_file() {
     };
     let p = make("no_topics.db3", format!("{messages} INSERT INTO messages VALUES (1, 1, 5, x'00010000');"));
     refused(d, &p, "no table topics");
-    let p = make("wrong_types.db3", format!("{topics} CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id TEXT, timestamp TEXT, data TEXT);"));
+    let p = make(
+        "wrong_types.db3",
+        format!("{topics} CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id TEXT, timestamp TEXT, data TEXT);"),
+    );
     refused(d, &p, "column messages.topic_id is declared \"TEXT\"");
     let p = make("text_data.db3", format!("{topics} {messages} INSERT INTO messages VALUES (1, 1, 5, 'not a blob');"));
     refused(d, &p, "data holds text, not a blob");

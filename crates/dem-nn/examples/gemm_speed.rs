@@ -12,7 +12,9 @@ fn main() {
     let time = |name: &str, f: &mut dyn FnMut()| {
         f();
         let t = std::time::Instant::now();
-        for _ in 0..reps { f(); }
+        for _ in 0..reps {
+            f();
+        }
         let s = t.elapsed().as_secs_f64() / reps as f64;
         println!("{name}: {:.2} ms, {:.1} GFLOP/s", s * 1e3, 2.0 * (m * k * n) as f64 / s / 1e9);
     };

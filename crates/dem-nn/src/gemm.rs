@@ -34,7 +34,11 @@ impl<'a> Mat<'a> {
     /// apart (a column block of a wider row-major matrix).
     pub fn strided(data: &'a [f32], rows: usize, cols: usize, row_stride: usize) -> Self {
         assert!(row_stride >= cols, "row stride {row_stride} below {cols} columns");
-        assert!(rows == 0 || data.len() >= (rows - 1) * row_stride + cols, "matrix {rows}x{cols} (stride {row_stride}) over {} values", data.len());
+        assert!(
+            rows == 0 || data.len() >= (rows - 1) * row_stride + cols,
+            "matrix {rows}x{cols} (stride {row_stride}) over {} values",
+            data.len()
+        );
         Mat { data, rows, cols, rs: row_stride as isize, cs: 1 }
     }
 

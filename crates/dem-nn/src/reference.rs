@@ -7,7 +7,9 @@
 use dem_core::Dem;
 
 use crate::layers::conv::same_pad;
-use crate::weights::{Arch, CORRECTION_SCALE, GATE_SHARPNESS, Conv2d, DiscriminatorWeights, GeneratorWeights, InstanceNorm, Linear, LEAK, NORM_EPS};
+use crate::weights::{
+    Arch, Conv2d, DiscriminatorWeights, GeneratorWeights, InstanceNorm, Linear, CORRECTION_SCALE, GATE_SHARPNESS, LEAK, NORM_EPS,
+};
 
 /// A feature map of one sample: `c` channels of `h x w`, NCHW order.
 #[derive(Clone, Debug)]

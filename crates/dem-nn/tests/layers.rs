@@ -155,7 +155,11 @@ fn check(files: &[(String, String)]) -> Vec<String> {
                     problems.push(format!("{path}:{}: production code uses the test oracle `{name}`", e.line));
                 }
             } else if to_layer > from_layer {
-                problems.push(format!("{path}:{}: `{}` (layer {from_layer}) uses `{name}` (layer {to_layer}) above it", e.line, from.join("::")));
+                problems.push(format!(
+                    "{path}:{}: `{}` (layer {from_layer}) uses `{name}` (layer {to_layer}) above it",
+                    e.line,
+                    from.join("::")
+                ));
             } else if !e.test {
                 graph.entry(from.join("::")).or_default().push(name);
             }
@@ -227,7 +231,12 @@ fn edges(file: &[String], text: &str) -> Vec<Edge> {
         let t = at(i);
         let attr = |neg: bool| {
             let o = if neg { 1 } else { 0 };
-            at(i + 1 + o) == "[" && at(i + 2 + o) == "cfg" && at(i + 3 + o) == "(" && at(i + 4 + o) == "test" && at(i + 5 + o) == ")" && at(i + 6 + o) == "]"
+            at(i + 1 + o) == "["
+                && at(i + 2 + o) == "cfg"
+                && at(i + 3 + o) == "("
+                && at(i + 4 + o) == "test"
+                && at(i + 5 + o) == ")"
+                && at(i + 6 + o) == "]"
         };
         if t == "#" && at(i + 1) == "!" && attr(true) {
             whole_file_test |= depth == 0 && inline.is_empty();
@@ -266,11 +275,8 @@ fn edges(file: &[String], text: &str) -> Vec<Edge> {
         }
         let starts_path = (t == "crate" || t == "super" || t == "self") && at(i + 1) == "::" && (i == 0 || at(i - 1) != "::");
         if starts_path && !(t == "crate" && i > 0 && at(i - 1) == "$") {
-            let mut base: Vec<String> = if t == "crate" {
-                Vec::new()
-            } else {
-                file.iter().cloned().chain(inline.iter().map(|(n, _)| n.clone())).collect()
-            };
+            let mut base: Vec<String> =
+                if t == "crate" { Vec::new() } else { file.iter().cloned().chain(inline.iter().map(|(n, _)| n.clone())).collect() };
             let line = toks[i].line;
             let test = whole_file_test || test_from.is_some();
             let mut j = i;

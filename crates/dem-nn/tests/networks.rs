@@ -190,9 +190,11 @@ fn generator_gradients(arch: Arch) {
     let r: Vec<f64> = (0..batch.len() * 200).map(|_| rng.gen_range(-1.0..1.0)).collect();
     // L = sum r . G(x), so dL/dout = r.
     let loss = |g: &GeneratorWeights, batch: &[Dem]| -> f64 {
-        batch.iter().enumerate().map(|(i, d)| {
-            reference::generator_grid(g, d).iter().zip(&r[i * 200..]).map(|(a, b)| a * b).sum::<f64>()
-        }).sum()
+        batch
+            .iter()
+            .enumerate()
+            .map(|(i, d)| reference::generator_grid(g, d).iter().zip(&r[i * 200..]).map(|(a, b)| a * b).sum::<f64>())
+            .sum()
     };
     let mut tape = GenTape::default();
     net.forward(&p, &grid, &att, &mut tape);
@@ -250,16 +252,23 @@ fn discriminator_gradients_match_finite_differences() {
     let r: Vec<f64> = (0..batch.len() * 10).map(|_| rng.gen_range(-1.0..1.0)).collect();
     // L = sum r . sigmoid(logits).
     let loss = |d: &DiscriminatorWeights, batch: &[Dem]| -> f64 {
-        batch.iter().enumerate().map(|(i, x)| {
-            reference::discriminator(d, x).iter().zip(&r[i * 10..]).map(|(a, b)| a * b).sum::<f64>()
-        }).sum()
+        batch
+            .iter()
+            .enumerate()
+            .map(|(i, x)| reference::discriminator(d, x).iter().zip(&r[i * 10..]).map(|(a, b)| a * b).sum::<f64>())
+            .sum()
     };
     let mut tape = DiscTape::default();
     net.forward(&p, &grid, &att, &mut tape);
-    let dlogits: Vec<f32> = tape.logits.iter().zip(&r).map(|(l, r)| {
-        let s = 1.0 / (1.0 + (-*l as f64).exp());
-        (r * s * (1.0 - s)) as f32
-    }).collect();
+    let dlogits: Vec<f32> = tape
+        .logits
+        .iter()
+        .zip(&r)
+        .map(|(l, r)| {
+            let s = 1.0 / (1.0 + (-*l as f64).exp());
+            (r * s * (1.0 - s)) as f32
+        })
+        .collect();
     let mut grads = vec![0.0; net.len];
     let mut s = DiscScratch::default();
     net.backward(&p, &tape, &dlogits, Some(&mut grads), false, &mut s);

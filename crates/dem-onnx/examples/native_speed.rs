@@ -13,8 +13,7 @@ use std::time::Instant;
 
 fn main() {
     let w = GeneratorWeights::init_arch(&mut rand_chacha::ChaCha8Rng::seed_from_u64(1), 32, Arch::Residual);
-    let recs: Vec<Dem> =
-        (0..2048).map(|i| std::array::from_fn(|k| ((i * 7 + k * 13) % 17) as f32 / 17.0 - 0.5)).collect();
+    let recs: Vec<Dem> = (0..2048).map(|i| std::array::from_fn(|k| ((i * 7 + k * 13) % 17) as f32 / 17.0 - 0.5)).collect();
     let blocks: Vec<usize> = std::env::args().skip(1).map(|a| a.parse().expect("block sizes")).collect();
     for b in if blocks.is_empty() { vec![dem_nn::net::infer::DEFAULT_BLOCK] } else { blocks } {
         let g = GeneratorInference::with_block(&w, b);

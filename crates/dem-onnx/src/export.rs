@@ -22,10 +22,10 @@
 use dem_core::format::{GRID_CELLS, GRID_LEN, RECORD_LEN};
 use dem_core::output::write_atomic;
 use dem_core::{Dem, DemError};
-use dem_nn::weights::{Arch, CORRECTION_SCALE, GATE_SHARPNESS, Conv2d, GeneratorWeights, InstanceNorm, LEAK, NORM_EPS};
+use dem_graph::{attr_float, attr_int, attr_ints, Builder};
+use dem_nn::weights::{Arch, Conv2d, GeneratorWeights, InstanceNorm, CORRECTION_SCALE, GATE_SHARPNESS, LEAK, NORM_EPS};
 use prost::Message;
 use std::io::Write;
-use dem_graph::{attr_float, attr_int, attr_ints, Builder};
 use tract_onnx::pb;
 
 use crate::model::OnnxModel;
@@ -187,12 +187,7 @@ pub fn generator_nodes(g: &mut Builder, w: &GeneratorWeights, out: &str) -> Stri
 /// within [`TOLERANCE`] of its expected value (a NaN anywhere fails);
 /// otherwise writes the file atomically (temp file + rename) and reports the
 /// largest difference.
-pub fn export_checked(
-    w: &GeneratorWeights,
-    check_inputs: &[Dem],
-    expected: &[Dem],
-    path: &str,
-) -> Result<ExportReport, DemError> {
+pub fn export_checked(w: &GeneratorWeights, check_inputs: &[Dem], expected: &[Dem], path: &str) -> Result<ExportReport, DemError> {
     export_checked_with(w, check_inputs, expected, path, &[])
 }
 
@@ -245,11 +240,8 @@ pub fn export_sensor_checked(
         (network, None)
     };
     let extra = if stored.has_tail() { stored.metadata() } else { Vec::new() };
-    proto.metadata_props = metadata
-        .iter()
-        .chain(&extra)
-        .map(|(key, value)| pb::StringStringEntryProto { key: key.clone(), value: value.clone() })
-        .collect();
+    proto.metadata_props =
+        metadata.iter().chain(&extra).map(|(key, value)| pb::StringStringEntryProto { key: key.clone(), value: value.clone() }).collect();
     let bytes = proto.encode_to_vec();
     write_atomic(path, |f| f.write_all(&bytes))?;
     Ok(ExportReport { path: path.into(), bytes: bytes.len(), records: check_inputs.len(), max_abs_diff, tail })
@@ -320,7 +312,10 @@ fn check_tail(proto: &pb::ModelProto, stored: &Stored, check_inputs: &[Dem], exp
     let (mut differ, mut worst) = (0usize, 0.0f32);
     for (i, (a, b)) in native.iter().zip(&got).enumerate() {
         if a[GRID_LEN..] != b[GRID_LEN..] {
-            return Err(DemError::input(path, format!("export check failed, nothing written: the whole graph changes row 20 of check record {i}")));
+            return Err(DemError::input(
+                path,
+                format!("export check failed, nothing written: the whole graph changes row 20 of check record {i}"),
+            ));
         }
         for j in 0..GRID_CELLS {
             let (va, vb) = (a[2 * j + 1] > 0.0, b[2 * j + 1] > 0.0);

@@ -28,8 +28,8 @@ pub mod model;
 pub mod native;
 pub mod sensor;
 
-pub use heights::{Heights, HEIGHTS_KEY};
 pub use export::{export_checked, export_checked_with, generator_model, read_info, ExportReport, ModelInfo, TOLERANCE};
+pub use heights::{Heights, HEIGHTS_KEY};
 pub use model::{Engine, OnnxModel};
 
 /// The ONNX protobuf types (tract's generated `prost` messages), for callers

@@ -41,10 +41,10 @@
 use std::cell::RefCell;
 use std::sync::Arc;
 
-use dem_core::format::{COLS, RECORD_LEN, ROWS, CHANNELS};
+use anyhow::{bail, Context};
+use dem_core::format::{CHANNELS, COLS, RECORD_LEN, ROWS};
 use dem_core::{Dem, DemError};
 use dem_nn::net::{GeneratorInference, InferScratch};
-use anyhow::{bail, Context};
 use prost::Message;
 use tract_onnx::pb;
 use tract_onnx::pb::tensor_shape_proto::dimension::Value as DimValue;
@@ -124,8 +124,7 @@ impl OnnxModel {
 
     /// Load a model from the bytes of an ONNX file; `name` is used in errors.
     pub fn from_bytes(bytes: &[u8], name: &str) -> Result<OnnxModel, DemError> {
-        let proto = pb::ModelProto::decode(bytes)
-            .map_err(|e| bad(name, format!("not an ONNX model (protobuf decoding failed: {e})")))?;
+        let proto = pb::ModelProto::decode(bytes).map_err(|e| bad(name, format!("not an ONNX model (protobuf decoding failed: {e})")))?;
         // A virtual sensor's graph: its network runs here, the tail natively.
         match crate::sensor::network_part(&proto, name)? {
             Some(part) => {
@@ -143,9 +142,8 @@ impl OnnxModel {
     /// Load a model from its protobuf message; `name` is used in errors.
     pub fn from_proto(proto: &pb::ModelProto, name: &str) -> Result<OnnxModel, DemError> {
         let (input, output) = check_signature(proto, name)?;
-        let model = tract_onnx::onnx()
-            .model_for_proto_model(proto)
-            .map_err(|e| bad(name, format!("tract cannot read the ONNX graph: {e:#}")))?;
+        let model =
+            tract_onnx::onnx().model_for_proto_model(proto).map_err(|e| bad(name, format!("tract cannot read the ONNX graph: {e:#}")))?;
         let batched = plan(model.clone(), None).map_err(|e| bad(name, format!("{e:#}")))?;
         let mut m = OnnxModel { batched, single: None, native: None, note: None, zero_attitude: false, name: name.into(), input, output };
         // A model that refuses a batch of one, or that mixes records, keeps the batch plan.
@@ -288,14 +286,10 @@ impl OnnxModel {
         let result = state.run(tvec![input.into_tvalue()]).map_err(|e| self.failed(n, e))?;
         let t = &result[0];
         if t.shape() != [n, ROWS, COLS, CHANNELS] {
-            return Err(bad(
-                &self.name,
-                format!("the output of a batch of {n} has shape {:?}, not ({n}, 21, 5, 2)", t.shape()),
-            ));
+            return Err(bad(&self.name, format!("the output of a batch of {n} has shape {:?}, not ({n}, 21, 5, 2)", t.shape())));
         }
         let view = t.try_as_plain_ram().map_err(|e| bad(&self.name, format!("cannot read the output: {e:#}")))?;
-        let values =
-            view.as_slice::<f32>().map_err(|e| bad(&self.name, format!("the output is not float32: {e:#}")))?;
+        let values = view.as_slice::<f32>().map_err(|e| bad(&self.name, format!("the output is not float32: {e:#}")))?;
         out.extend(values.chunks_exact(RECORD_LEN).map(|c| <Dem>::try_from(c).expect("210 values")));
         Ok(())
     }
@@ -342,9 +336,7 @@ fn max_diff(a: &[Dem], b: &[Dem]) -> Option<f32> {
 /// Equal within 1e-5 + 1e-5 |b| per value, NaN matching NaN.
 fn agree(a: &[Dem], b: &[Dem]) -> bool {
     a.len() == b.len()
-        && a.iter().flatten().zip(b.iter().flatten()).all(|(x, y)| {
-            (x.is_nan() && y.is_nan()) || (x - y).abs() <= 1e-5 + 1e-5 * y.abs()
-        })
+        && a.iter().flatten().zip(b.iter().flatten()).all(|(x, y)| (x.is_nan() && y.is_nan()) || (x - y).abs() <= 1e-5 + 1e-5 * y.abs())
 }
 
 /// Build the runnable plan: the input fact is `float32 (batch, 21, 5, 2)`,
@@ -360,8 +352,7 @@ fn plan(mut model: InferenceModel, batch: Option<usize>) -> TractResult<Arc<Type
     let typed = model.into_typed().context("type and shape inference failed for input float32 (N, 21, 5, 2)")?;
     let fact = typed.output_fact(0)?;
     if fact.datum_type != f32::datum_type() || fact.shape.to_tvec() != shape {
-        bail!("for an input float32 (N, 21, 5, 2) the output is {:?} {:?}, not float32 (N, 21, 5, 2)",
-            fact.datum_type, fact.shape);
+        bail!("for an input float32 (N, 21, 5, 2) the output is {:?} {:?}, not float32 (N, 21, 5, 2)", fact.datum_type, fact.shape);
     }
     let opt = typed.into_optimized().context("optimising the graph failed")?;
     opt.into_runnable().context("making the plan failed")
@@ -420,17 +411,12 @@ fn describe(v: &pb::ValueInfoProto) -> String {
 fn check_signature(proto: &pb::ModelProto, name: &str) -> Result<(String, String), DemError> {
     let graph = proto.graph.as_ref().ok_or_else(|| bad(name, "not an ONNX model (no graph)"))?;
     // Old exporters list the initializers among the inputs too.
-    let inputs: Vec<&pb::ValueInfoProto> =
-        graph.input.iter().filter(|i| !graph.initializer.iter().any(|t| t.name == i.name)).collect();
+    let inputs: Vec<&pb::ValueInfoProto> = graph.input.iter().filter(|i| !graph.initializer.iter().any(|t| t.name == i.name)).collect();
     let want = "float32 (N, 21, 5, 2)";
     if inputs.len() != 1 || graph.output.len() != 1 {
         return Err(bad(
             name,
-            format!(
-                "the model has {} inputs and {} outputs; need one input and one output, {want}",
-                inputs.len(),
-                graph.output.len()
-            ),
+            format!("the model has {} inputs and {} outputs; need one input and one output, {want}", inputs.len(), graph.output.len()),
         ));
     }
     for (what, v) in [("input", inputs[0]), ("output", &graph.output[0])] {

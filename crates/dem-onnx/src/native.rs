@@ -23,17 +23,38 @@
 
 use std::collections::HashMap;
 
-use dem_nn::weights::{Arch, Conv2d, GeneratorWeights, InstanceNorm, Linear, ResBlock, LEAK, NORM_EPS};
 use dem_core::format::{GRID_LEN, RECORD_LEN};
+use dem_nn::weights::{Arch, Conv2d, GeneratorWeights, InstanceNorm, Linear, ResBlock, LEAK, NORM_EPS};
 use tract_onnx::pb;
 use tract_onnx::pb::tensor_proto::DataType;
 
 /// Operators a generator's graph may hold (the weighted ones and the glue
 /// exporters write around them: layout, slicing, shapes).
 const ALLOWED: &[&str] = &[
-    "Conv", "InstanceNormalization", "LeakyRelu", "Relu", "Tanh", "Sigmoid", "Gemm", "Add", "Mul", "Transpose",
-    "Slice", "Flatten", "Reshape", "Concat", "Constant", "Identity", "Shape", "Gather", "Unsqueeze", "Squeeze",
-    "Cast", "Split", "ConstantOfShape", "Expand",
+    "Conv",
+    "InstanceNormalization",
+    "LeakyRelu",
+    "Relu",
+    "Tanh",
+    "Sigmoid",
+    "Gemm",
+    "Add",
+    "Mul",
+    "Transpose",
+    "Slice",
+    "Flatten",
+    "Reshape",
+    "Concat",
+    "Constant",
+    "Identity",
+    "Shape",
+    "Gather",
+    "Unsqueeze",
+    "Squeeze",
+    "Cast",
+    "Split",
+    "ConstantOfShape",
+    "Expand",
 ];
 
 /// The generator weights of `proto`'s graph, or why it is not recognised as
@@ -55,7 +76,15 @@ pub fn recognise(proto: &pb::ModelProto) -> Result<GeneratorWeights, String> {
         }
     }
     let count = |op: &str| graph.node.iter().filter(|n| n.op_type == op).count();
-    let want = [("Conv", 12, 12), ("InstanceNormalization", 11, 11), ("LeakyRelu", 5, 5), ("Relu", 3, 3), ("Tanh", 1, 1), ("Gemm", 1, 1), ("Sigmoid", 0, 1)];
+    let want = [
+        ("Conv", 12, 12),
+        ("InstanceNormalization", 11, 11),
+        ("LeakyRelu", 5, 5),
+        ("Relu", 3, 3),
+        ("Tanh", 1, 1),
+        ("Gemm", 1, 1),
+        ("Sigmoid", 0, 1),
+    ];
     for (op, lo, hi) in want {
         let k = count(op);
         if k < lo || k > hi {
@@ -114,9 +143,7 @@ pub fn recognise(proto: &pb::ModelProto) -> Result<GeneratorWeights, String> {
                 const OUT: i64 = GRID_LEN as i64;
                 let weight = match (int(n, "transB", 0), dims.as_slice()) {
                     (1, [OUT, IN]) => w,
-                    (0, [IN, OUT]) => {
-                        (0..GRID_LEN * RECORD_LEN).map(|k| w[(k % RECORD_LEN) * GRID_LEN + k / RECORD_LEN]).collect()
-                    }
+                    (0, [IN, OUT]) => (0..GRID_LEN * RECORD_LEN).map(|k| w[(k % RECORD_LEN) * GRID_LEN + k / RECORD_LEN]).collect(),
                     _ => return Err(format!("Gemm `{}` is not {RECORD_LEN} -> {GRID_LEN}", n.name)),
                 };
                 if !plain || bias.len() != GRID_LEN {
@@ -128,10 +155,7 @@ pub fn recognise(proto: &pb::ModelProto) -> Result<GeneratorWeights, String> {
         }
     }
     let w = convs[0].c_out;
-    let chain = [(2, w), (w, 2 * w), (2 * w, 2 * w)]
-        .into_iter()
-        .chain(std::iter::repeat_n((2 * w, 2 * w), 7))
-        .chain([(2 * w, w), (w, 2)]);
+    let chain = [(2, w), (w, 2 * w), (2 * w, 2 * w)].into_iter().chain(std::iter::repeat_n((2 * w, 2 * w), 7)).chain([(2 * w, w), (w, 2)]);
     let norm_ch = chain.clone().take(11).map(|(_, co)| co);
     if !convs.iter().zip(chain).all(|(c, (ci, co))| (c.c_in, c.c_out) == (ci, co))
         || !norms.iter().zip(norm_ch).all(|(n, c)| n.gamma.len() == c && n.beta.len() == c)

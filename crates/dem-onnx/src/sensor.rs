@@ -110,7 +110,10 @@ impl Stored {
             Heights::Input => "the input's heights under its holes (the network's where the input has none)",
             Heights::Network => "the network's heights",
         };
-        let residual = self.residual.as_ref().map_or("no residual sensor model".to_string(), |r| format!("then the residual sensor model {}", r.summary()));
+        let residual = self
+            .residual
+            .as_ref()
+            .map_or("no residual sensor model".to_string(), |r| format!("then the residual sensor model {}", r.summary()));
         format!(
             "dem-tools virtual sensor, one graph: {w_desc}, masks thresholded at 0 (missing: height 0, mask -1), {heights}, {residual}. \
              Inputs: {}. Output: dem_out float32 (N,21,5,2), the same DEMs as dem-apply given the same uniforms and times.",
@@ -148,13 +151,8 @@ fn tail_nodes(g: &mut Builder, stored: &Stored) {
     };
     let model = stored.residual_or_empty();
     let k = model.draws();
-    let cells = sensor_graph::apply(
-        g,
-        &model,
-        cells,
-        (k > 0).then_some(sensor_graph::UNIFORM),
-        model.uses_time().then_some(sensor_graph::TIME),
-    );
+    let cells =
+        sensor_graph::apply(g, &model, cells, (k > 0).then_some(sensor_graph::UNIFORM), model.uses_time().then_some(sensor_graph::TIME));
     sensor_graph::join_dem(g, &cells, &row20, OUTPUT);
 }
 
@@ -205,17 +203,18 @@ pub fn network_part(proto: &pb::ModelProto, name: &str) -> Result<Option<Network
     }
     let stored = Stored::from_info(&info, name)?;
     let graph = proto.graph.as_ref().ok_or_else(|| DemError::input(name, "not an ONNX model (no graph)"))?;
-    let cut = graph
-        .node
-        .iter()
-        .position(|n| n.output.iter().any(|o| o == NETWORK_OUT))
-        .ok_or_else(|| DemError::input(name, format!("its graph has no {NETWORK_OUT}, though {GRAPH_KEY} says it is a virtual sensor")))?;
+    let cut =
+        graph.node.iter().position(|n| n.output.iter().any(|o| o == NETWORK_OUT)).ok_or_else(|| {
+            DemError::input(name, format!("its graph has no {NETWORK_OUT}, though {GRAPH_KEY} says it is a virtual sensor"))
+        })?;
     let mut tail = Builder::new();
     tail.set_prefix("tail");
     tail_nodes(&mut tail, &stored);
     let (head_nodes, tail_file) = graph.node.split_at(cut + 1);
     let tail_inits: Vec<&pb::TensorProto> = graph.initializer.iter().filter(|t| t.name.starts_with("tail.")).collect();
-    let same = tail_file == tail.nodes.as_slice() && tail_inits.len() == tail.inits.len() && tail_inits.iter().zip(&tail.inits).all(|(a, b)| *a == b);
+    let same = tail_file == tail.nodes.as_slice()
+        && tail_inits.len() == tail.inits.len()
+        && tail_inits.iter().zip(&tail.inits).all(|(a, b)| *a == b);
     if !same || !stored.has_tail() {
         return Err(DemError::input(
             name,
@@ -242,7 +241,10 @@ pub fn network_part(proto: &pb::ModelProto, name: &str) -> Result<Option<Network
 /// by that model (masks thresholded, the input's heights).
 fn sensor_alone(proto: &pb::ModelProto, info: &ModelInfo, name: &str) -> Result<(pb::ModelProto, Stored), DemError> {
     let stored = Stored::from_info(info, name)?;
-    let model = stored.residual.clone().ok_or_else(|| DemError::input(name, format!("its {GRAPH_KEY} says a sensor model, but it has no {RESIDUAL_KEY}")))?;
+    let model = stored
+        .residual
+        .clone()
+        .ok_or_else(|| DemError::input(name, format!("its {GRAPH_KEY} says a sensor model, but it has no {RESIDUAL_KEY}")))?;
     let rebuilt = sensor_graph::sensor_model(&model, "check", &[]).graph.expect("a graph");
     let graph = proto.graph.as_ref().ok_or_else(|| DemError::input(name, "not an ONNX model (no graph)"))?;
     if graph.node != rebuilt.node || graph.initializer != rebuilt.initializer {

@@ -141,10 +141,7 @@ fn threads_can_share_one_model() {
     let input = records(64);
     let want = model.run(&input).unwrap();
     std::thread::scope(|s| {
-        let handles: Vec<_> = input
-            .chunks(16)
-            .map(|chunk| s.spawn(|| model.run(chunk).unwrap()))
-            .collect();
+        let handles: Vec<_> = input.chunks(16).map(|chunk| s.spawn(|| model.run(chunk).unwrap())).collect();
         let got: Vec<Dem> = handles.into_iter().flat_map(|h| h.join().unwrap()).collect();
         assert_eq!(got, want);
     });
@@ -242,12 +239,7 @@ fn tiny_model(op: &str, in_type: i32, in_shape: &[i64], out_shape: &[i64]) -> Ve
         ir_version: 8,
         opset_import: vec![pb::OperatorSetIdProto { domain: String::new(), version: 17 }],
         graph: Some(pb::GraphProto {
-            node: vec![pb::NodeProto {
-                input: vec!["x".into()],
-                output: vec!["y".into()],
-                op_type: op.into(),
-                ..Default::default()
-            }],
+            node: vec![pb::NodeProto { input: vec!["x".into()], output: vec!["y".into()], op_type: op.into(), ..Default::default() }],
             input: vec![value("x", in_type, in_shape)],
             output: vec![value("y", in_type, out_shape)],
             ..Default::default()

@@ -96,7 +96,9 @@ pub fn run(cfg: &ExpandConfig) -> anyhow::Result<Expanded> {
     }
     let sim_labels = cfg.sim_labels.as_deref().map(table::read_labels).transpose()?;
     let real_labels = cfg.real_labels.as_deref().map(table::read_labels).transpose()?;
-    for (labels, path, records, file) in [(&sim_labels, &cfg.sim_labels, sim.len(), &cfg.sim), (&real_labels, &cfg.real_labels, real.len(), &cfg.real)] {
+    for (labels, path, records, file) in
+        [(&sim_labels, &cfg.sim_labels, sim.len(), &cfg.sim), (&real_labels, &cfg.real_labels, real.len(), &cfg.real)]
+    {
         if let (Some(l), Some(p)) = (labels, path) {
             table::check_labels_cover(p, l.len(), file, records)?;
         }
@@ -106,7 +108,8 @@ pub fn run(cfg: &ExpandConfig) -> anyhow::Result<Expanded> {
     let (mut sim_out, mut real_out) = (npy::create(&path("sim.npy"))?, npy::create(&path("real.npy"))?);
     let mut pairs_out = RowWriter::create(&path("pairs.csv"))?;
     let labelled = sim_labels.is_some() || real_labels.is_some();
-    let mut labels_out = if labelled { Some((RowWriter::create(&path("sim_labels.csv"))?, RowWriter::create(&path("real_labels.csv"))?)) } else { None };
+    let mut labels_out =
+        if labelled { Some((RowWriter::create(&path("sim_labels.csv"))?, RowWriter::create(&path("real_labels.csv"))?)) } else { None };
     let mut keys = std::collections::BTreeSet::new();
     for (i, p) in kept.iter().enumerate() {
         let i = i as u64;

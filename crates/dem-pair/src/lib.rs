@@ -19,19 +19,15 @@ use std::collections::{BTreeMap, BTreeSet, HashMap};
 
 use rayon::prelude::*;
 
-use dem_core::seeded::record_uniform;
 use dem_core::format::{Dem, GRID_CELLS};
+use dem_core::seeded::record_uniform;
 use dem_core::table::{Label, Pair, Split};
 
 /// Index of the first record identical (bit for bit) to each record: the
 /// sim keys, so duplicates pair as one key.
 pub fn first_occurrence(records: &[Dem]) -> Vec<u64> {
     let mut seen: HashMap<&[u32], u64> = HashMap::with_capacity(records.len());
-    records
-        .iter()
-        .enumerate()
-        .map(|(i, d)| *seen.entry(bytemuck::cast_slice(d.as_slice())).or_insert(i as u64))
-        .collect()
+    records.iter().enumerate().map(|(i, d)| *seen.entry(bytemuck::cast_slice(d.as_slice())).or_insert(i as u64)).collect()
 }
 
 /// Pose tolerances.
@@ -150,9 +146,7 @@ pub fn by_content(sim: &[Dem], keys: &[u64], real: &[Dem], k: usize, max_dist: f
                     best.truncate(k);
                 }
             }
-            best.into_iter()
-                .filter(move |b| f64::from(b.0) <= max_dist)
-                .map(move |(d, j)| (keys[j], ri as u64, f64::from(d)))
+            best.into_iter().filter(move |b| f64::from(b.0) <= max_dist).map(move |(d, j)| (keys[j], ri as u64, f64::from(d)))
         })
         .collect()
 }
@@ -262,8 +256,17 @@ mod tests {
 
     #[test]
     fn pose_pairs_respect_terrain_sequence_and_tolerances() {
-        let l = |index, terrain, x: f64, seq| Label { index, terrain, x: Some(x), y: Some(0.0), yaw: Some(0.0), sequence: Some(seq), time: None };
-        let sim = vec![l(0, Terrain::Flat, 1.0, 0), l(1, Terrain::Flat, 1.03, 1), l(2, Terrain::Pallet, 1.0, 0), l(3, Terrain::Flat, 1.2, 0)];
+        let l = |index, terrain, x: f64, seq| Label {
+            index,
+            terrain,
+            x: Some(x),
+            y: Some(0.0),
+            yaw: Some(0.0),
+            sequence: Some(seq),
+            time: None,
+        };
+        let sim =
+            vec![l(0, Terrain::Flat, 1.0, 0), l(1, Terrain::Flat, 1.03, 1), l(2, Terrain::Pallet, 1.0, 0), l(3, Terrain::Flat, 1.2, 0)];
         let real = vec![l(0, Terrain::Flat, 1.01, 0)];
         let rule = PoseRule { max_dist: 0.05, max_yaw: 0.1, same_sequence: false };
         let ids = |f: Vec<Found>| f.iter().map(|p| p.0).collect::<Vec<_>>();

@@ -4,11 +4,11 @@ use std::collections::BTreeSet;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand, ValueEnum};
-use dem_pair::pairing::{pair, Method, PairConfig};
-use dem_pair::{counts, PoseRule};
-use dem_core::table::{self, Pair};
 use dem_core::cli::{self, value};
 use dem_core::output;
+use dem_core::table::{self, Pair};
+use dem_pair::pairing::{pair, Method, PairConfig};
+use dem_pair::{counts, PoseRule};
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
 enum MethodArg {
@@ -25,11 +25,16 @@ enum MethodArg {
 /// Writes `sim_index,real_index,split,distance`; counts per split (and per
 /// terrain, with labels) go to stderr.
 #[derive(Parser)]
-#[command(version, args_conflicts_with_subcommands = true, subcommand_negates_reqs = true, after_long_help = "Examples:
+#[command(
+    version,
+    args_conflicts_with_subcommands = true,
+    subcommand_negates_reqs = true,
+    after_long_help = "Examples:
   dem-pair --match pose --sim-labels sim_labels.csv --real-labels real_labels.csv --same-sequence -o pairs.csv
   dem-pair --match content --sim sim.npy --real real.npy --k 3 --val-fraction 0.5 --seed 1 -o pairs.csv
   dem-filter --labels l.csv --drop-other sim.npy -o s.npy && dem-pair --match content --sim s.npy --real real.npy
-  dem-pair expand --pairs pairs.csv --sim sim.npy --real real.npy --split val --out val/   # one record per pair")]
+  dem-pair expand --pairs pairs.csv --sim sim.npy --real real.npy --split val --out val/   # one record per pair"
+)]
 struct Args {
     #[command(subcommand)]
     cmd: Option<Cmd>,

@@ -4,8 +4,8 @@ use std::collections::{BTreeSet, HashMap};
 use std::path::Path;
 
 use dem_core::metric::dem_error;
-use dem_core::table::{self, Split};
 use dem_core::npy;
+use dem_core::table::{self, Split};
 use dem_testkit::{arg, ok, run, stderr, tempdir, testdata};
 
 fn td(name: &str) -> String {
@@ -18,7 +18,19 @@ fn pose_pairing_recovers_the_true_pairs() {
     let out = arg(dir.path(), "p.csv");
     let o = run(
         "dem-pair",
-        &["--match", "pose", "--sim-labels", &td("sim_labels.csv"), "--real-labels", &td("real_labels.csv"), "--same-sequence", "--max-offset", "0.03", "-o", &out],
+        &[
+            "--match",
+            "pose",
+            "--sim-labels",
+            &td("sim_labels.csv"),
+            "--real-labels",
+            &td("real_labels.csv"),
+            "--same-sequence",
+            "--max-offset",
+            "0.03",
+            "-o",
+            &out,
+        ],
         None,
     );
     ok(&o);
@@ -34,7 +46,19 @@ fn pose_pairing_with_sim_maps_duplicates_to_one_key() {
     let out = arg(dir.path(), "p.csv");
     ok(&run(
         "dem-pair",
-        &["--match", "pose", "--sim", &td("sim.npy"), "--sim-labels", &td("sim_labels.csv"), "--real-labels", &td("real_labels.csv"), "--same-sequence", "-o", &out],
+        &[
+            "--match",
+            "pose",
+            "--sim",
+            &td("sim.npy"),
+            "--sim-labels",
+            &td("sim_labels.csv"),
+            "--real-labels",
+            &td("real_labels.csv"),
+            "--same-sequence",
+            "-o",
+            &out,
+        ],
         None,
     ));
     let sim = npy::read_all(&td("sim.npy")).unwrap();
@@ -52,7 +76,22 @@ fn content_pairs_are_the_nearest_and_no_key_is_in_both_splits() {
     let out = arg(dir.path(), "c.csv");
     ok(&run(
         "dem-pair",
-        &["--match", "content", "--sim", &td("sim.npy"), "--real", &td("real.npy"), "--k", "2", "--val-fraction", "0.4", "--seed", "3", "-o", &out],
+        &[
+            "--match",
+            "content",
+            "--sim",
+            &td("sim.npy"),
+            "--real",
+            &td("real.npy"),
+            "--k",
+            "2",
+            "--val-fraction",
+            "0.4",
+            "--seed",
+            "3",
+            "-o",
+            &out,
+        ],
         None,
     ));
     let pairs = table::read_pairs(&out).unwrap();
@@ -94,11 +133,46 @@ fn missing_inputs_for_the_method_are_usage_errors() {
 fn expanded_pairs_are_one_record_per_pair_at_the_partner_s_time() {
     let dir = tempdir();
     let pairs = arg(dir.path(), "c.csv");
-    ok(&run("dem-pair", &["--match", "content", "--sim", &td("sim.npy"), "--real", &td("real.npy"), "--k", "2", "--val-fraction", "0.4", "--seed", "3", "-o", &pairs], None));
+    ok(&run(
+        "dem-pair",
+        &[
+            "--match",
+            "content",
+            "--sim",
+            &td("sim.npy"),
+            "--real",
+            &td("real.npy"),
+            "--k",
+            "2",
+            "--val-fraction",
+            "0.4",
+            "--seed",
+            "3",
+            "-o",
+            &pairs,
+        ],
+        None,
+    ));
     let out = arg(dir.path(), "val");
     let o = run(
         "dem-pair",
-        &["expand", "--pairs", &pairs, "--sim", &td("sim.npy"), "--real", &td("real.npy"), "--sim-labels", &td("sim_labels.csv"), "--real-labels", &td("real_labels.csv"), "--split", "val", "--out", &out],
+        &[
+            "expand",
+            "--pairs",
+            &pairs,
+            "--sim",
+            &td("sim.npy"),
+            "--real",
+            &td("real.npy"),
+            "--sim-labels",
+            &td("sim_labels.csv"),
+            "--real-labels",
+            &td("real_labels.csv"),
+            "--split",
+            "val",
+            "--out",
+            &out,
+        ],
         None,
     );
     ok(&o);
@@ -136,7 +210,11 @@ fn expanded_pairs_are_one_record_per_pair_at_the_partner_s_time() {
 
     // Expanded again into the same folder without labels: the earlier
     // expansion's label files go, as they describe other records.
-    let o = run("dem-pair", &["expand", "--pairs", &pairs, "--sim", &td("sim.npy"), "--real", &td("real.npy"), "--split", "train", "--out", &out], None);
+    let o = run(
+        "dem-pair",
+        &["expand", "--pairs", &pairs, "--sim", &td("sim.npy"), "--real", &td("real.npy"), "--split", "train", "--out", &out],
+        None,
+    );
     ok(&o);
     assert!(!Path::new(&f("sim_labels.csv")).exists() && !Path::new(&f("real_labels.csv")).exists(), "stale labels left in {out}");
     assert!(stderr(&o).contains("removed") && stderr(&o).contains("sim_labels.csv"), "{}", stderr(&o));
@@ -155,7 +233,11 @@ fn expand_refuses_a_pair_past_the_end_and_leaves_nothing() {
     assert!(e.contains(&pairs) && e.contains("line 3") && e.contains("real_index 999999"), "{e}");
     assert!(!std::path::Path::new(&out).exists(), "a refused run left {out}");
     // A split the pairs do not have, and --match without a subcommand, are refused too.
-    let o = run("dem-pair", &["expand", "--pairs", &pairs, "--sim", &td("sim.npy"), "--real", &td("real.npy"), "--split", "val", "--out", &out], None);
+    let o = run(
+        "dem-pair",
+        &["expand", "--pairs", &pairs, "--sim", &td("sim.npy"), "--real", &td("real.npy"), "--split", "val", "--out", &out],
+        None,
+    );
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     let o = run("dem-pair", &["--sim", &td("sim.npy")], None);
     assert_eq!(o.status.code(), Some(2));

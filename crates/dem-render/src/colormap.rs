@@ -67,10 +67,8 @@ impl HeightRange {
     /// height. Errors when the result is empty or not finite, with a message
     /// naming the flag at fault.
     pub fn resolve(vmin: Option<f32>, vmax: Option<f32>, heights: impl IntoIterator<Item = f32>) -> Result<Self, String> {
-        let (lo, hi) = heights
-            .into_iter()
-            .filter(|h| h.is_finite())
-            .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), h| (lo.min(h), hi.max(h)));
+        let (lo, hi) =
+            heights.into_iter().filter(|h| h.is_finite()).fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), h| (lo.min(h), hi.max(h)));
         let (lo, hi) = if lo > hi { (dem_core::format::FLAT_GROUND, dem_core::format::FLAT_GROUND) } else { (lo, hi) };
         let (lo, hi) = if lo == hi { (lo - FLAT_HALF_WIDTH, hi + FLAT_HALF_WIDTH) } else { (lo, hi) };
         let range = HeightRange { min: vmin.unwrap_or(lo), max: vmax.unwrap_or(hi) };

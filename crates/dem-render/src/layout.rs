@@ -190,8 +190,8 @@ impl Figure {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use dem_core::format::{empty_dem, DemCells};
     use crate::colormap::jet_rgb;
+    use dem_core::format::{empty_dem, DemCells};
 
     fn figure(n: usize, rows: usize, per_band: usize) -> Figure {
         let mut d = empty_dem();
@@ -201,9 +201,7 @@ mod tests {
             title: Some("t".into()),
             row_labels: if rows > 1 { (0..rows).map(|r| format!("row {r}")).collect() } else { vec![] },
             caption_label: None,
-            columns: (0..n)
-                .map(|i| Column { header: format!("#{i}"), dems: vec![d; rows], caption: Some("e=0.123".into()) })
-                .collect(),
+            columns: (0..n).map(|i| Column { header: format!("#{i}"), dems: vec![d; rows], caption: Some("e=0.123".into()) }).collect(),
             per_band,
             range: HeightRange { min: 0.0, max: 1.0 },
             style: TileStyle::default(),

@@ -25,10 +25,10 @@ pub mod tile;
 
 use std::path::Path;
 
+use colormap::HeightRange;
 use dem_core::error::{DemError, Result};
 use dem_core::format::{DemCells, COLS, GRID_ROWS};
 use dem_core::{metric, output, table};
-use colormap::HeightRange;
 use layout::{Column, Figure};
 pub use select::{Selection, MAX_RECORDS};
 pub use tile::TileStyle;
@@ -250,19 +250,16 @@ pub fn build_figure(cfg: &RenderConfig) -> Result<Figure> {
             values.into_iter().map(Some).collect()
         }
     };
-    let heights = picked.iter().flat_map(|p| p.records.iter()).flat_map(|d| {
-        (0..GRID_ROWS).flat_map(move |r| (0..COLS).filter(move |&c| d.is_valid(r, c)).map(move |c| d.height(r, c)))
-    });
+    let heights = picked
+        .iter()
+        .flat_map(|p| p.records.iter())
+        .flat_map(|d| (0..GRID_ROWS).flat_map(move |r| (0..COLS).filter(move |&c| d.is_valid(r, c)).map(move |c| d.height(r, c))));
     let range = HeightRange::resolve(cfg.vmin, cfg.vmax, heights).map_err(usage)?;
     let columns = indices
         .iter()
         .zip(captions)
         .enumerate()
-        .map(|(k, (i, caption))| Column {
-            header: format!("#{i}"),
-            dems: picked.iter().map(|p| p.records[k]).collect(),
-            caption,
-        })
+        .map(|(k, (i, caption))| Column { header: format!("#{i}"), dems: picked.iter().map(|p| p.records[k]).collect(), caption })
         .collect::<Vec<_>>();
     let row_labels = match (cfg.compare, cfg.row_labels.is_empty()) {
         (false, _) => vec![],

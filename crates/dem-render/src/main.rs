@@ -4,8 +4,8 @@ use std::io::IsTerminal;
 use std::process::ExitCode;
 
 use clap::Parser;
-use dem_render::{self as render, Captions, Pick, RenderConfig, Selection, TileStyle};
 use dem_core::cli::{self, value};
+use dem_render::{self as render, Captions, Pick, RenderConfig, Selection, TileStyle};
 
 /// Draw DEMs as a PNG: jet over heights with a colour bar in metres, missing
 /// cells white, the robot at the top facing down (a triangle marks its
@@ -16,7 +16,9 @@ use dem_core::cli::{self, value};
 /// row), optionally with the error between two rows or a CSV value under
 /// each column.
 #[derive(Parser)]
-#[command(version, after_long_help = "Examples:
+#[command(
+    version,
+    after_long_help = "Examples:
   dem-synth --out run/ --runs 20 && dem-render run/sim.npy --count 12 -o sim.png
   dem-render run/real.npy --indices 130,140,150 --title 'measured, pallet' -o pallet.png
   dem-render run/real.npy --per-terrain 3 --labels run/real_labels.csv -o terrains.png   # 3 of each terrain
@@ -28,7 +30,8 @@ use dem_core::cli::{self, value};
 --compare draws the same records from every file. Files may differ in length,
 but a range that runs past the end of one file and not another is refused
 (exit 2), as is an index past any file's end. With --runs equal to --real-runs
-(20 by default), dem-synth's sim.npy and real.npy pair record for record.")]
+(20 by default), dem-synth's sim.npy and real.npy pair record for record."
+)]
 struct Args {
     /// NPY file(s); `-` is stdin (the default). Several need --compare.
     inputs: Vec<String>,

@@ -30,7 +30,17 @@ pub fn line_plot(title: &str, xlabel: &str, xs: &[f64], series: &[Series], log_y
     let (w, h) = (900i64, 380i64);
     let (l, r, t, b) = (90i64, 200i64, 40i64, 56i64);
     let mut c = Canvas::new(w as u32, h as u32, WHITE);
-    let ty = |v: f64| if log_y { if v > 0.0 { v.log10() } else { f64::NAN } } else { v };
+    let ty = |v: f64| {
+        if log_y {
+            if v > 0.0 {
+                v.log10()
+            } else {
+                f64::NAN
+            }
+        } else {
+            v
+        }
+    };
     let ys: Vec<f64> = series.iter().flat_map(|s| s.2.iter().map(|&v| ty(v))).filter(|v| v.is_finite()).collect();
     let (mut lo, mut hi) = ys.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
     if !lo.is_finite() {

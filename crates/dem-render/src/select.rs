@@ -75,10 +75,7 @@ pub fn read_selected(path: &str, selection: &Selection) -> Result<Picked> {
     }
     let indices: Vec<u64> = match selection {
         Selection::Range { start, .. } if *start >= total => {
-            return Err(DemError::input(
-                path,
-                format!("--start {start} is past the last record ({} records, 0..={})", total, total - 1),
-            ));
+            return Err(DemError::input(path, format!("--start {start} is past the last record ({} records, 0..={})", total, total - 1)));
         }
         Selection::Range { start, count } => (*start..(start + count).min(total)).collect(),
         Selection::Indices(v) => v.clone(),
@@ -88,10 +85,7 @@ pub fn read_selected(path: &str, selection: &Selection) -> Result<Picked> {
         match kept.get(&i) {
             Some(d) => records.push(*d),
             None => {
-                return Err(DemError::input(
-                    path,
-                    format!("record {i} asked for, but the file holds {total} records (0..={})", total - 1),
-                ))
+                return Err(DemError::input(path, format!("record {i} asked for, but the file holds {total} records (0..={})", total - 1)))
             }
         }
     }
@@ -108,9 +102,10 @@ pub fn per_terrain(path: &str, k: usize) -> Result<Vec<u64>> {
     let mut rdr = csv::ReaderBuilder::new().trim(csv::Trim::All).from_reader(dem_core::table::open_input(path)?);
     let bad = |line: u64, reason: String| DemError::Table { path: path.into(), line, reason };
     let headers = rdr.headers().map_err(|e| bad(1, e.to_string()))?.clone();
-    let col = headers.iter().position(|h| h == "terrain").ok_or_else(|| {
-        bad(1, format!("no terrain column (columns: {})", headers.iter().collect::<Vec<_>>().join(",")))
-    })?;
+    let col = headers
+        .iter()
+        .position(|h| h == "terrain")
+        .ok_or_else(|| bad(1, format!("no terrain column (columns: {})", headers.iter().collect::<Vec<_>>().join(","))))?;
     let mut of: HashMap<Terrain, Vec<u64>> = HashMap::new();
     for (i, rec) in rdr.records().enumerate() {
         let line = i as u64 + 2;
@@ -142,9 +137,9 @@ pub fn read_captions(path: &str, column: Option<&str>, indices: &[u64]) -> Resul
     let headers = rdr.headers().map_err(|e| bad(1, e.to_string()))?.clone();
     let names: Vec<&str> = headers.iter().collect();
     let col = match column {
-        Some(name) => names.iter().position(|h| *h == name).ok_or_else(|| {
-            bad(1, format!("no column {name:?} (columns: {})", names.join(",")))
-        })?,
+        Some(name) => {
+            names.iter().position(|h| *h == name).ok_or_else(|| bad(1, format!("no column {name:?} (columns: {})", names.join(","))))?
+        }
         None if names.is_empty() => return Err(bad(1, "no columns".into())),
         None => names.len() - 1,
     };

@@ -150,8 +150,8 @@ pub fn draw_colorbar(canvas: &mut Canvas, x0: i64, y0: i64, h: u32, range: &Heig
 #[cfg(test)]
 mod tests {
     use super::*;
-    use dem_core::format::empty_dem;
     use crate::colormap::jet_rgb;
+    use dem_core::format::empty_dem;
 
     #[test]
     fn cells_map_row_0_to_the_top_and_column_0_to_the_left() {

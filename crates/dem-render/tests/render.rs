@@ -238,7 +238,11 @@ fn per_terrain_draws_evenly_spaced_records_of_each_terrain_in_terrain_order() {
     assert_eq!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
     // No terrain column, an unknown terrain: exit 2 naming the file and line.
     std::fs::write(&records, "index,kind\n0,flat\n").unwrap();
-    refused(dir.path(), &[&input, "--per-terrain", "2", "--labels", &records, "-o", &arg(dir.path(), "x.png")], &["r.csv", "no terrain column"]);
+    refused(
+        dir.path(),
+        &[&input, "--per-terrain", "2", "--labels", &records, "-o", &arg(dir.path(), "x.png")],
+        &["r.csv", "no terrain column"],
+    );
     std::fs::write(&records, "index,terrain\n0,flat\n1,moon\n").unwrap();
     refused(dir.path(), &[&input, "--per-terrain", "2", "--labels", &records, "-o", &arg(dir.path(), "x.png")], &["r.csv", "line 3"]);
 }

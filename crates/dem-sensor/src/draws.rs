@@ -90,7 +90,13 @@ mod tests {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(4);
         let mut u = vec![0.0f32; 200_000];
         fill_uniform(&mut rng, &mut u);
-        let z: Vec<f64> = u.chunks(2).flat_map(|p| { let (a, b) = box_muller(p[0], p[1]); [a, b] }).collect();
+        let z: Vec<f64> = u
+            .chunks(2)
+            .flat_map(|p| {
+                let (a, b) = box_muller(p[0], p[1]);
+                [a, b]
+            })
+            .collect();
         let n = z.len() as f64;
         let mean = z.iter().sum::<f64>() / n;
         let var = z.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n;

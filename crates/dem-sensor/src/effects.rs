@@ -522,11 +522,15 @@ impl Effect {
             Effect::Shake { sigma, edge } if !(0.0..=MAX_TILT).contains(&sigma) || edge < 0.0 => {
                 Err(format!("sigma = {sigma} must be in [0, {MAX_TILT}] rad and edge = {edge} >= 0"))
             }
-            Effect::StepJitter { sigma, edge } if sigma < 0.0 || edge < 0.0 => Err(format!("sigma = {sigma} and edge = {edge} must be >= 0")),
+            Effect::StepJitter { sigma, edge } if sigma < 0.0 || edge < 0.0 => {
+                Err(format!("sigma = {sigma} and edge = {edge} must be >= 0"))
+            }
             Effect::Lag { s, spread } if s.abs() > MAX_LAG || !(0.0..=1.0).contains(&spread) => {
                 Err(format!("s = {s} must be in [-{MAX_LAG}, {MAX_LAG}] m and spread = {spread} in [0, 1]"))
             }
-            Effect::Drift { rate, zrate, .. } if rate < 0.0 || zrate < 0.0 => Err(format!("rate = {rate} and zrate = {zrate} must be >= 0")),
+            Effect::Drift { rate, zrate, .. } if rate < 0.0 || zrate < 0.0 => {
+                Err(format!("rate = {rate} and zrate = {zrate} must be >= 0"))
+            }
             Effect::Occlusion { h, .. } if h <= 0.0 => Err(format!("sensor height h = {h} must be > 0")),
             Effect::Fov { x_min, x_max } if x_min >= x_max => Err(format!("x_min = {x_min} must be < x_max = {x_max}")),
             Effect::Smoothing { w } if !(w > 0.0 && w <= 1.0) => Err(format!("w = {w} must be in (0, 1]")),
@@ -596,7 +600,8 @@ impl Effect {
                         let z = normals[r * COLS + c];
                         if d.is_valid(r, c) {
                             let h = d.height(r, c) as f64;
-                            let (dx, dy, dz) = (row_center_x(r) - sx, col_center_y(c), h.clamp(-NOISE_RANGE_HEIGHT, NOISE_RANGE_HEIGHT) - sz);
+                            let (dx, dy, dz) =
+                                (row_center_x(r) - sx, col_center_y(c), h.clamp(-NOISE_RANGE_HEIGHT, NOISE_RANGE_HEIGHT) - sz);
                             let sigma = sigma0 + k * (dx * dx + dy * dy + dz * dz);
                             d.set_valid(r, c, (h + sigma * z) as f32);
                         }
@@ -714,11 +719,7 @@ impl Effect {
                         let u: f64 = rng.gen();
                         let Some(zc) = zc else { continue };
                         let rims = [(at(r.wrapping_sub(1), c), at(r + 1, c)), (at(r, c.wrapping_sub(1)), at(r, c + 1))];
-                        let fill = rims
-                            .into_iter()
-                            .filter_map(|(a, b)| Some(a?.min(b?)))
-                            .filter(|&rim| rim - zc > g)
-                            .reduce(f64::max);
+                        let fill = rims.into_iter().filter_map(|(a, b)| Some(a?.min(b?))).filter(|&rim| rim - zc > g).reduce(f64::max);
                         if let (Some(rim), true) = (fill, u < p) {
                             d.set_valid(r, c, rim as f32);
                         }
@@ -833,10 +834,8 @@ fn darken(d: &mut Dem, blobs: &[(f64, f64)], radius: f64, a: f64) {
                 (None, _) => d.set_missing(r, c),
                 (Some(_), 4) => {}
                 (Some(h), _) => {
-                    let low = [r.checked_sub(1), Some(r + 1).filter(|&n| n < GRID_ROWS)]
-                        .into_iter()
-                        .filter_map(|n| z[n?][c])
-                        .fold(h, f64::min);
+                    let low =
+                        [r.checked_sub(1), Some(r + 1).filter(|&n| n < GRID_ROWS)].into_iter().filter_map(|n| z[n?][c]).fold(h, f64::min);
                     d.set_valid(r, c, (h + a * (low - h)) as f32);
                 }
             }
@@ -986,9 +985,7 @@ fn blend_risers(d: &mut Dem, rng: &mut Draws, foot: f64, top: f64) {
 
 /// The 4-neighbours of cell (r, c) inside the grid.
 fn neighbours4(r: usize, c: usize) -> impl Iterator<Item = (usize, usize)> {
-    [(r.wrapping_sub(1), c), (r + 1, c), (r, c.wrapping_sub(1)), (r, c + 1)]
-        .into_iter()
-        .filter(|&(rr, cc)| rr < GRID_ROWS && cc < COLS)
+    [(r.wrapping_sub(1), c), (r + 1, c), (r, c.wrapping_sub(1)), (r, c + 1)].into_iter().filter(|&(rr, cc)| rr < GRID_ROWS && cc < COLS)
 }
 
 /// `mixed-cells` (formula in the module table). Each cell is two halves
@@ -1012,8 +1009,7 @@ fn mix_cells(d: &mut Dem, rng: &mut Draws, up: f64, down: f64) {
                 continue;
             }
             // (lower row, its half at the boundary, higher row, its half, step depth into the lower row)
-            let (lo, lo_half, hi, hi_half, depth, reach) =
-                if z1 > z0 { (b, 1, b + 1, 0, s, up) } else { (b + 1, 0, b, 1, -s, down) };
+            let (lo, lo_half, hi, hi_half, depth, reach) = if z1 > z0 { (b, 1, b + 1, 0, s, up) } else { (b + 1, 0, b, 1, -s, down) };
             let (zlo, zhi) = (z0.min(z1), z0.max(z1));
             let into_low = depth + u * reach;
             for (dist, h) in [(near, lo_half), (far, 1 - lo_half)] {

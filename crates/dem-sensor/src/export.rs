@@ -43,11 +43,29 @@ pub fn probe_records(n: usize, seed: u64) -> Vec<Dem> {
             for r in 0..GRID_ROWS {
                 let base = match kind {
                     0 => 0.0,
-                    1 => if r >= at { step } else { 0.0 },
-                    2 => if r >= at { -step } else { 0.0 },
+                    1 => {
+                        if r >= at {
+                            step
+                        } else {
+                            0.0
+                        }
+                    }
+                    2 => {
+                        if r >= at {
+                            -step
+                        } else {
+                            0.0
+                        }
+                    }
                     3 => step * ((r / len) as f64),
                     4 => -step * ((r / len) as f64),
-                    _ => if (at..at + len).contains(&r) { step } else { 0.0 },
+                    _ => {
+                        if (at..at + len).contains(&r) {
+                            step
+                        } else {
+                            0.0
+                        }
+                    }
                 };
                 for c in 0..COLS {
                     let pit = kind == 0 && rng.gen_bool(0.05);
@@ -82,7 +100,10 @@ pub fn export(model: &SensorModel, records: &[Dem], path: &str, metadata: &[(Str
     let (mut differ, mut worst) = (0usize, 0.0f32);
     for (i, (a, b)) in native.iter().zip(&got).enumerate() {
         if a[200..] != b[200..] {
-            return Err(DemError::input(path, format!("export check failed, nothing written: the graph changes row 20 of check record {i}")));
+            return Err(DemError::input(
+                path,
+                format!("export check failed, nothing written: the graph changes row 20 of check record {i}"),
+            ));
         }
         for r in 0..GRID_ROWS {
             for c in 0..COLS {

@@ -199,14 +199,7 @@ impl SensorModel {
     /// stream whose first record is record `first_index` of the whole data
     /// set; `times` (the labels file and its times) index the stream's own
     /// records, and a stream longer than them is refused naming the file.
-    pub fn apply_chunk(
-        &self,
-        records: &mut [Dem],
-        seed: u64,
-        first_index: u64,
-        first: u64,
-        times: Option<(&str, &[f64])>,
-    ) -> Result<()> {
+    pub fn apply_chunk(&self, records: &mut [Dem], seed: u64, first_index: u64, first: u64, times: Option<(&str, &[f64])>) -> Result<()> {
         let t = chunk_times(times, first, records.len())?;
         self.apply_all_at(records, seed, first_index + first, t);
         Ok(())
@@ -261,10 +254,9 @@ pub fn chunk_times<'a>(times: Option<(&str, &'a [f64])>, first: u64, n: usize) -
 /// record of a stream of `records`: one row more is as wrong as one less.
 pub fn labels_cover(labels: Option<(&str, usize)>, records: u64) -> Result<()> {
     match labels {
-        Some((path, rows)) if rows as u64 != records => Err(DemError::input(
-            path,
-            format!("{rows} labels for a stream of {records} records (one row per record, in stream order)"),
-        )),
+        Some((path, rows)) if rows as u64 != records => {
+            Err(DemError::input(path, format!("{rows} labels for a stream of {records} records (one row per record, in stream order)")))
+        }
         _ => Ok(()),
     }
 }
@@ -380,11 +372,7 @@ mod tests {
     #[test]
     fn json_round_trip_and_check() {
         let m = SensorModel {
-            effects: vec![
-                Effect::Occlusion { h: 0.45, x0: 0.15 },
-                Effect::Noise { sigma0: 0.003, k: 0.01 },
-                Effect::Dropout { p: 0.1 },
-            ],
+            effects: vec![Effect::Occlusion { h: 0.45, x0: 0.15 }, Effect::Noise { sigma0: 0.003, k: 0.01 }, Effect::Dropout { p: 0.1 }],
         };
         let back = SensorModel::from_json(&m.to_json()).unwrap();
         assert_eq!(back, m);

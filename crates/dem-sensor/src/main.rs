@@ -11,7 +11,9 @@ use dem_sensor::{apply_shard_emit, SensorModel};
 /// edge-holes, rim-holes, pit-fill, mixed-cells, hole-growth, drop-blend, riser-blend, floor-lift, drop-holes,
 /// tilt, shake, step-jitter, lag, drift) as JSON, applied to NPY streams.
 #[derive(Parser)]
-#[command(version, after_long_help = "Examples:
+#[command(
+    version,
+    after_long_help = "Examples:
   dem-sensor apply --sensor sensor.json --seed 1 < sim.npy > model_sim.npy
   dem-gap --sim sim.npy --real real.npy --out gap/ && dem-sensor apply --sensor gap/sensor.json sim.npy -o sim_as_measured.npy
   dem-sensor apply --sensor gap/sensor.json sim.npy | dem-render - --count 12 -o measured_look.png
@@ -27,7 +29,8 @@ use dem_sensor::{apply_shard_emit, SensorModel};
 
 A model file:
   {\"effects\": [{\"effect\": \"occlusion\", \"params\": {\"h\": 0.45, \"x0\": 0.15}},
-               {\"effect\": \"noise\", \"params\": {\"sigma0\": 0.003, \"k\": 0.01}}]}")]
+               {\"effect\": \"noise\", \"params\": {\"sigma0\": 0.003, \"k\": 0.01}}]}"
+)]
 struct Args {
     #[command(subcommand)]
     command: Command,

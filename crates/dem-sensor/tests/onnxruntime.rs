@@ -32,11 +32,25 @@ fn onnxruntime_fed_dem_sensor_s_uniforms_gives_its_output_for_every_effect() {
     for (i, model) in models.iter().enumerate() {
         let json = arg(dir.path(), &format!("m{i}.json"));
         std::fs::write(&json, model).unwrap();
-        let (onnx, out, u) = (arg(dir.path(), &format!("m{i}.onnx")), arg(dir.path(), &format!("o{i}.npy")), arg(dir.path(), &format!("u{i}.npy")));
+        let (onnx, out, u) =
+            (arg(dir.path(), &format!("m{i}.onnx")), arg(dir.path(), &format!("o{i}.npy")), arg(dir.path(), &format!("u{i}.npy")));
         let o = run("dem-sensor", &["export", "--sensor", &json, "-o", &onnx], None);
         ok(&o);
         assert!(stderr(&o).contains("tract reproduces dem-sensor"), "{}", stderr(&o));
-        let args = ["apply", "--sensor", &json, "--seed", "3", "--labels", &td("sim_labels.csv"), "--emit-uniform", &u, &td("sim.npy"), "-o", &out];
+        let args = [
+            "apply",
+            "--sensor",
+            &json,
+            "--seed",
+            "3",
+            "--labels",
+            &td("sim_labels.csv"),
+            "--emit-uniform",
+            &u,
+            &td("sim.npy"),
+            "-o",
+            &out,
+        ];
         ok(&run("dem-sensor", &args, None));
         cases.push(format!("({i}, '{onnx}', '{out}', '{u}')"));
     }

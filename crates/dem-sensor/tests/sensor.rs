@@ -53,7 +53,19 @@ fn deterministic_effects_equal_the_numpy_implementation() {
     let dir = tempdir();
     let small = arg(dir.path(), "s.npy");
     dem_testkit::py(dir.path(), &format!("import numpy as np\nnp.save('s.npy', np.load({:?})[::7])", td("sim.npy")));
-    for spec in ["occlusion:h=0.45,x0=0.15", "fov:x_min=-0.33,x_max=0.97", "smoothing:w=0.4", "bias:b=0.02,t=0.03", "quantization:q=0.021", "edge-holes:g=0.06,p=1", "rim-holes:g=0.06,p=1", "pit-fill:g=0.03,p=1", "view-top:h=0.4,t=0.3", "lag:s=0.07,spread=0", "lag:s=-0.23,spread=0"] {
+    for spec in [
+        "occlusion:h=0.45,x0=0.15",
+        "fov:x_min=-0.33,x_max=0.97",
+        "smoothing:w=0.4",
+        "bias:b=0.02,t=0.03",
+        "quantization:q=0.021",
+        "edge-holes:g=0.06,p=1",
+        "rim-holes:g=0.06,p=1",
+        "pit-fill:g=0.03,p=1",
+        "view-top:h=0.4,t=0.3",
+        "lag:s=0.07,spread=0",
+        "lag:s=-0.23,spread=0",
+    ] {
         let (name, params) = spec.split_once(':').unwrap();
         let json_params: Vec<String> =
             params.split(',').map(|kv| kv.split_once('=').unwrap()).map(|(k, v)| format!("\"{k}\": {v}")).collect();
@@ -204,7 +216,11 @@ fn only_applies_the_named_effects_with_their_draws_and_names_a_missing_one() {
     let model = arg(dir.path(), "m.json");
     std::fs::write(&model, MODEL).unwrap();
     let alone = arg(dir.path(), "alone.json");
-    std::fs::write(&alone, r#"{"effects": [{"effect": "noise", "params": {"sigma0": 0.003, "k": 0.01}}, {"effect": "dropout", "params": {"p": 0.05}}]}"#).unwrap();
+    std::fs::write(
+        &alone,
+        r#"{"effects": [{"effect": "noise", "params": {"sigma0": 0.003, "k": 0.01}}, {"effect": "dropout", "params": {"p": 0.05}}]}"#,
+    )
+    .unwrap();
     let only = run("dem-sensor", &["apply", "--sensor", &model, "--only", "dropout,noise", "--seed", "3", &td("sim.npy")], None);
     let same = run("dem-sensor", &["apply", "--sensor", &alone, "--seed", "3", &td("sim.npy")], None);
     assert!(ok(&only) == ok(&same), "--only changed the effects' draws");
@@ -230,14 +246,21 @@ fn motion_effects_equal_the_numpy_implementation_in_distribution() {
                 let v: Vec<f64> = out
                     .iter()
                     .zip(&input)
-                    .flat_map(|(a, b)| (0..5).filter(|&c| b.is_valid(r, c)).map(move |c| f64::from(a.height(r, c)) - f64::from(b.height(r, c))))
+                    .flat_map(|(a, b)| {
+                        (0..5).filter(|&c| b.is_valid(r, c)).map(move |c| f64::from(a.height(r, c)) - f64::from(b.height(r, c)))
+                    })
                     .collect();
                 let m = v.iter().sum::<f64>() / v.len().max(1) as f64;
                 (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / v.len().max(1) as f64).sqrt()
             })
             .collect()
     };
-    for spec in ["tilt:pitch=0.02,roll=0.015,x0=0.4,range=1.5", "shake:sigma=0.003,edge=0.1", "lag:s=0.08,spread=0.6", "drift:rate=0.08,zrate=0.03,x0=0.4"] {
+    for spec in [
+        "tilt:pitch=0.02,roll=0.015,x0=0.4,range=1.5",
+        "shake:sigma=0.003,edge=0.1",
+        "lag:s=0.08,spread=0.6",
+        "drift:rate=0.08,zrate=0.03,x0=0.4",
+    ] {
         let (name, params) = spec.split_once(':').unwrap();
         let json_params: Vec<String> =
             params.split(',').map(|kv| kv.split_once('=').unwrap()).map(|(k, v)| format!("\"{k}\": {v}")).collect();
@@ -247,15 +270,27 @@ fn motion_effects_equal_the_numpy_implementation_in_distribution() {
             .read_to_end()
             .unwrap();
         let py_out = arg(dir.path(), "p.npy");
-        let o = Command::new(python()).arg(workspace_root().join("scripts/hidden_effects.py")).args([&small, &py_out, "5", spec]).output().unwrap();
+        let o = Command::new(python())
+            .arg(workspace_root().join("scripts/hidden_effects.py"))
+            .args([&small, &py_out, "5", spec])
+            .output()
+            .unwrap();
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         let theirs = npy::read_all(&py_out).unwrap();
         for out in [&rust, &theirs] {
-            assert!(out.iter().zip(&input).all(|(a, b)| (0..100).all(|i| a.is_valid(i / 5, i % 5) == b.is_valid(i / 5, i % 5))), "{spec}: validity kept");
+            assert!(
+                out.iter().zip(&input).all(|(a, b)| (0..100).all(|i| a.is_valid(i / 5, i % 5) == b.is_valid(i / 5, i % 5))),
+                "{spec}: validity kept"
+            );
         }
         let (a, b) = (row_sd(&rust), row_sd(&theirs));
         for r in 0..20 {
-            assert!((a[r] - b[r]).abs() <= 0.12 * a[r].max(b[r]) + 5e-4, "{spec}: row {r} sd {:.4} (dem-sensor) vs {:.4} (numpy); {a:?} vs {b:?}", a[r], b[r]);
+            assert!(
+                (a[r] - b[r]).abs() <= 0.12 * a[r].max(b[r]) + 5e-4,
+                "{spec}: row {r} sd {:.4} (dem-sensor) vs {:.4} (numpy); {a:?} vs {b:?}",
+                a[r],
+                b[r]
+            );
         }
     }
 }

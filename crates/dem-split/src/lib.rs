@@ -14,12 +14,11 @@
 //! that was there untouched; a killed run leaves temp files only, which the
 //! next run writing beside them removes.
 
-
 use std::io::Write;
 use std::os::unix::fs::MetadataExt;
 
-use dem_core::{cli, npy, output, Dem, DemError};
 use dem_core::raw_labels::{self as labels, LabelsReader};
+use dem_core::{cli, npy, output, Dem, DemError};
 
 /// How to cut.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -80,7 +79,9 @@ fn shard_sizes(cut: Cut, total: Option<u64>) -> Result<impl Fn(u64) -> u64, DemE
     match (cut, total) {
         (Cut::Records(n), _) => Ok(Box::new(move |_| n) as Box<dyn Fn(u64) -> u64>),
         (Cut::Shards(k), Some(total)) => Ok(Box::new(move |i| total / k + u64::from(i < total % k)) as Box<dyn Fn(u64) -> u64>),
-        (Cut::Shards(_), None) => Err(DemError::Usage("--shards needs the stream's length: give a file, or cut stdin with --records".into())),
+        (Cut::Shards(_), None) => {
+            Err(DemError::Usage("--shards needs the stream's length: give a file, or cut stdin with --records".into()))
+        }
     }
 }
 
@@ -242,7 +243,8 @@ fn stale_files(prefix: &str, count: u64, with_labels: bool) -> Vec<String> {
             (None, Some(d)) => (d, true),
             (None, None) => continue,
         };
-        let Some(k) = digits.parse::<u64>().ok().filter(|k| digits.bytes().all(|b| b.is_ascii_digit()) && format!("{k:05}") == digits) else {
+        let Some(k) = digits.parse::<u64>().ok().filter(|k| digits.bytes().all(|b| b.is_ascii_digit()) && format!("{k:05}") == digits)
+        else {
             continue;
         };
         if (k >= count || (is_labels && !with_labels)) && !entry.file_type().is_ok_and(|t| t.is_dir()) {
@@ -291,8 +293,17 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let d = dir.path().to_string_lossy().into_owned();
         for f in [
-            "p-00000.npy", "p-00001.npy", "p-00002.npy", "p-00002_labels.csv", "p-00001_labels.csv", "p-100000.npy",
-            "p-0003.npy", "p-00003.npy.out", "q-00004.npy", "p-x-00004.npy", "pp-00004.npy",
+            "p-00000.npy",
+            "p-00001.npy",
+            "p-00002.npy",
+            "p-00002_labels.csv",
+            "p-00001_labels.csv",
+            "p-100000.npy",
+            "p-0003.npy",
+            "p-00003.npy.out",
+            "q-00004.npy",
+            "p-x-00004.npy",
+            "pp-00004.npy",
         ] {
             std::fs::write(dir.path().join(f), b"").unwrap();
         }

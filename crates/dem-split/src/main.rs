@@ -19,7 +19,9 @@ use dem_split::{stage, Cut, SplitConfig};
 /// refused run leaves every file as it was; files of an earlier split to
 /// the same prefix beyond the new shards are then removed (logged).
 #[derive(Parser)]
-#[command(version, after_long_help = "Examples:
+#[command(
+    version,
+    after_long_help = "Examples:
   dem-split --shards 4 --out part sim.npy > shards.csv
   dem-split --records 100000 --labels sim_labels.csv --out chunk - < sim.npy
   # in parallel (GNU parallel reads the manifest's columns by name), then join:
@@ -27,7 +29,8 @@ use dem_split::{stage, Cut, SplitConfig};
       --first-index {first_index} {shard} -o {shard}.out :::: shards.csv
   dem-cat part-*.npy.out -o sim_measured.npy
   # the same with xargs:
-  tail -n +2 shards.csv | tr , ' ' | xargs -P 2 -n 3 sh -c 'dem-fill-nans --first-index $1 $0 -o $0.out'")]
+  tail -n +2 shards.csv | tr , ' ' | xargs -P 2 -n 3 sh -c 'dem-fill-nans --first-index $1 $0 -o $0.out'"
+)]
 struct Args {
     /// Input NPY stream (`-` for stdin; a file for --shards).
     #[arg(default_value = "-")]

@@ -38,7 +38,10 @@ fn demstream_reads_every_tool_output_file_and_pipe() {
         let mut fa = a.clone();
         fa.extend(["-o", &file]);
         ok(&run(tool, &fa, None));
-        let out = py(dir.path(), &format!(r#"
+        let out = py(
+            dir.path(),
+            &format!(
+                r#"
 import numpy as np, demstream, subprocess, sys
 a, b = demstream.read("pipe{k}.npy"), demstream.read("file{k}.npy")
 assert a.dtype == np.float32 and a.shape[1:] == (21, 5, 2), a.shape
@@ -47,7 +50,9 @@ assert np.array_equal(b, np.load("file{k}.npy")), "{tool}: not numpy's array"
 chunks = [len(c) for c in demstream.iter_chunks(open("pipe{k}.npy", "rb"))]
 assert sum(chunks) == len(a)
 print(len(a), len(np.load("pipe{k}.npy")), len(chunks))
-"#));
+"#
+            ),
+        );
         let v: Vec<usize> = out.split_whitespace().map(|x| x.parse().unwrap()).collect();
         if v[0] > 4096 {
             assert_eq!(v[1], 4096, "{tool}: numpy.load reads only the first array of a pipe's bytes");
@@ -55,18 +60,23 @@ print(len(a), len(np.load("pipe{k}.npy")), len(chunks))
         }
     }
     // From stdin (a pipe), and what demstream writes every tool reads.
-    let out = py(dir.path(), r#"
+    let out = py(
+        dir.path(),
+        r#"
 import subprocess, sys, numpy as np, demstream
 p = subprocess.run([sys.executable, "-c", "import sys, demstream; print(len(demstream.read(sys.stdin.buffer)))"],
                    input=open("pipe0.npy", "rb").read(), capture_output=True, check=True)
 print(p.stdout.decode().strip())
 demstream.write("w.npy", demstream.read("pipe0.npy"))
-"#);
+"#,
+    );
     assert_eq!(out.trim(), "6050");
     ok(&run("dem-cat", &[&d("w.npy"), "-o", &d("w2.npy")], None));
     assert_eq!(fs::read(d("w.npy")).unwrap(), fs::read(d("w2.npy")).unwrap(), "numpy.save's bytes, as our writer's");
     // The contract's refusals, naming the record.
-    let out = py(dir.path(), r#"
+    let out = py(
+        dir.path(),
+        r#"
 import numpy as np, demstream
 a = demstream.read("file0.npy")[:10].copy()
 a[7, 3, 2, 0] = np.inf
@@ -83,7 +93,8 @@ try:
     demstream.write("x.npy", b); print("wrote")
 except ValueError as e:
     print(e)
-"#);
+"#,
+    );
     let lines: Vec<&str> = out.lines().collect();
     assert!(lines[0].contains("record 7") && lines[0].contains("inf"), "{out}");
     assert_eq!(lines[1], "[0.0, -1.0]");

@@ -61,14 +61,20 @@ fn dem_sensor_shards_equal_the_whole_also_with_times() {
     let dir = tempdir();
     let m = model_json(dir.path());
     let whole = arg(dir.path(), "whole.npy");
-    ok(&run("dem-sensor", &["apply", "--sensor", &m, "--seed", "3", "--labels", &td("sim_labels.csv"), &td("sim.npy"), "-o", &whole], None));
+    ok(&run(
+        "dem-sensor",
+        &["apply", "--sensor", &m, "--seed", "3", "--labels", &td("sim_labels.csv"), &td("sim.npy"), "-o", &whole],
+        None,
+    ));
     let whole = fs::read(&whole).unwrap();
     for cut in [["--shards", "3"], ["--records", "1000"], ["--records", "2000"]] {
         shards_equal_whole(
             dir.path(),
             &cut,
             &whole,
-            |s, first, labels| ["apply", "--sensor", &m, "--seed", "3", "--first-index", first, "--labels", labels, s].map(String::from).to_vec(),
+            |s, first, labels| {
+                ["apply", "--sensor", &m, "--seed", "3", "--first-index", first, "--labels", labels, s].map(String::from).to_vec()
+            },
             "dem-sensor",
         );
     }
@@ -184,11 +190,21 @@ fn bad_requests_are_refused_and_leave_no_shards() {
     assert_eq!(o.status.code(), Some(2));
     // More shards than records: as many shards as records, none empty.
     let one = arg(dir.path(), "one.npy");
-    ok(&run("dem-filter", &["--index", &{
-        let p = arg(dir.path(), "i.csv");
-        fs::write(&p, "index\n0\n1\n").unwrap();
-        p
-    }, &td("sim.npy"), "-o", &one], None));
+    ok(&run(
+        "dem-filter",
+        &[
+            "--index",
+            &{
+                let p = arg(dir.path(), "i.csv");
+                fs::write(&p, "index\n0\n1\n").unwrap();
+                p
+            },
+            &td("sim.npy"),
+            "-o",
+            &one,
+        ],
+        None,
+    ));
     let rows = manifest(ok(&run("dem-split", &["--shards", "5", "--out", &prefix, &one], None)));
     assert_eq!(rows.iter().map(|r| r[2].as_str()).collect::<Vec<_>>(), ["1", "1"]);
 }
@@ -207,7 +223,8 @@ fn dem_synth_by_run_ranges_equals_the_whole_world() {
         assert_eq!(fs::read(&joined).unwrap(), fs::read(d(&format!("whole/{f}"))).unwrap(), "{f}");
     }
     // Labels: the same rows, each shard indexed from 0, the run in `sequence`.
-    let rows = |p: &str| fs::read_to_string(p).unwrap().lines().skip(1).map(|l| l.split_once(',').unwrap().1.to_string()).collect::<Vec<_>>();
+    let rows =
+        |p: &str| fs::read_to_string(p).unwrap().lines().skip(1).map(|l| l.split_once(',').unwrap().1.to_string()).collect::<Vec<_>>();
     let mut joined = rows(&d("a/sim_labels.csv"));
     joined.extend(rows(&d("b/sim_labels.csv")));
     assert_eq!(joined, rows(&d("whole/sim_labels.csv")));
@@ -240,9 +257,24 @@ fn dem_eval_shard_tables_merge_into_the_whole() {
     assert_eq!(rows.len(), 8);
     for method in [vec!["--model", model.as_str()], vec!["--identity"]] {
         let common = |sim: &str, labels: &str| -> Vec<String> {
-            let mut a: Vec<String> = ["--sim", sim, "--real", &real, "--pairs", &pairs, "--sim-labels", labels, "--by", "terrain", "--name", "m", "--format", "csv"]
-                .map(String::from)
-                .to_vec();
+            let mut a: Vec<String> = [
+                "--sim",
+                sim,
+                "--real",
+                &real,
+                "--pairs",
+                &pairs,
+                "--sim-labels",
+                labels,
+                "--by",
+                "terrain",
+                "--name",
+                "m",
+                "--format",
+                "csv",
+            ]
+            .map(String::from)
+            .to_vec();
             a.extend(method.iter().map(|s| s.to_string()));
             a
         };
@@ -338,7 +370,11 @@ fn the_manifest_never_overwrites_an_input() {
     for (target, args, stdin, what) in cases {
         let o = split_appending_to(target, &args, stdin);
         assert_eq!(o.status.code(), Some(2), "{what}: {}", stderr(&o));
-        assert!(stderr(&o).contains("output stdout would overwrite the input") && stderr(&o).lines().count() == 1, "{what}: {}", stderr(&o));
+        assert!(
+            stderr(&o).contains("output stdout would overwrite the input") && stderr(&o).lines().count() == 1,
+            "{what}: {}",
+            stderr(&o)
+        );
         assert!(files(d) == before, "{what}: the folder changed");
     }
 }
@@ -369,11 +405,7 @@ fn a_refused_or_failed_split_leaves_the_earlier_one_untouched() {
     ok(&run("dem-split", &["--records", "1000", "--labels", &td("sim_labels.csv"), "--out", &prefix, &sim], None));
     let before = files(&out);
     assert_eq!(before.len(), 8);
-    let cases = [
-        (&short, "short.csv: has 3024 rows but"),
-        (&long, "long.csv: has 3026 rows but"),
-        (&bad, "bad.csv: line 2000"),
-    ];
+    let cases = [(&short, "short.csv: has 3024 rows but"), (&long, "long.csv: has 3026 rows but"), (&bad, "bad.csv: line 2000")];
     for (l, says) in cases {
         let o = run("dem-split", &["--records", "1000", "--labels", l, "--out", &prefix, &sim], None);
         assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
@@ -407,7 +439,10 @@ fn a_split_replaces_an_earlier_split_to_the_same_prefix() {
     let names: Vec<String> = files(d).into_iter().map(|f| f.0).collect();
     assert_eq!(names, ["part-00000.npy", "part-00001.npy", "part-00001.npy.out"]);
     let e = stderr(&o);
-    assert!(e.contains("removed 6 files an earlier split to this prefix left beyond these 2 shards") && e.contains("part-00003_labels.csv"), "{e}");
+    assert!(
+        e.contains("removed 6 files an earlier split to this prefix left beyond these 2 shards") && e.contains("part-00003_labels.csv"),
+        "{e}"
+    );
     // The input named as a shard of the prefix is never removed.
     let input = arg(d, "part-00007.npy");
     fs::copy(&sim, &input).unwrap();
@@ -450,7 +485,11 @@ fn a_killed_split_leaves_only_temp_files_the_next_run_removes() {
     drop(stdin);
     let left = files(d);
     assert!(left.len() >= 7, "{:?}", left.iter().map(|f| &f.0).collect::<Vec<_>>());
-    assert!(left.iter().all(|(n, _)| n.starts_with('.') && n.contains("k-0000") && n.ends_with(".tmp")), "only temp files: {:?}", left.iter().map(|f| &f.0).collect::<Vec<_>>());
+    assert!(
+        left.iter().all(|(n, _)| n.starts_with('.') && n.contains("k-0000") && n.ends_with(".tmp")),
+        "only temp files: {:?}",
+        left.iter().map(|f| &f.0).collect::<Vec<_>>()
+    );
     let o = run("dem-split", &["--records", "1000", "--out", &prefix, &td("sim.npy")], None);
     ok(&o);
     assert!(stderr(&o).contains("a temp file left by a killed run"), "{}", stderr(&o));

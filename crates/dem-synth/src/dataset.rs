@@ -95,8 +95,21 @@ pub struct MapsOut {
 
 /// Header of `maps.csv`.
 pub const MAPS_CSV_HEADER: [&str; 15] = [
-    "index", "sequence", "time", "center_x", "center_y", "resolution", "x", "y", "z", "yaw", "pitch", "flipper_fl",
-    "flipper_fr", "flipper_rl", "flipper_rr",
+    "index",
+    "sequence",
+    "time",
+    "center_x",
+    "center_y",
+    "resolution",
+    "x",
+    "y",
+    "z",
+    "yaw",
+    "pitch",
+    "flipper_fl",
+    "flipper_fr",
+    "flipper_rl",
+    "flipper_rr",
 ];
 
 impl MapsOut {

@@ -126,8 +126,7 @@ impl ElevationMap {
     fn index(&self, x: f64, y: f64) -> Option<usize> {
         let i = ((x - self.x0) / self.cfg.resolution).floor();
         let j = ((y - self.y0) / self.cfg.resolution).floor();
-        (i >= 0.0 && j >= 0.0 && (i as usize) < self.nx && (j as usize) < self.ny)
-            .then(|| i as usize * self.ny + j as usize)
+        (i >= 0.0 && j >= 0.0 && (i as usize) < self.nx && (j as usize) < self.ny).then(|| i as usize * self.ny + j as usize)
     }
 
     /// Start a frame at `pose`: process noise, then forget what left the window.

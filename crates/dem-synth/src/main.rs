@@ -3,9 +3,9 @@
 use std::process::ExitCode;
 
 use clap::Parser;
-use dem_synth::{self as synth, CameraConfig, DatasetConfig, DriftConfig, MapConfig, RunConfig, Stages, VibrationConfig};
 use dem_core::cli::{self, value};
 use dem_core::Terrain;
+use dem_synth::{self as synth, CameraConfig, DatasetConfig, DriftConfig, MapConfig, RunConfig, Stages, VibrationConfig};
 
 /// Simulate robot runs across flat ground, stairs, pallets and other terrain,
 /// and write for every step the exact sim DEM and, for the first
@@ -20,7 +20,9 @@ use dem_core::Terrain;
 /// also DIR/maps.npy and DIR/maps.csv: the 5 cm elevation map after every
 /// measured frame, for testing dem-import (docs/dem-synth.md).
 #[derive(Parser)]
-#[command(version, after_long_help = "Examples:
+#[command(
+    version,
+    after_long_help = "Examples:
   dem-synth --out run/ --runs 400 --real-runs 20 --seed 1
   dem-synth --out shadowless/ --no-occlusion --seed 1      # same worlds, one effect hidden
   dem-synth --out still/ --no-drift --no-latency --no-extrinsic --no-vibration --seed 1   # sensor stages only
@@ -28,7 +30,8 @@ use dem_core::Terrain;
   dem-synth --out high/ --camera-height 0.7 --camera-tilt 25 --seed 2   # another camera mount
   dem-synth --out maps/ --runs 4 --real-runs 2 --seed 1 --emit-maps     # + the 5 cm maps behind real.npy
   dem-synth --out run/ && dem-render --compare run/sim.npy run/real.npy \\
-      --row-labels sim,measured --start 40 --count 12 -o pairs.png")]
+      --row-labels sim,measured --start 40 --count 12 -o pairs.png"
+)]
 struct Args {
     /// Output directory (created if missing).
     #[arg(short, long)]
@@ -150,12 +153,8 @@ fn main() -> ExitCode {
         if let Some(n) = a.threads {
             rayon::ThreadPoolBuilder::new().num_threads(n).build_global()?;
         }
-        let camera = CameraConfig {
-            height: a.camera_height,
-            forward: a.camera_forward,
-            tilt_deg: a.camera_tilt,
-            ..CameraConfig::default()
-        };
+        let camera =
+            CameraConfig { height: a.camera_height, forward: a.camera_forward, tilt_deg: a.camera_tilt, ..CameraConfig::default() };
         let stages = Stages {
             fov: !a.no_fov,
             occlusion: !a.no_occlusion,

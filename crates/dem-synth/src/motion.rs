@@ -301,7 +301,8 @@ mod tests {
 
     #[test]
     fn edges_under_the_tracks_are_stair_rises_and_none_on_flat_ground() {
-        let stairs = World { terrain: Terrain::StairsUp, shape: Shape::Stairs { x0: 1.0, rise: 0.17, run: 0.3, steps: 6 }, dark_patches: vec![] };
+        let stairs =
+            World { terrain: Terrain::StairsUp, shape: Shape::Stairs { x0: 1.0, rise: 0.17, run: 0.3, steps: 6 }, dark_patches: vec![] };
         let flat = World { terrain: Terrain::Flat, shape: Shape::Flat, dark_patches: vec![] };
         let on = Pose::rest_on(&stairs, 1.5, 0.0, 0.0);
         assert!((edge_under_tracks(&stairs, &on) - 0.17).abs() < 1e-9);

@@ -119,11 +119,7 @@ mod tests {
     use dem_core::format::Terrain;
 
     fn stairs(rise: f64) -> World {
-        World {
-            terrain: Terrain::StairsUp,
-            shape: Shape::Stairs { x0: 1.0, rise, run: 0.3, steps: 6 },
-            dark_patches: vec![],
-        }
+        World { terrain: Terrain::StairsUp, shape: Shape::Stairs { x0: 1.0, rise, run: 0.3, steps: 6 }, dark_patches: vec![] }
     }
 
     #[test]

@@ -5,11 +5,11 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
+use super::camera::Hit;
 use super::camera::{observe_tilted, CameraConfig, Stages};
 use super::elevation_map::{ElevationMap, MapConfig, MapWindow};
 use super::motion::{edge_under_tracks, registration, vibration_sd, CameraError, Drift, DriftConfig, VibrationConfig, SLIP_EDGE};
 use super::pose::Pose;
-use super::camera::Hit;
 use super::terrain::World;
 use dem_core::format::{col_center_y, empty_dem, row_center_x, Dem, DemCells, Terrain, COLS, GRID_ROWS};
 

@@ -123,15 +123,8 @@ impl World {
         };
         let area = 8.0 * 4.0;
         let n = rng_poisson(patch_density * area, rng);
-        let dark_patches = (0..n)
-            .map(|_| {
-                [
-                    x_obstacle + rng.gen_range(-4.0..4.0),
-                    rng.gen_range(-2.0..2.0),
-                    rng.gen_range(0.04..0.15),
-                ]
-            })
-            .collect();
+        let dark_patches =
+            (0..n).map(|_| [x_obstacle + rng.gen_range(-4.0..4.0), rng.gen_range(-2.0..2.0), rng.gen_range(0.04..0.15)]).collect();
         World { terrain, shape, dark_patches }
     }
 

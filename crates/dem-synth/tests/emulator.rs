@@ -131,7 +131,6 @@ fn same_seed_gives_the_same_measured_dems() {
     assert_eq!(a, b);
 }
 
-
 // ---- The motion stages: drift, latency, extrinsic, vibration ----
 
 use dem_synth::run::{drive as drive_path, simulate, Step, Trajectory};
@@ -261,7 +260,7 @@ fn drift_blurs_the_rows_seen_earlier_on_stairs_and_pallets() {
             on += run(&with(true, false, false, false));
         }
         eprintln!("{terrain:?}: rows behind disagree with sim by {on} with drift, {off} without");
-    assert!(on > 1.2 * off, "{terrain:?}: rows behind disagree with sim by {on} with drift, {off} without");
+        assert!(on > 1.2 * off, "{terrain:?}: rows behind disagree with sim by {on} with drift, {off} without");
     }
 }
 

@@ -45,10 +45,7 @@ fn first_runs_reproduce_the_committed_testdata() {
         let fresh = npy::read_all(&format!("{out}/{f}")).unwrap();
         let committed = npy::read_all(testdata(f).to_str().unwrap()).unwrap();
         assert!(!fresh.is_empty());
-        assert!(
-            fresh[..] == committed[..fresh.len()],
-            "testdata/{f} no longer matches dem-synth: run `make testdata` and commit"
-        );
+        assert!(fresh[..] == committed[..fresh.len()], "testdata/{f} no longer matches dem-synth: run `make testdata` and commit");
     }
 }
 
@@ -164,10 +161,8 @@ fn outputs_are_consistent_and_numpy_reads_them() {
         // Same pose, same attitude row.
         assert_eq!(sim[p.sim_index as usize].attitude(), real[p.real_index as usize].attitude());
     }
-    let shape = py(
-        dir.path(),
-        &format!("import numpy as np; a=np.load('{out}/real.npy'); print(a.shape, a.dtype, int(np.isnan(a).sum()))"),
-    );
+    let shape =
+        py(dir.path(), &format!("import numpy as np; a=np.load('{out}/real.npy'); print(a.shape, a.dtype, int(np.isnan(a).sum()))"));
     assert_eq!(shape.trim(), format!("({}, 21, 5, 2) float32 0", real.len()));
 }
 
@@ -334,9 +329,7 @@ fn emit_maps_rebuilds_every_measured_dem_and_changes_nothing_else() {
     for m in values.chunks_exact(2 * n * n) {
         assert!(m[..n * n].iter().zip(&m[n * n..]).all(|(h, v)| h.is_nan() == v.is_nan()));
     }
-    let shape = py(
-        dir.path(),
-        &format!("import numpy as np; a=np.load('{maps}/maps.npy'); print(a.shape, a.dtype, a.flags['C_CONTIGUOUS'])"),
-    );
+    let shape =
+        py(dir.path(), &format!("import numpy as np; a=np.load('{maps}/maps.npy'); print(a.shape, a.dtype, a.flags['C_CONTIGUOUS'])"));
     assert_eq!(shape.trim(), format!("({}, 2, 80, 80) float32 True", npy::read_all(&format!("{maps}/real.npy")).unwrap().len()));
 }

@@ -44,9 +44,7 @@ pub fn run(name: &str, args: &[&str], stdin: Option<Vec<u8>>) -> Output {
 
 /// Run a prepared command with optional stdin bytes.
 pub fn run_cmd(cmd: &mut Command, stdin: Option<Vec<u8>>) -> Output {
-    cmd.stdin(if stdin.is_some() { Stdio::piped() } else { Stdio::null() })
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped());
+    cmd.stdin(if stdin.is_some() { Stdio::piped() } else { Stdio::null() }).stdout(Stdio::piped()).stderr(Stdio::piped());
     let mut child = cmd.spawn().expect("spawn");
     let feeder = stdin.map(|bytes| {
         let mut pipe = child.stdin.take().expect("stdin");
@@ -64,12 +62,7 @@ pub fn run_cmd(cmd: &mut Command, stdin: Option<Vec<u8>>) -> Output {
 
 /// Assert success and return stdout.
 pub fn ok(out: &Output) -> &[u8] {
-    assert!(
-        out.status.success(),
-        "exit {:?}\nstderr:\n{}",
-        out.status.code(),
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert!(out.status.success(), "exit {:?}\nstderr:\n{}", out.status.code(), String::from_utf8_lossy(&out.stderr));
     &out.stdout
 }
 

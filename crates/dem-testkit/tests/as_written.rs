@@ -44,7 +44,8 @@ const TOOLS: [&[&str]; 19] = [
 ];
 
 /// Examples not run, each with the reason.
-const NOT_RUN: [(&str, &str); 1] = [("scripts/transfer.sh", "the whole downstream test on testdata, minutes of training; `make demo` runs it")];
+const NOT_RUN: [(&str, &str); 1] =
+    [("scripts/transfer.sh", "the whole downstream test on testdata, minutes of training; `make demo` runs it")];
 
 /// Runs (and measured runs) of every world the examples make.
 const RUNS: &str = "6";
@@ -232,16 +233,16 @@ impl Scratch {
     fn new() -> Scratch {
         let dir = tempdir();
         let work = dir.path().to_path_buf();
-    // `python` as the examples call it: the test's interpreter.
-    let shims = work.join(".bin");
-    std::fs::create_dir(&shims).unwrap();
-    // A script, not a symlink: a venv's python finds its packages by the
-    // path it was started from.
-    let shim = shims.join("python");
-    std::fs::write(&shim, format!("#!/bin/sh\nexec '{}' \"$@\"\n", python().display())).unwrap();
-    std::fs::set_permissions(&shim, std::os::unix::fs::PermissionsExt::from_mode(0o755)).unwrap();
-    let bins: PathBuf = bin("dem-cat").parent().unwrap().to_path_buf();
-    let path = format!("{}:{}:{}", bins.display(), shims.display(), std::env::var("PATH").unwrap_or_default());
+        // `python` as the examples call it: the test's interpreter.
+        let shims = work.join(".bin");
+        std::fs::create_dir(&shims).unwrap();
+        // A script, not a symlink: a venv's python finds its packages by the
+        // path it was started from.
+        let shim = shims.join("python");
+        std::fs::write(&shim, format!("#!/bin/sh\nexec '{}' \"$@\"\n", python().display())).unwrap();
+        std::fs::set_permissions(&shim, std::os::unix::fs::PermissionsExt::from_mode(0o755)).unwrap();
+        let bins: PathBuf = bin("dem-cat").parent().unwrap().to_path_buf();
+        let path = format!("{}:{}:{}", bins.display(), shims.display(), std::env::var("PATH").unwrap_or_default());
         let base = work.join("fixtures");
         std::fs::create_dir(&base).unwrap();
         let o = bash(&base, &path, FIXTURES);
@@ -325,11 +326,20 @@ fn every_help_example_runs() {
 
 #[test]
 fn small_sizes_only_shrink_worlds_and_epochs() {
-    assert_eq!(small("dem-synth --out run/ && dem-cat run/sim.npy | dem-render -o sim.png -"), "dem-synth --runs 6 --real-runs 6 --out run/ && dem-cat run/sim.npy | dem-render -o sim.png -");
+    assert_eq!(
+        small("dem-synth --out run/ && dem-cat run/sim.npy | dem-render -o sim.png -"),
+        "dem-synth --runs 6 --real-runs 6 --out run/ && dem-cat run/sim.npy | dem-render -o sim.png -"
+    );
     assert_eq!(small("dem-synth --out run/ --runs 400 --real-runs 20 --seed 1"), "dem-synth --out run/ --runs 6 --real-runs 6 --seed 1");
     assert_eq!(small("dem-synth --out maps/ --runs 4 --real-runs 2 --seed 1"), "dem-synth --out maps/ --runs 4 --real-runs 2 --seed 1");
-    assert_eq!(small("dem-synth --out w --runs 20 --seed 3 && dem-apply"), "dem-synth --real-runs 6 --out w --runs 6 --seed 3 && dem-apply");
+    assert_eq!(
+        small("dem-synth --out w --runs 20 --seed 3 && dem-apply"),
+        "dem-synth --real-runs 6 --out w --runs 6 --seed 3 && dem-apply"
+    );
     assert_eq!(small("dem-train --sim s.npy --out run/ --epochs 40 --resume"), "dem-train --sim s.npy --out run/ --epochs 2 --resume");
-    assert_eq!(small("dem-train --sim k.npy --out t/ --seed 1\ndem-train export t/"), "dem-train --epochs 1 --sim k.npy --out t/ --seed 1\ndem-train export t/");
+    assert_eq!(
+        small("dem-train --sim k.npy --out t/ --seed 1\ndem-train export t/"),
+        "dem-train --epochs 1 --sim k.npy --out t/ --seed 1\ndem-train export t/"
+    );
     assert_eq!(small("dem-render --compare a.npy b.npy -o x.png"), "dem-render --compare a.npy b.npy -o x.png");
 }

@@ -11,8 +11,20 @@ use dem_testkit::{bin, ok, run};
 
 /// Every tool of the workspace (install.rs checks the list against crates/).
 const TOOLS: [&str; 14] = [
-    "dem-apply", "dem-cat", "dem-clean-pallet", "dem-eval", "dem-fill-nans", "dem-filter", "dem-gap", "dem-import",
-    "dem-pair", "dem-render", "dem-sensor", "dem-split", "dem-synth", "dem-train",
+    "dem-apply",
+    "dem-cat",
+    "dem-clean-pallet",
+    "dem-eval",
+    "dem-fill-nans",
+    "dem-filter",
+    "dem-gap",
+    "dem-import",
+    "dem-pair",
+    "dem-render",
+    "dem-sensor",
+    "dem-split",
+    "dem-synth",
+    "dem-train",
 ];
 
 /// Terminal widths the help is printed at.

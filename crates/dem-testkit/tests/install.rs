@@ -6,8 +6,20 @@ use dem_testkit::{ok, run, stderr};
 
 /// Every tool of the workspace, as `make install` installs them.
 const TOOLS: [&str; 14] = [
-    "dem-apply", "dem-cat", "dem-clean-pallet", "dem-eval", "dem-fill-nans", "dem-filter", "dem-gap", "dem-import",
-    "dem-pair", "dem-render", "dem-sensor", "dem-split", "dem-synth", "dem-train",
+    "dem-apply",
+    "dem-cat",
+    "dem-clean-pallet",
+    "dem-eval",
+    "dem-fill-nans",
+    "dem-filter",
+    "dem-gap",
+    "dem-import",
+    "dem-pair",
+    "dem-render",
+    "dem-sensor",
+    "dem-split",
+    "dem-synth",
+    "dem-train",
 ];
 
 #[test]

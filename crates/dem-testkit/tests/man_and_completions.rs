@@ -13,8 +13,20 @@ use dem_testkit::{ok, run, stderr, tempdir};
 
 /// Every tool of the workspace (install.rs checks the list against crates/).
 const TOOLS: [&str; 14] = [
-    "dem-apply", "dem-cat", "dem-clean-pallet", "dem-eval", "dem-fill-nans", "dem-filter", "dem-gap", "dem-import",
-    "dem-pair", "dem-render", "dem-sensor", "dem-split", "dem-synth", "dem-train",
+    "dem-apply",
+    "dem-cat",
+    "dem-clean-pallet",
+    "dem-eval",
+    "dem-fill-nans",
+    "dem-filter",
+    "dem-gap",
+    "dem-import",
+    "dem-pair",
+    "dem-render",
+    "dem-sensor",
+    "dem-split",
+    "dem-synth",
+    "dem-train",
 ];
 
 fn text(out: &[u8]) -> String {
@@ -219,12 +231,8 @@ fn completions_complete_every_subcommands_flags() {
             let [_, sub] = cmd.as_slice() else { continue };
             let fish_fn = format!("__fish_{}_using_subcommand {sub}\"", tool.replace('-', "_"));
             // The first `(SUB)` arm of the zsh script holds SUB's arguments.
-            let arm: String = zsh
-                .lines()
-                .skip_while(|l| l.trim() != format!("({sub})"))
-                .take_while(|l| l.trim() != ";;")
-                .collect::<Vec<_>>()
-                .join("\n");
+            let arm: String =
+                zsh.lines().skip_while(|l| l.trim() != format!("({sub})")).take_while(|l| l.trim() != ";;").collect::<Vec<_>>().join("\n");
             assert!(!arm.is_empty(), "zsh: no arm for {tool} {sub}");
             for flag in long_flags(&cmd) {
                 let long = flag.trim_start_matches("--");

@@ -70,7 +70,18 @@ fn closed_pipe_exits_0_for_csv_writers() {
     pair.args(["--match", "content", "--sim", &sim, "--real", &real, "--k", "50"]);
     assert_eq!(exit_after_reading(&mut pair, 100), Some(0));
     let mut pose = Command::new(bin("dem-pair"));
-    pose.args(["--match", "pose", "--sim-labels", &td("sim_labels.csv"), "--real-labels", &td("real_labels.csv"), "--max-offset", "5", "--max-yaw", "3"]);
+    pose.args([
+        "--match",
+        "pose",
+        "--sim-labels",
+        &td("sim_labels.csv"),
+        "--real-labels",
+        &td("real_labels.csv"),
+        "--max-offset",
+        "5",
+        "--max-yaw",
+        "3",
+    ]);
     assert_eq!(exit_after_reading(&mut pose, 100), Some(0));
     let mut filter = Command::new(bin("dem-filter"));
     filter.args([&big, "--emit-index", "-", "-o", "/dev/null"]);
@@ -184,8 +195,16 @@ fn infinite_values_are_refused_by_every_tool_naming_the_record() {
         ("dem-cat", vec![bad.clone(), "-o".into(), o("a.npy")], inf_says),
         ("dem-filter", vec![bad.clone(), "-o".into(), o("b.npy")], inf_says),
         ("dem-sensor", vec!["apply".into(), "--sensor".into(), id.clone(), bad.clone(), "-o".into(), o("c.npy")], inf_says),
-        ("dem-pair", vec!["--match".into(), "content".into(), "--sim".into(), bad.clone(), "--real".into(), real.clone(), "-o".into(), o("d.csv")], inf_says),
-        ("dem-eval", vec!["--sim".into(), bad.clone(), "--real".into(), real.clone(), "--pairs".into(), pairs.clone(), "--identity".into()], inf_says),
+        (
+            "dem-pair",
+            vec!["--match".into(), "content".into(), "--sim".into(), bad.clone(), "--real".into(), real.clone(), "-o".into(), o("d.csv")],
+            inf_says,
+        ),
+        (
+            "dem-eval",
+            vec!["--sim".into(), bad.clone(), "--real".into(), real.clone(), "--pairs".into(), pairs.clone(), "--identity".into()],
+            inf_says,
+        ),
         ("dem-gap", vec!["--sim".into(), bad.clone(), "--real".into(), real.clone(), "--out".into(), o("gap")], inf_says),
         ("dem-fill-nans", vec![bad.clone(), "-o".into(), o("e.npy")], inf_says),
         ("dem-clean-pallet", vec![bad.clone(), "-o".into(), o("f.npy")], inf_says),
@@ -211,11 +230,7 @@ fn onnx_model(dir: &Path, name: &str, op: &str) -> String {
 fn dem_eval_refuses_nan_and_inf_model_output() {
     let dir = tempdir();
     let eval = |model: &str| {
-        run(
-            "dem-eval",
-            &["--sim", &td("sim.npy"), "--real", &td("real.npy"), "--pairs", &td("pairs.csv"), "--model", model],
-            None,
-        )
+        run("dem-eval", &["--sim", &td("sim.npy"), "--real", &td("real.npy"), "--pairs", &td("pairs.csv"), "--model", model], None)
     };
     // log(-0.07) is NaN; 1/0 (a missing cell's height) is an infinity.
     let nan = onnx_model(dir.path(), "log.onnx", "Log");
@@ -268,7 +283,11 @@ fn index_csvs_past_the_end_are_refused_naming_the_line() {
     let idx = arg(dir.path(), "i.csv");
     fs::write(&idx, "index\n0\n5\n3025\n").unwrap();
     let out = arg(dir.path(), "k.npy");
-    refused(&run("dem-filter", &["--index", &idx, &td("sim.npy"), "-o", &out], None), "dem-filter", &["i.csv: line 4", "index 3025 is past the end"]);
+    refused(
+        &run("dem-filter", &["--index", &idx, &td("sim.npy"), "-o", &out], None),
+        "dem-filter",
+        &["i.csv: line 4", "index 3025 is past the end"],
+    );
     assert!(!Path::new(&out).exists());
     refused(
         &run("dem-render", &["--index", &idx, &td("sim.npy"), "-o", &arg(dir.path(), "k.png")], None),
@@ -331,12 +350,7 @@ fn a_killed_write_to_a_redirected_stdout_reads_up_to_its_last_complete_chunk() {
     let dir = tempdir();
     let path = arg(dir.path(), "redirected.npy");
     let file = fs::File::create(&path).unwrap();
-    let mut child = Command::new(bin("dem-cat"))
-        .stdin(Stdio::piped())
-        .stdout(file)
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
+    let mut child = Command::new(bin("dem-cat")).stdin(Stdio::piped()).stdout(file).stderr(Stdio::null()).spawn().unwrap();
     // Feed five arrays of 3,025 records and keep stdin open, so dem-cat
     // waits, blocked, with its work on disk.
     let big = fs::read(td("sim.npy")).unwrap();
@@ -395,7 +409,11 @@ fn dem_gap_checks_its_out_folder_before_the_analysis() {
     fs::create_dir(&gap).unwrap();
     let model = gap.join("sensor.json");
     fs::write(&model, r#"{"effects":[]}"#).unwrap();
-    let o = run("dem-gap", &["--sim", &td("sim.npy"), "--real", &td("real.npy"), "--sensor", &model.to_string_lossy(), "--out", &gap.to_string_lossy()], None);
+    let o = run(
+        "dem-gap",
+        &["--sim", &td("sim.npy"), "--real", &td("real.npy"), "--sensor", &model.to_string_lossy(), "--out", &gap.to_string_lossy()],
+        None,
+    );
     refused(&o, "dem-gap", &["would overwrite the input"]);
 }
 
@@ -439,11 +457,15 @@ fn dem_eval_in_blocks_equals_identity_whatever_the_array_boundaries() {
     assert_eq!(fs::read(&e1).unwrap(), fs::read(&sim).unwrap(), "every record, in order, as one array");
     // A prediction file one record short is refused, naming it.
     let short = arg(dir.path(), "short.npy");
-    ok(&run("dem-filter", &["--min-valid", "0", &sim, "-o", &short, "--index", &{
-        let p = arg(dir.path(), "keep.csv");
-        fs::write(&p, format!("index\n{}", (0..9074).map(|i| format!("{i}\n")).collect::<String>())).unwrap();
-        p
-    }], None));
+    ok(&run(
+        "dem-filter",
+        &["--min-valid", "0", &sim, "-o", &short, "--index", &{
+            let p = arg(dir.path(), "keep.csv");
+            fs::write(&p, format!("index\n{}", (0..9074).map(|i| format!("{i}\n")).collect::<String>())).unwrap();
+            p
+        }],
+        None,
+    ));
     let o = run("dem-eval", &["--sim", &sim, "--real", &r, "--pairs", &pairs, "--pred", &short], None);
     refused(&o, "dem-eval", &["short.npy: has 9074 records", "one record per sim record"]);
 }

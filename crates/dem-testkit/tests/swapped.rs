@@ -27,7 +27,20 @@ fn commands(d: &Path, sim: &str, real: &str, pairs: &str, run_name: &str) -> Vec
         ),
         (
             "dem-train",
-            s(&["--sim", sim, "--real", real, "--width", "4", "--batch", "4", "--max-steps", "1", "-o", &arg(d, &format!("{run_name}-run"))]),
+            s(&[
+                "--sim",
+                sim,
+                "--real",
+                real,
+                "--width",
+                "4",
+                "--batch",
+                "4",
+                "--max-steps",
+                "1",
+                "-o",
+                &arg(d, &format!("{run_name}-run")),
+            ]),
         ),
     ]
 }
@@ -48,7 +61,10 @@ fn swapped_inputs_warn_naming_both_files_and_the_right_order_does_not() {
         let warnings: Vec<&str> = e.lines().filter(|l| l.contains("look swapped")).collect();
         assert_eq!(warnings.len(), 1, "{tool} {a:?}: one warning line:\n{e}");
         let w = warnings[0];
-        assert!(w.contains(&format!("--sim {real}")) && w.contains(&format!("--real {sim}")) && w.contains("--no-swap-check"), "{tool}: {w}");
+        assert!(
+            w.contains(&format!("--sim {real}")) && w.contains(&format!("--real {sim}")) && w.contains("--no-swap-check"),
+            "{tool}: {w}"
+        );
         // Silenced.
         let q: Vec<&str> = quiet_args.iter().map(String::as_str).chain(["--no-swap-check"]).collect();
         let quiet = run(tool, &q, None);

@@ -72,8 +72,12 @@ fn vocabulary() -> BTreeMap<String, BTreeMap<String, Vec<String>>> {
 /// `--index-csv` and `--index`, `--labels-sim` and `--sim-labels` are one
 /// concept each.
 fn concept(flag: &str) -> Vec<String> {
-    let mut words: Vec<String> =
-        flag.trim_start_matches('-').split('-').filter(|w| !["csv", "file", "path", "npy", "json", "onnx"].contains(w)).map(String::from).collect();
+    let mut words: Vec<String> = flag
+        .trim_start_matches('-')
+        .split('-')
+        .filter(|w| !["csv", "file", "path", "npy", "json", "onnx"].contains(w))
+        .map(String::from)
+        .collect();
     words.sort();
     words
 }
@@ -218,7 +222,10 @@ fn every_output_is_dash_o_out() {
     assert!(options(&["dem-gap"]).contains("--sim-labels <") && options(&["dem-gap"]).contains("--real-labels <"));
     assert!(options(&["dem-eval"]).contains("--sim-labels <"));
     let pair = options(&["dem-pair"]);
-    assert!(pair.contains("--match <") && pair.contains("--max-offset <") && pair.contains("--max-error <") && !pair.contains("--by"), "{pair}");
+    assert!(
+        pair.contains("--match <") && pair.contains("--max-offset <") && pair.contains("--max-error <") && !pair.contains("--by"),
+        "{pair}"
+    );
 }
 
 #[test]
@@ -234,7 +241,21 @@ fn the_forms_the_help_shows_work() {
     // dem-pair expand takes -o as every other tool does.
     let (sim, real, pairs) = (testdata("sim.npy"), testdata("real.npy"), testdata("pairs.csv"));
     let out = arg(d, "expanded");
-    let o = run("dem-pair", &["expand", "--pairs", &pairs.display().to_string(), "--sim", &sim.display().to_string(), "--real", &real.display().to_string(), "-o", &out], None);
+    let o = run(
+        "dem-pair",
+        &[
+            "expand",
+            "--pairs",
+            &pairs.display().to_string(),
+            "--sim",
+            &sim.display().to_string(),
+            "--real",
+            &real.display().to_string(),
+            "-o",
+            &out,
+        ],
+        None,
+    );
     ok(&o);
     assert!(std::path::Path::new(&out).join("pairs.csv").exists());
 }

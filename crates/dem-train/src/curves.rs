@@ -4,8 +4,8 @@
 
 use std::path::Path;
 
-use dem_render::plot::{line_plot, stack, Series, PALETTE};
 use dem_core::{output, table, DemError};
+use dem_render::plot::{line_plot, stack, Series, PALETTE};
 use serde::Deserialize;
 
 /// A row of `losses.csv` (runs from before the height term lack `height`).
@@ -36,7 +36,8 @@ struct ValRow {
 pub fn run(dir: &str, out: &str) -> anyhow::Result<()> {
     let file = |name: &str| Path::new(dir).join(name).to_string_lossy().into_owned();
     let losses: Vec<LossRow> = table::read_rows(&file("losses.csv"), &["step", "epoch", "gan", "cycle", "pair_y", "pair_x"])?;
-    let last = losses.iter().map(|r| r.epoch).max().filter(|&e| e > 0).ok_or_else(|| DemError::input(file("losses.csv"), "holds no steps"))?;
+    let last =
+        losses.iter().map(|r| r.epoch).max().filter(|&e| e > 0).ok_or_else(|| DemError::input(file("losses.csv"), "holds no steps"))?;
     let xs: Vec<f64> = (1..=last).map(|e| e as f64).collect();
     let per_epoch = |f: fn(&LossRow) -> f64| -> Vec<f64> {
         let mut sum = vec![0.0; last as usize];

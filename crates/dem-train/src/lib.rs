@@ -20,10 +20,10 @@ use std::path::Path;
 
 use anyhow::Result;
 use dem_core::{cli, npy, output, table, DemError};
-use dem_onnx::export::RESIDUAL_KEY;
-use dem_onnx::Heights;
 use dem_nn::train::checkpoint;
 use dem_nn::train::{CycleGan, Sampler, TrainData};
+use dem_onnx::export::RESIDUAL_KEY;
+use dem_onnx::Heights;
 use dem_sensor::SensorModel;
 
 pub use session::RunOptions;
@@ -74,7 +74,8 @@ fn train_in_folder(cfg: &TrainConfig) -> Result<()> {
     // One writer per run folder: a second run, or a --resume beside a
     // running one, is refused while this lock is held (until we return).
     let _lock = session::lock(dir)?;
-    let inputs: Vec<&str> = [Some(&cfg.sim), Some(&cfg.real), cfg.pairs.as_ref(), cfg.sensor.as_ref()].into_iter().flatten().map(String::as_str).collect();
+    let inputs: Vec<&str> =
+        [Some(&cfg.sim), Some(&cfg.real), cfg.pairs.as_ref(), cfg.sensor.as_ref()].into_iter().flatten().map(String::as_str).collect();
     let run_files: Vec<String> = session::FILES.iter().map(|f| run_file(dir, f)).collect();
     output::check_outputs(&inputs, &run_files.iter().map(String::as_str).collect::<Vec<_>>())?;
     let mut sim = npy::read_all(&cfg.sim)?;
@@ -84,7 +85,8 @@ fn train_in_folder(cfg: &TrainConfig) -> Result<()> {
         None => Vec::new(),
     };
     let sensor = cfg.sensor.as_deref().map(SensorModel::read).transpose()?;
-    let mut files = vec![provenance::data_file("sim", &cfg.sim, Some(sim.len()))?, provenance::data_file("real", &cfg.real, Some(real.len()))?];
+    let mut files =
+        vec![provenance::data_file("sim", &cfg.sim, Some(sim.len()))?, provenance::data_file("real", &cfg.real, Some(real.len()))?];
     if let Some(p) = &cfg.pairs {
         files.push(provenance::data_file("pairs", p, Some(pairs.len()))?);
     }

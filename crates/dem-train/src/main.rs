@@ -18,7 +18,10 @@ use dem_train::{RunOptions, Settings, TrainConfig};
 /// seed and thread count give the same model; --resume continues a run
 /// exactly where its last checkpoint left it.
 #[derive(Parser)]
-#[command(version, args_conflicts_with_subcommands = true, after_long_help = "Examples:
+#[command(
+    version,
+    args_conflicts_with_subcommands = true,
+    after_long_help = "Examples:
   dem-pair --match pose --sim-labels sim_labels.csv --real-labels real_labels.csv --val-fraction 0.5 -o pairs.csv
   dem-train --sim sim.npy --real real.npy --pairs pairs.csv --out run/ --epochs 20
   dem-train --sim sim.npy --real real.npy --pairs pairs.csv --out run/ --epochs 40 --resume   # go on to 40
@@ -28,7 +31,8 @@ use dem_train::{RunOptions, Settings, TrainConfig};
   dem-train export run/ -o gy.onnx --residual gap/sensor.json   # the generator with what its network leaves
   dem-train export run/ -o gy.onnx --heights input --residual gap/sensor.json   # its holes, the sim's heights, then the residual
   dem-train curves run/ -o curves.png                   # losses and val error per epoch
-  dem-apply --model gy.onnx < sim.npy > realistic.npy")]
+  dem-apply --model gy.onnx < sim.npy > realistic.npy"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Option<Command>,

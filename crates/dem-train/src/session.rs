@@ -69,11 +69,7 @@ pub fn epochs_of(opts: &RunOptions, steps_per_epoch: u64) -> u64 {
 /// The pair error table of `preds[i]` (G_Y of key i) against `reals[i]`,
 /// summarised as dem-eval does.
 pub fn pair_table(preds: &[Dem], reals: &[Vec<&Dem>]) -> Option<ErrorSummary> {
-    let e: Vec<f64> = preds
-        .iter()
-        .zip(reals)
-        .filter_map(|(p, ys)| metric::pair_error(ys.iter().copied(), p).map(|(_, e)| e))
-        .collect();
+    let e: Vec<f64> = preds.iter().zip(reals).filter_map(|(p, ys)| metric::pair_error(ys.iter().copied(), p).map(|(_, e)| e)).collect();
     ErrorSummary::of(&e)
 }
 
@@ -136,7 +132,12 @@ fn check_sets(data: &TrainData) -> (Vec<Dem>, Vec<Dem>) {
 pub fn lock(dir: &str) -> Result<File> {
     fs::create_dir_all(dir).map_err(|source| DemError::Open { path: dir.into(), source })?;
     let p = path(dir, ".lock");
-    let f = OpenOptions::new().create(true).truncate(false).write(true).open(&p).map_err(|source| DemError::Open { path: p.clone(), source })?;
+    let f = OpenOptions::new()
+        .create(true)
+        .truncate(false)
+        .write(true)
+        .open(&p)
+        .map_err(|source| DemError::Open { path: p.clone(), source })?;
     match f.try_lock() {
         Ok(()) => Ok(f),
         Err(fs::TryLockError::WouldBlock) => Err(DemError::Usage(format!(
@@ -152,7 +153,9 @@ pub fn start(opts: &RunOptions, data: &TrainData) -> Result<()> {
     fs::create_dir_all(&opts.dir).with_context(|| format!("create {}", opts.dir))?;
     let ck = path(&opts.dir, "checkpoint.bin");
     if Path::new(&ck).exists() {
-        return Err(DemError::Usage(format!("{} already holds a run: pass --resume to continue it, or choose another --out", opts.dir)).into());
+        return Err(
+            DemError::Usage(format!("{} already holds a run: pass --resume to continue it, or choose another --out", opts.dir)).into()
+        );
     }
     for f in ["losses.csv", "val.csv"] {
         let p = path(&opts.dir, f);
@@ -175,7 +178,15 @@ pub fn resume(opts: &RunOptions) -> Result<(Meta, CycleGan)> {
 }
 
 fn fmt_losses(l: &Losses) -> String {
-    format!("G {:.3} (gan {:.3} cyc {:.3} pair {:.3} height {:.3}) D {:.3}", l.generator(), l.gan, l.cycle, l.pair_y + l.pair_x, l.height, l.disc)
+    format!(
+        "G {:.3} (gan {:.3} cyc {:.3} pair {:.3} height {:.3}) D {:.3}",
+        l.generator(),
+        l.gan,
+        l.cycle,
+        l.pair_y + l.pair_x,
+        l.height,
+        l.disc
+    )
 }
 
 /// Train from `meta.step` to the end of the run; returns the last table.
@@ -202,7 +213,18 @@ pub fn run(gan: &mut CycleGan, data: &TrainData, sampler: Sampler, mut meta: Met
         let l = gan.step(&batch);
         meta.step += 1;
         let epoch = step / spe + 1;
-        writeln!(losses, "{},{epoch},{},{},{},{},{},{},{}", meta.step, l.gan, l.cycle, l.pair_y, l.pair_x, l.generator(), l.disc, l.height)?;
+        writeln!(
+            losses,
+            "{},{epoch},{},{},{},{},{},{},{}",
+            meta.step,
+            l.gan,
+            l.cycle,
+            l.pair_y,
+            l.pair_x,
+            l.generator(),
+            l.disc,
+            l.height
+        )?;
         // Every step, so `tail -f losses.csv` and a plot of a running run
         // see it; a step takes far longer than the write.
         losses.flush()?;
@@ -218,7 +240,9 @@ pub fn run(gan: &mut CycleGan, data: &TrainData, sampler: Sampler, mut meta: Met
         if epoch_end {
             if let Some(row) = validate(gan, data) {
                 writeln!(val, "{epoch},{},{},{},{},{},{}", meta.step, row.count, row.lowest, row.highest, row.mean, row.median)?;
-                bar.suspend(|| cli::log(format!("epoch {epoch}: val pair error mean {:.4} median {:.4} ({} keys)", row.mean, row.median, row.count)));
+                bar.suspend(|| {
+                    cli::log(format!("epoch {epoch}: val pair error mean {:.4} median {:.4} ({} keys)", row.mean, row.median, row.count))
+                });
                 last = Some(row);
             }
         }
@@ -267,7 +291,13 @@ mod tests {
 
     #[test]
     fn epochs_given_are_epochs_trained() {
-        let opts = |epochs| RunOptions { dir: "run".into(), epochs, max_steps: None, checkpoint_every: None, log_every: std::time::Duration::from_secs(1) };
+        let opts = |epochs| RunOptions {
+            dir: "run".into(),
+            epochs,
+            max_steps: None,
+            checkpoint_every: None,
+            log_every: std::time::Duration::from_secs(1),
+        };
         assert_eq!(epochs_of(&opts(Some(100)), 127), 100);
         assert_eq!(epochs_of(&opts(None), 127), default_epochs(127));
     }

@@ -72,7 +72,8 @@ fn the_default_length_keeps_long_epochs_within_the_step_budget() {
     let (sim, real, pairs) = (td("sim.npy"), td("real.npy"), pairs(d.path()));
     let logged = |name: &str, batch: &str, extra: &[&str]| {
         let r = arg(d.path(), name);
-        let mut args = vec!["--sim", &sim, "--real", &real, "--pairs", &pairs, "--out", &r, "--width", "4", "--batch", batch, "--max-steps", "1"];
+        let mut args =
+            vec!["--sim", &sim, "--real", &real, "--pairs", &pairs, "--out", &r, "--width", "4", "--batch", batch, "--max-steps", "1"];
         args.extend_from_slice(extra);
         let out = run("dem-train", &args, None);
         ok(&out);
@@ -88,7 +89,11 @@ fn the_default_length_keeps_long_epochs_within_the_step_budget() {
     let help = run("dem-train", &["--help"], None);
     ok(&help);
     let words = String::from_utf8_lossy(&help.stdout).split_whitespace().collect::<Vec<_>>().join(" ");
-    let said = format!("[default: {}, or fewer when an epoch is long: as many whole epochs as reach {} steps]", dem_train::session::DEFAULT_EPOCHS, dem_train::session::STEP_BUDGET);
+    let said = format!(
+        "[default: {}, or fewer when an epoch is long: as many whole epochs as reach {} steps]",
+        dem_train::session::DEFAULT_EPOCHS,
+        dem_train::session::STEP_BUDGET
+    );
     assert!(words.contains(&said), "{words}");
 }
 
@@ -176,7 +181,13 @@ fn export_matches_the_trainer_in_onnxruntime_and_dem_apply() {
     let info = run("dem-apply", &["--model", &model, "--info"], None);
     ok(&info);
     let text = String::from_utf8_lossy(&info.stdout);
-    for want in ["engine: native generator (residual, width 4)", "dem.seed: 0", &format!("dem.data.sim: {}", peer[2]), "dem.validation:", "  epoch,step"] {
+    for want in [
+        "engine: native generator (residual, width 4)",
+        "dem.seed: 0",
+        &format!("dem.data.sim: {}", peer[2]),
+        "dem.validation:",
+        "  epoch,step",
+    ] {
         assert!(text.contains(want), "no {want:?} in\n{text}");
     }
     assert!(text.contains("dem.trained: 8 steps"), "{text}");
@@ -225,11 +236,14 @@ fn a_residual_sensor_model_travels_with_the_generator() {
     let mut lines = text.lines();
     let head = lines.next().unwrap().to_string();
     // A shard's labels are its own, indexed from 0 (as dem-split writes them).
-    let rows: Vec<String> =
-        lines.skip(120).take(80).enumerate().map(|(i, l)| format!("{i},{}", l.split_once(',').unwrap().1)).collect();
+    let rows: Vec<String> = lines.skip(120).take(80).enumerate().map(|(i, l)| format!("{i},{}", l.split_once(',').unwrap().1)).collect();
     std::fs::write(&shard_labels, format!("{head}\n{}\n", rows.join("\n"))).unwrap();
     let part = arg(d.path(), "part.npy");
-    ok(&run("dem-apply", &["--model", &model, "--labels", &shard_labels, "--seed", "5", "--first-index", "120", &shard, "-o", &part], None));
+    ok(&run(
+        "dem-apply",
+        &["--model", &model, "--labels", &shard_labels, "--seed", "5", "--first-index", "120", &shard, "-o", &part],
+        None,
+    ));
     assert_eq!(npy::read_all(&part).unwrap(), npy::read_all(&whole).unwrap()[120..].to_vec());
     // Labels shorter than the stream: refused, nothing written.
     let short = arg(d.path(), "short.npy");
@@ -239,7 +253,11 @@ fn a_residual_sensor_model_travels_with_the_generator() {
     assert!(!Path::new(&short).exists());
     // dem-eval --model scores what dem-apply writes.
     let pairs = arg(d.path(), "pairs200.csv");
-    std::fs::write(&pairs, std::iter::once("sim_index,real_index\n".to_string()).chain((0..200).map(|i| format!("{i},{i}\n"))).collect::<String>()).unwrap();
+    std::fs::write(
+        &pairs,
+        std::iter::once("sim_index,real_index\n".to_string()).chain((0..200).map(|i| format!("{i},{i}\n"))).collect::<String>(),
+    )
+    .unwrap();
     let real = td("real.npy");
     let eval = |extra: &[&str]| {
         let mut a = vec!["--sim", &sim, "--real", &real, "--pairs", &pairs, "--sim-labels", &labels, "--name", "g", "--format", "csv"];
@@ -319,7 +337,11 @@ fn a_generator_exported_with_input_heights_keeps_the_sims_heights() {
     assert_eq!(std::fs::read(&whole).unwrap(), std::fs::read(&piped).unwrap());
     // dem-eval --model scores what dem-apply writes.
     let pairs = arg(d.path(), "pairs150.csv");
-    std::fs::write(&pairs, std::iter::once("sim_index,real_index\n".to_string()).chain((0..150).map(|i| format!("{i},{i}\n"))).collect::<String>()).unwrap();
+    std::fs::write(
+        &pairs,
+        std::iter::once("sim_index,real_index\n".to_string()).chain((0..150).map(|i| format!("{i},{i}\n"))).collect::<String>(),
+    )
+    .unwrap();
     let real = td("real.npy");
     let eval = |extra: &[&str]| {
         let mut a = vec!["--sim", &sim, "--real", &real, "--pairs", &pairs, "--name", "g", "--format", "csv"];

@@ -83,11 +83,7 @@ pub fn parse_dict(text: &str) -> Result<ArrayHeader, String> {
     let dtype = match descr.as_str() {
         "<f4" => Dtype::F32,
         "<f8" => Dtype::F64,
-        other => {
-            return Err(format!(
-                "dtype {other:?} is not supported (expected '<f4', or '<f8' which is converted)"
-            ))
-        }
+        other => return Err(format!("dtype {other:?} is not supported (expected '<f4', or '<f8' which is converted)")),
     };
     if fortran {
         return Err("Fortran-order array; write it in C order (numpy.ascontiguousarray)".into());
@@ -198,9 +194,7 @@ impl Parser<'_> {
                 self.i += 1;
             }
             let digits = std::str::from_utf8(&self.s[start..self.i]).unwrap_or("");
-            dims.push(digits.parse().map_err(|_| {
-                format!("malformed header: expected a dimension at character {start}")
-            })?);
+            dims.push(digits.parse().map_err(|_| format!("malformed header: expected a dimension at character {start}"))?);
             self.ws();
             if !self.eat(b',') {
                 self.ws();

@@ -61,8 +61,12 @@ impl RecordIndex {
         self.file.read_exact(&mut bytes).map_err(|e| DemError::io(self.path.as_str(), e))?;
         let mut d = [0.0f32; RECORD_LEN];
         match a.dtype {
-            Dtype::F32 => d.iter_mut().zip(bytes.chunks_exact(4)).for_each(|(v, b)| *v = f32::from_le_bytes(b.try_into().expect("4 bytes"))),
-            Dtype::F64 => d.iter_mut().zip(bytes.chunks_exact(8)).for_each(|(v, b)| *v = f64::from_le_bytes(b.try_into().expect("8 bytes")) as f32),
+            Dtype::F32 => {
+                d.iter_mut().zip(bytes.chunks_exact(4)).for_each(|(v, b)| *v = f32::from_le_bytes(b.try_into().expect("4 bytes")))
+            }
+            Dtype::F64 => {
+                d.iter_mut().zip(bytes.chunks_exact(8)).for_each(|(v, b)| *v = f64::from_le_bytes(b.try_into().expect("8 bytes")) as f32)
+            }
         }
         canonicalize(&mut d).map_err(|reason| DemError::Npy { path: self.path.clone(), record: i, offset, reason })?;
         Ok(d)
@@ -106,9 +110,10 @@ impl ByIndex {
     pub fn get(&mut self, i: u64) -> Result<Dem> {
         match self {
             ByIndex::Indexed(idx) => idx.get(i),
-            ByIndex::Held(m, n) => m.get(&i).copied().ok_or_else(|| {
-                DemError::input("-", format!("record {i} asked for, but stdin held {n} records and it was not kept"))
-            }),
+            ByIndex::Held(m, n) => m
+                .get(&i)
+                .copied()
+                .ok_or_else(|| DemError::input("-", format!("record {i} asked for, but stdin held {n} records and it was not kept"))),
         }
     }
 

@@ -12,7 +12,7 @@ pub mod writer;
 
 pub use array::F32ArrayWriter;
 pub use index::{ByIndex, RecordIndex};
-pub use reader::{open, estimate_records, read_all, read_selected, ArrayExtent, NpyReader, CHUNK_RECORDS};
+pub use reader::{estimate_records, open, read_all, read_selected, ArrayExtent, NpyReader, CHUNK_RECORDS};
 pub use transform::{transform, transform_checked};
 pub use writer::{create, write_all, NpyWriter};
 

@@ -96,16 +96,7 @@ fn regular_file_len(stdin: &io::Stdin) -> Option<u64> {
 impl<R: Read> NpyReader<R> {
     /// Wrap a source; `total_len` is its size in bytes when known.
     pub fn new(src: R, path: impl Into<String>, total_len: Option<u64>) -> Self {
-        NpyReader {
-            src,
-            path: path.into(),
-            offset: 0,
-            total_len,
-            records: 0,
-            current: None,
-            nan_records: 0,
-            scratch: Vec::new(),
-        }
+        NpyReader { src, path: path.into(), offset: 0, total_len, records: 0, current: None, nan_records: 0, scratch: Vec::new() }
     }
 
     /// The path this reader was opened with.
@@ -289,10 +280,7 @@ impl<R: Read> NpyReader<R> {
                 return Err(self.bad_at(
                     self.records,
                     start,
-                    format!(
-                        "header declares {} records ({payload} bytes) but only {left} bytes follow",
-                        header.records
-                    ),
+                    format!("header declares {} records ({payload} bytes) but only {left} bytes follow", header.records),
                 ));
             }
         }

@@ -9,11 +9,7 @@ use crate::npy;
 /// `work` gets the index of the chunk's first record in the whole stream and
 /// the chunk; it may change, drop or keep records in place. Returns the
 /// number of records read and written.
-pub fn transform(
-    input: &str,
-    output: &str,
-    work: impl FnMut(u64, &mut Vec<Dem>) -> Result<()>,
-) -> Result<(u64, u64)> {
+pub fn transform(input: &str, output: &str, work: impl FnMut(u64, &mut Vec<Dem>) -> Result<()>) -> Result<(u64, u64)> {
     transform_checked(input, output, work, |_| Ok(()))
 }
 

@@ -24,8 +24,8 @@ use std::os::fd::AsFd;
 use super::header::{f32_header, HEADER_LEN};
 use super::reader::CHUNK_RECORDS;
 use crate::error::{DemError, Result};
-use crate::output::{is_special, open_special, resolve, temp_beside};
 use crate::format::{unwritable, Dem, RECORD_LEN};
+use crate::output::{is_special, open_special, resolve, temp_beside};
 
 enum Sink {
     /// One array with a patched header; `temp` is set for a named file.
@@ -186,10 +186,7 @@ impl NpyWriter {
                 // layout: catch it rather than leave a broken file.
                 let len = file.metadata().map_err(io_err)?.len();
                 if len != end {
-                    return Err(DemError::io(
-                        path.as_str(),
-                        io::Error::other("output file changed size while writing (append mode?)"),
-                    ));
+                    return Err(DemError::io(path.as_str(), io::Error::other("output file changed size while writing (append mode?)")));
                 }
                 if let Some(temp) = temp {
                     temp.persist(resolve(&path)).map_err(|e| io_err(e.error))?;

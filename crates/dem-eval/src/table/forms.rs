@@ -8,8 +8,8 @@
 
 use std::io::Write;
 
-use clap::ValueEnum;
 use super::{check_table, read_table_csv, Compared, Measure, Status, TableRow, TABLE_HEADER};
+use clap::ValueEnum;
 use dem_core::error::{DemError, Result};
 use dem_core::output::AtomicOutput;
 use serde::Serialize;
@@ -64,9 +64,8 @@ impl Grid<'_> {
                 }
             }
             Format::Text => {
-                let width: Vec<usize> = (0..n)
-                    .map(|i| self.rows.iter().map(|r| r[i].len()).chain([self.cols[i].1.len()]).max().unwrap_or(0))
-                    .collect();
+                let width: Vec<usize> =
+                    (0..n).map(|i| self.rows.iter().map(|r| r[i].len()).chain([self.cols[i].1.len()]).max().unwrap_or(0)).collect();
                 // The leading names (method, terrain) to the left, numbers to the right.
                 let is_name = |i: usize| i == 0 || (i == 1 && self.rows.iter().any(|r| r[1].parse::<f64>().is_err() && r[1] != "-"));
                 let line = |cells: Vec<&str>| {

@@ -52,9 +52,10 @@ struct Fields<'a> {
 
 impl<'a> Fields<'a> {
     fn take(&mut self, n: usize, what: &str) -> Result<&'a [u8], String> {
-        let end = self.at.checked_add(n).filter(|&e| e <= self.b.len()).ok_or_else(|| {
-            format!("{what} ({n} bytes at byte {} of the record) runs past the record's {} bytes", self.at, self.b.len())
-        })?;
+        let end =
+            self.at.checked_add(n).filter(|&e| e <= self.b.len()).ok_or_else(|| {
+                format!("{what} ({n} bytes at byte {} of the record) runs past the record's {} bytes", self.at, self.b.len())
+            })?;
         let s = &self.b[self.at..end];
         self.at = end;
         Ok(s)
@@ -114,7 +115,9 @@ impl State {
                 match self.channels.get(&channel) {
                     Some(Some(conn)) => on_event(Event::Message { conn, data: f.rest() }),
                     Some(None) => {}
-                    None => on_event(Event::Skipped { offset, reason: format!("a message on channel {channel}, which was never declared") }),
+                    None => {
+                        on_event(Event::Skipped { offset, reason: format!("a message on channel {channel}, which was never declared") })
+                    }
                 }
             }
             _ => {}
@@ -127,7 +130,10 @@ impl State {
         let total = body.len();
         while !body.is_empty() {
             let at = total - body.len();
-            let here = |reason: String| Event::Skipped { offset, reason: format!("chunk, record at byte {at} of its {total} uncompressed bytes: {reason}") };
+            let here = |reason: String| Event::Skipped {
+                offset,
+                reason: format!("chunk, record at byte {at} of its {total} uncompressed bytes: {reason}"),
+            };
             if body.len() < 9 {
                 on_event(here(format!("{} bytes left, too few for a record", body.len())));
                 return;
@@ -136,7 +142,9 @@ impl State {
             let n = u64::from_le_bytes(body[1..9].try_into().expect("8 bytes"));
             let left = (body.len() - 9) as u64;
             if n > left {
-                on_event(here(format!("record op {op:#04x} declares {n} bytes, {left} are left in the chunk: the rest of the chunk is stepped over")));
+                on_event(here(format!(
+                    "record op {op:#04x} declares {n} bytes, {left} are left in the chunk: the rest of the chunk is stepped over"
+                )));
                 return;
             }
             let (rec, rest) = body[9..].split_at(n as usize);
@@ -190,14 +198,22 @@ fn chunk_head(r: &mut impl Read, record_len: u64) -> Result<(ChunkHead, u64), St
 }
 
 /// Read an MCAP file of `len` bytes from `r` (positioned at its start).
-pub fn read_from<R: Read + Seek>(mut r: R, len: u64, on_event: &mut dyn FnMut(Event<'_>), on_bytes: &mut dyn FnMut(u64)) -> Result<(), StopError> {
+pub fn read_from<R: Read + Seek>(
+    mut r: R,
+    len: u64,
+    on_event: &mut dyn FnMut(Event<'_>),
+    on_bytes: &mut dyn FnMut(u64),
+) -> Result<(), StopError> {
     let mut magic = [0u8; 8];
     let got = read_up_to(&mut r, &mut magic)?;
     if got < 5 || &magic[..5] != b"\x89MCAP" {
         return Err(StopError::NotThisKind("not an MCAP file (it does not start with the MCAP magic)".into()));
     }
     if got < MAGIC.len() {
-        return Err(StopError::Broken { offset: 0, reason: format!("the file ends inside the MCAP magic ({len} bytes in all): truncated") });
+        return Err(StopError::Broken {
+            offset: 0,
+            reason: format!("the file ends inside the MCAP magic ({len} bytes in all): truncated"),
+        });
     }
     let mut state = State::default();
     let mut buf: Vec<u8> = Vec::new();
@@ -223,7 +239,9 @@ pub fn read_from<R: Read + Seek>(mut r: R, len: u64, on_event: &mut dyn FnMut(Ev
         if n > left {
             return Err(StopError::Broken {
                 offset,
-                reason: format!("record op {op:#04x} declares {n} bytes, {left} are left in the file ({len} bytes in all): truncated or damaged"),
+                reason: format!(
+                    "record op {op:#04x} declares {n} bytes, {left} are left in the file ({len} bytes in all): truncated or damaged"
+                ),
             });
         }
         let skipped = |reason: String| Event::Skipped { offset, reason };

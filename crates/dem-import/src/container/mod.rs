@@ -94,12 +94,13 @@ pub fn files_of(path: &Path) -> Result<Vec<(Kind, PathBuf)>, String> {
             }
         }
         if parts.is_empty() {
-            return Err("a folder without .mcap or .db3 files (a ROS 2 bag folder holds metadata.yaml and NAME_0.mcap or NAME_0.db3, ...)".into());
+            return Err(
+                "a folder without .mcap or .db3 files (a ROS 2 bag folder holds metadata.yaml and NAME_0.mcap or NAME_0.db3, ...)".into()
+            );
         }
         // rosbag2 splits as NAME_0.mcap, NAME_1.mcap, ..., NAME_10.mcap: by number.
-        let split_no = |p: &PathBuf| {
-            p.file_stem().and_then(|s| s.to_str()).and_then(|s| s.rsplit('_').next()).and_then(|n| n.parse::<u64>().ok())
-        };
+        let split_no =
+            |p: &PathBuf| p.file_stem().and_then(|s| s.to_str()).and_then(|s| s.rsplit('_').next()).and_then(|n| n.parse::<u64>().ok());
         parts.sort_by(|a, b| split_no(&a.1).cmp(&split_no(&b.1)).then_with(|| a.1.cmp(&b.1)));
         return Ok(parts);
     }

@@ -69,7 +69,9 @@ impl State {
                 let conn = u32_field(&f, "conn")?;
                 match self.conns.get(&conn) {
                     Some(c) => on_event(Event::Message { conn: c, data }),
-                    None => on_event(Event::Skipped { offset, reason: format!("a message on connection {conn}, which was never declared") }),
+                    None => {
+                        on_event(Event::Skipped { offset, reason: format!("a message on connection {conn}, which was never declared") })
+                    }
                 }
             }
             0x07 => {
@@ -137,7 +139,12 @@ pub fn read(path: &Path, on_event: &mut dyn FnMut(Event<'_>), on_bytes: &mut dyn
 /// decompressed straight from the file into a buffer of its declared size
 /// (at most [`MAX_RECORD_BYTES`]), so memory is one such buffer whatever
 /// the file declares or holds.
-pub fn read_from<R: Read + Seek>(mut r: R, len: u64, on_event: &mut dyn FnMut(Event<'_>), on_bytes: &mut dyn FnMut(u64)) -> Result<(), StopError> {
+pub fn read_from<R: Read + Seek>(
+    mut r: R,
+    len: u64,
+    on_event: &mut dyn FnMut(Event<'_>),
+    on_bytes: &mut dyn FnMut(u64),
+) -> Result<(), StopError> {
     let mut magic = [0u8; MAGIC.len()];
     if !bounded::read_or_end(&mut r, &mut magic).unwrap_or(false) || magic != MAGIC {
         return Err(StopError::NotThisKind("not a ROS 1 bag (it does not start with #ROSBAG V2.0)".into()));
@@ -149,7 +156,8 @@ pub fn read_from<R: Read + Seek>(mut r: R, len: u64, on_event: &mut dyn FnMut(Ev
         offset,
         reason: format!("the file ends inside {what} ({len} bytes in all): truncated"),
     };
-    let io_err = |offset: u64, e: io::Error| if e.kind() == io::ErrorKind::UnexpectedEof { truncated(offset, "a record") } else { StopError::Io(e) };
+    let io_err =
+        |offset: u64, e: io::Error| if e.kind() == io::ErrorKind::UnexpectedEof { truncated(offset, "a record") } else { StopError::Io(e) };
     loop {
         let mut n = [0u8; 4];
         match bounded::read_or_end(&mut r, &mut n) {
@@ -162,7 +170,10 @@ pub fn read_from<R: Read + Seek>(mut r: R, len: u64, on_event: &mut dyn FnMut(Ev
             return Err(if offset + 4 + hl + 4 > len && hl <= MAX_HEADER {
                 truncated(offset, "a record header")
             } else {
-                StopError::Broken { offset, reason: format!("a record header of {hl} bytes (at most {} in a bag): not a bag record", bounded::bytes(MAX_HEADER)) }
+                StopError::Broken {
+                    offset,
+                    reason: format!("a record header of {hl} bytes (at most {} in a bag): not a bag record", bounded::bytes(MAX_HEADER)),
+                }
             });
         }
         header.resize(hl as usize, 0);

@@ -148,7 +148,8 @@ pub fn read(path: &Path, on_event: &mut dyn FnMut(Event<'_>), on_bytes: &mut dyn
     let conn_of = |id: i64| topics.iter().find(|(k, _)| *k == id).map(|(_, c)| c);
     // Rows are numbered about 1..=max(rowid): the progress estimate.
     let last_row: i64 = db.query_row("SELECT ifnull(max(rowid), 0) FROM messages", [], |r| r.get(0)).map_err(refused)?;
-    let mut walk = db.prepare("SELECT rowid, topic_id, typeof(data), length(data) FROM messages ORDER BY timestamp, rowid").map_err(refused)?;
+    let mut walk =
+        db.prepare("SELECT rowid, topic_id, typeof(data), length(data) FROM messages ORDER BY timestamp, rowid").map_err(refused)?;
     let mut fetch = db.prepare("SELECT data FROM messages WHERE rowid = ?1").map_err(refused)?;
     let mut rows = walk.query([]).map_err(refused)?;
     let mut seen = 0u64;
@@ -183,7 +184,11 @@ pub fn read(path: &Path, on_event: &mut dyn FnMut(Event<'_>), on_bytes: &mut dyn
         }
         let len = int(3, "length(data)")?;
         if len > MAX_MESSAGE_BYTES {
-            return Err(refused(format!("{} on {}: a message of {len} bytes, more than the {MAX_MESSAGE_BYTES} a message may have", at(), conn.topic)));
+            return Err(refused(format!(
+                "{} on {}: a message of {len} bytes, more than the {MAX_MESSAGE_BYTES} a message may have",
+                at(),
+                conn.topic
+            )));
         }
         let mut one = fetch.query([rowid]).map_err(refused)?;
         let row = one.next().map_err(refused)?.ok_or_else(|| refused(format!("{}: gone while reading", at())))?;

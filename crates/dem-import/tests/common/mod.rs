@@ -156,7 +156,12 @@ pub fn bag_records(messages: &[((&str, &str), f64, Vec<u8>)]) -> Vec<Vec<u8>> {
             None => {
                 conns.push(*topic);
                 let k = conns.len() as u32 - 1;
-                let d = ros1_fields(&[("topic", topic.0.as_bytes()), ("type", topic.1.as_bytes()), ("md5sum", b"*"), ("message_definition", b"")]);
+                let d = ros1_fields(&[
+                    ("topic", topic.0.as_bytes()),
+                    ("type", topic.1.as_bytes()),
+                    ("md5sum", b"*"),
+                    ("message_definition", b""),
+                ]);
                 recs.push(ros1_record(&[("op", &[0x07]), ("conn", &k.to_le_bytes()), ("topic", topic.0.as_bytes())], &d));
                 k
             }
@@ -282,7 +287,6 @@ pub fn mcap(recs: &[Vec<u8>]) -> Vec<u8> {
     b.extend(MCAP_MAGIC);
     b
 }
-
 
 /// A ROS 1 chunk record holding `records`, compressed with `compression`
 /// (`none`, `bz2`, `lz4`), its size the true one.

@@ -20,14 +20,7 @@ pub fn forward(w: &[f32], b: &[f32], x: &[f32], n_in: usize, y: &mut Vec<f32>) {
 
 /// Backward of [`forward`]; `grads = Some((dw, db))` accumulates the
 /// parameter gradients, `dx = Some(..)` receives the input gradient.
-pub fn backward(
-    w: &[f32],
-    x: &[f32],
-    n_in: usize,
-    dy: &[f32],
-    grads: Option<(&mut [f32], &mut [f32])>,
-    dx: Option<&mut Vec<f32>>,
-) {
+pub fn backward(w: &[f32], x: &[f32], n_in: usize, dy: &[f32], grads: Option<(&mut [f32], &mut [f32])>, dx: Option<&mut Vec<f32>>) {
     let n = x.len() / n_in;
     if let Some((dw, db)) = grads {
         let n_out = db.len();

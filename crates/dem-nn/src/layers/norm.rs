@@ -101,11 +101,8 @@ fn forward_with(
     cache.xhat.resize(x.len(), 0.0);
     cache.inv_std.resize(n * c, 0.0);
     z.resize(x.len(), 0.0);
-    x.par_chunks(p * c)
-        .zip(cache.xhat.par_chunks_mut(p * c))
-        .zip(z.par_chunks_mut(p * c))
-        .zip(cache.inv_std.par_chunks_mut(c))
-        .for_each(|(((xs, hs), zs), inv)| {
+    x.par_chunks(p * c).zip(cache.xhat.par_chunks_mut(p * c)).zip(z.par_chunks_mut(p * c)).zip(cache.inv_std.par_chunks_mut(c)).for_each(
+        |(((xs, hs), zs), inv)| {
             let mut mean = vec![0.0f32; c];
             for row in xs.chunks_exact(c) {
                 mean.iter_mut().zip(row).for_each(|(m, v)| *m += v);
@@ -125,7 +122,8 @@ fn forward_with(
                     *zv = act(g * *h + b);
                 }
             }
-        });
+        },
+    );
 }
 
 /// Inference: `x <- act(gamma * xhat + beta)` in place on `x [n, p, c]`
@@ -159,9 +157,7 @@ fn inplace_with(x: &mut [f32], p: usize, gamma: &[f32], beta: &[f32], act: impl 
         for row in xs.chunks_exact(c) {
             var.iter_mut().zip(row).zip(&mean).for_each(|((s, v), m)| *s += (v - m) * (v - m));
         }
-        for ((((s, t), v), m), (g, b)) in
-            scale.iter_mut().zip(shift.iter_mut()).zip(&var).zip(&mean).zip(gamma.iter().zip(beta))
-        {
+        for ((((s, t), v), m), (g, b)) in scale.iter_mut().zip(shift.iter_mut()).zip(&var).zip(&mean).zip(gamma.iter().zip(beta)) {
             *s = g / (v / p as f32 + NORM_EPS).sqrt();
             *t = b - m * *s;
         }
@@ -174,16 +170,7 @@ fn inplace_with(x: &mut [f32], p: usize, gamma: &[f32], beta: &[f32], act: impl 
 /// Backward of [`forward`]: accumulates `dgamma`, `dbeta`; returns `dx` in
 /// place of `dz` (which must hold the gradient of `z`).
 #[allow(clippy::too_many_arguments)]
-pub fn backward(
-    cache: &NormCache,
-    z: &[f32],
-    p: usize,
-    gamma: &[f32],
-    act: Act,
-    dz: &mut [f32],
-    dgamma: &mut [f32],
-    dbeta: &mut [f32],
-) {
+pub fn backward(cache: &NormCache, z: &[f32], p: usize, gamma: &[f32], act: Act, dz: &mut [f32], dgamma: &mut [f32], dbeta: &mut [f32]) {
     match act {
         Act::None => backward_with(cache, z, p, gamma, |_| 1.0, dz, dgamma, dbeta),
         Act::Relu => backward_with(cache, z, p, gamma, |o| if o > 0.0 { 1.0 } else { 0.0 }, dz, dgamma, dbeta),

@@ -207,15 +207,7 @@ pub fn transform_weights(g: &ConvGeom, w: &[f32]) -> Vec<f32> {
 /// docs). Returns the number of tiles `T`. Each sample's output depends only
 /// on that sample, and the operations it goes through depend only on the
 /// shapes, not on the sample's place in the batch.
-pub fn forward_transformed(
-    g: &ConvGeom,
-    u: &[f32],
-    b: &[f32],
-    x: &[f32],
-    v: &mut Vec<f32>,
-    m: &mut Vec<f32>,
-    y: &mut Vec<f32>,
-) -> usize {
+pub fn forward_transformed(g: &ConvGeom, u: &[f32], b: &[f32], x: &[f32], v: &mut Vec<f32>, m: &mut Vec<f32>, y: &mut Vec<f32>) -> usize {
     debug_assert!(supports(g));
     let n = x.len() / g.in_len();
     let t_all = input_transform(g, x, n, v);

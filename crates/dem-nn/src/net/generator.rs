@@ -12,9 +12,9 @@ use dem_core::format::{GRID_CELLS, GRID_LEN, RECORD_LEN};
 
 use super::params::{channels_first, Alloc, ConvLayer, DenseLayer, NormLayer};
 use crate::layers::conv::ConvGeom;
-use crate::layers::winograd::{self, WinoCache, WinoScratch};
 use crate::layers::dense;
 use crate::layers::norm::{self, Act, NormCache};
+use crate::layers::winograd::{self, WinoCache, WinoScratch};
 use crate::weights::{Arch, GeneratorWeights, ResBlock, CORRECTION_SCALE, GATE_SHARPNESS};
 
 /// Attitude values of one record (row 20).
@@ -306,11 +306,7 @@ impl Generator {
 }
 
 /// Two disjoint ranges of one slice, mutably (`a` before `b`).
-pub(crate) fn split2<'a>(
-    v: &'a mut [f32],
-    a: &std::ops::Range<usize>,
-    b: &std::ops::Range<usize>,
-) -> (&'a mut [f32], &'a mut [f32]) {
+pub(crate) fn split2<'a>(v: &'a mut [f32], a: &std::ops::Range<usize>, b: &std::ops::Range<usize>) -> (&'a mut [f32], &'a mut [f32]) {
     assert!(a.end <= b.start, "ranges in order");
     let (lo, hi) = v.split_at_mut(b.start);
     (&mut lo[a.clone()], &mut hi[..b.len()])

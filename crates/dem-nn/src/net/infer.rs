@@ -31,7 +31,7 @@ use dem_core::format::{GRID_CELLS, GRID_LEN, RECORD_LEN};
 use dem_core::Dem;
 
 use super::generator::ATT;
-use super::params::{channels_first, ConvLayer, DenseLayer, Alloc};
+use super::params::{channels_first, Alloc, ConvLayer, DenseLayer};
 use crate::gemm::{matmul, Mat};
 use crate::layers::conv::ConvGeom;
 use crate::layers::norm::{self, Act};
@@ -103,8 +103,7 @@ impl GeneratorInference {
             .chain(std::iter::repeat_n((2 * wd, 2 * wd), 6))
             .chain([(2 * wd, 2 * wd), (2 * wd, wd), (wd, 2)])
             .collect();
-        let convs: Vec<&Conv2d> =
-            w.enc.iter().chain(w.res.iter().flat_map(|r| [&r.a, &r.b])).chain(&w.dec).collect();
+        let convs: Vec<&Conv2d> = w.enc.iter().chain(w.res.iter().flat_map(|r| [&r.a, &r.b])).chain(&w.dec).collect();
         assert_eq!(convs.len(), 12, "3 encoder, 6 residual and 3 decoder convs");
         for (c, (ci, co)) in convs.iter().zip(&shapes) {
             assert_eq!((c.c_in, c.c_out), (*ci, *co), "conv channels of a width-{wd} generator");

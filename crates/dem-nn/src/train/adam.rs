@@ -55,16 +55,15 @@ impl Adam {
         let b1t = 1.0 - c.beta1.powi(self.t as i32);
         let b2t = (1.0 - c.beta2.powi(self.t as i32)).sqrt();
         let step = c.lr / b1t;
-        p.par_chunks_mut(4096)
-            .zip(g.par_chunks(4096))
-            .zip(self.m.par_chunks_mut(4096).zip(self.v.par_chunks_mut(4096)))
-            .for_each(|((p, g), (m, v))| {
+        p.par_chunks_mut(4096).zip(g.par_chunks(4096)).zip(self.m.par_chunks_mut(4096).zip(self.v.par_chunks_mut(4096))).for_each(
+            |((p, g), (m, v))| {
                 for i in 0..p.len() {
                     m[i] = c.beta1 * m[i] + (1.0 - c.beta1) * g[i];
                     v[i] = c.beta2 * v[i] + (1.0 - c.beta2) * g[i] * g[i];
                     p[i] -= step * m[i] / (v[i].sqrt() / b2t + c.eps);
                 }
-            });
+            },
+        );
     }
 }
 

@@ -46,12 +46,7 @@ fn group(pairs: &[Pair], split: Split) -> Vec<KeyReals> {
 
 impl TrainData {
     /// Check and group; the paths name the files in errors.
-    pub fn new(
-        sim: Vec<Dem>,
-        real: Vec<Dem>,
-        pairs: &[Pair],
-        paths: [&str; 3],
-    ) -> Result<Self, DemError> {
+    pub fn new(sim: Vec<Dem>, real: Vec<Dem>, pairs: &[Pair], paths: [&str; 3]) -> Result<Self, DemError> {
         let [sim_path, real_path, pairs_path] = paths;
         for (v, path) in [(&sim, sim_path), (&real, real_path)] {
             if v.is_empty() {
@@ -171,12 +166,7 @@ mod tests {
         let sim: Vec<Dem> = (0..20).map(|i| rec(i as f32)).collect();
         let real: Vec<Dem> = (0..6).map(|i| rec(100.0 + i as f32)).collect();
         let pairs: Vec<Pair> = (0..6)
-            .map(|i| Pair {
-                sim_index: i,
-                real_index: i,
-                split: Some(if i < 4 { Split::Train } else { Split::Val }),
-                distance: None,
-            })
+            .map(|i| Pair { sim_index: i, real_index: i, split: Some(if i < 4 { Split::Train } else { Split::Val }), distance: None })
             .collect();
         TrainData::new(sim, real, &pairs, ["s", "r", "p"]).unwrap()
     }

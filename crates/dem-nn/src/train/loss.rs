@@ -67,11 +67,8 @@ pub fn error71(y: &[f32], p: &[f32]) -> f32 {
 /// Paired G_Y term for one sim: `min_i e(y_i, p)`; adds `weight * d/dp` of
 /// the best pair to `grad` and returns `(weight * e_min, index of the best)`.
 pub fn paired_min(reals: &[&[f32]], p: &[f32], weight: f32, grad: &mut [f32]) -> (f32, usize) {
-    let (best, e) = reals
-        .iter()
-        .enumerate()
-        .map(|(i, y)| (i, error71(y, p)))
-        .fold((0, f32::INFINITY), |a, b| if b.1 < a.1 { b } else { a });
+    let (best, e) =
+        reals.iter().enumerate().map(|(i, y)| (i, error71(y, p))).fold((0, f32::INFINITY), |a, b| if b.1 < a.1 { b } else { a });
     let y = reals[best];
     for ((g, yc), pc) in grad.chunks_exact_mut(2).zip(y.chunks_exact(2)).zip(p.chunks_exact(2)) {
         let v = if yc[1] > 0.0 { 1.0 } else { 0.0 };
