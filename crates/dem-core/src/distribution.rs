@@ -257,7 +257,8 @@ pub fn quantile(v: &mut [f32], q: f64) -> Option<f64> {
     Some(*x as f64)
 }
 
-fn mean_sd(v: &[f32]) -> (f64, f64) {
+/// Mean and (population) sd of `v`, in f64; (0, 0) when empty.
+pub fn mean_sd(v: &[f32]) -> (f64, f64) {
     let n = v.len().max(1) as f64;
     let m = v.iter().map(|&x| x as f64).sum::<f64>() / n;
     let var = v.iter().map(|&x| (x as f64 - m).powi(2)).sum::<f64>() / n;

@@ -25,6 +25,25 @@ fn mid(s: &Stats) -> f64 {
     s.mean_over("edge-2cm", 0..19) - s.mean_over("edge-10cm", 0..19)
 }
 
+/// Mean over the step `sides` ([`STEP_SIDES`] names) of component `k` of
+/// their residuals toward the other surface (2: the share moved more than
+/// 2 cm toward it, 3: away from it).
+fn side_share(s: &Stats, sides: &[&str], k: usize) -> f64 {
+    sides.iter().map(|n| s.term(n).map_or(0.0, |t| t.values[k])).sum::<f64>() / sides.len() as f64
+}
+
+/// Unpaired evidence of cells read part of the way across steps: real has
+/// more steps of 0.02-0.1 m than the model (`fitted` says why), else
+/// `closest` is only the closest effect.
+fn part_way_steps(real: &Stats, before: &Stats, fitted: String, closest: &str) -> String {
+    let verdict = if mid(real) > mid(before) {
+        fitted
+    } else {
+        format!("no more part-way steps in real: {closest} the closest effect, not a clear one")
+    };
+    format!("steps between neighbouring rows of 0.02-0.1 m: real {} vs model {}: {verdict}", pct(mid(real)), pct(mid(before)))
+}
+
 /// Share of neighbour pairs that differ by 0.1 to 10 mm.
 fn small_steps(s: &Stats) -> f64 {
     s.term("steps").map_or(0.0, |t| t.values.iter().take(3).sum())
@@ -334,12 +353,12 @@ pub fn evidence(effect: &Effect, before: &Stats, after: &Stats, real: &Stats, ga
                     pct(moved(before, "riser-top")),
                 )
             } else {
-                let verdict = if mid(real) > mid(before) {
-                    format!("cells beside risers read part of the way across the step: {fitted}")
-                } else {
-                    "no more part-way steps in real: blended risers are the closest effect, not a clear one".to_string()
-                };
-                format!("steps between neighbouring rows of 0.02-0.1 m: real {} vs model {}: {verdict}", pct(mid(real)), pct(mid(before)))
+                part_way_steps(
+                    real,
+                    before,
+                    format!("cells beside risers read part of the way across the step: {fitted}"),
+                    "blended risers are",
+                )
             }
         }
         Effect::Tilt { pitch, roll, .. } if !real.paired => tilted_unpaired(
@@ -441,7 +460,7 @@ pub fn evidence(effect: &Effect, before: &Stats, after: &Stats, real: &Stats, ga
                 // surface (component 2): a shift ahead moves the far side of
                 // each step (riser tops, drop floors), a shift back the near
                 // side (riser feet, drop lips).
-                let moved = |st: &Stats, sides: [&str; 2]| sides.iter().map(|n| st.term(n).map_or(0.0, |t| t.values[2])).sum::<f64>() / 2.0;
+                let moved = |st: &Stats, sides: [&str; 2]| side_share(st, &sides, 2);
                 let (far, near) = (["riser-top", "drop-floor"], ["riser-foot", "drop-lip"]);
                 let (lead, trail) = if s >= 0.0 { (far, near) } else { (near, far) };
                 let (rl, bl, rt, bt) = (moved(real, lead), moved(before, lead), moved(real, trail), moved(before, trail));
@@ -462,15 +481,11 @@ pub fn evidence(effect: &Effect, before: &Stats, after: &Stats, real: &Stats, ga
                     pct(bt),
                 )
             } else {
-                let verdict = if mid(real) > mid(before) {
-                    format!(
-                        "steps read part of the way across where a shift {ahead} of {:.1} cm puts a cell on both sides",
-                        100.0 * s.abs()
-                    )
-                } else {
-                    "no more part-way steps in real: the lag is the closest effect, not a clear one".to_string()
-                };
-                format!("steps between neighbouring rows of 0.02-0.1 m: real {} vs model {}: {verdict}", pct(mid(real)), pct(mid(before)))
+                let fitted = format!(
+                    "steps read part of the way across where a shift {ahead} of {:.1} cm puts a cell on both sides",
+                    100.0 * s.abs()
+                );
+                part_way_steps(real, before, fitted, "the lag is")
             }
         }
         Effect::Drift { rate, zrate, x0 } => {
@@ -512,7 +527,7 @@ pub fn evidence(effect: &Effect, before: &Stats, after: &Stats, real: &Stats, ga
             if real.paired {
                 // Both ways across the step: cells moved > 2 cm toward the
                 // other surface (component 2) and away from it (3).
-                let share = |st: &Stats, k: usize| STEP_SIDES.iter().map(|n| st.term(n).map_or(0.0, |t| t.values[k])).sum::<f64>() / 4.0;
+                let share = |st: &Stats, k: usize| side_share(st, &STEP_SIDES, k);
                 let (rt, bt, ra, ba) = (share(real, 2), share(before, 2), share(real, 3), share(before, 3));
                 let verdict = if rt > bt && ra > ba {
                     format!("cells beside steps move both toward and away from the other surface: {fitted}")
@@ -527,12 +542,7 @@ pub fn evidence(effect: &Effect, before: &Stats, after: &Stats, real: &Stats, ga
                     pct(ba),
                 )
             } else {
-                let verdict = if mid(real) > mid(before) {
-                    format!("steps read part of the way across: {fitted}")
-                } else {
-                    "no more part-way steps in real: the jitter is the closest effect, not a clear one".to_string()
-                };
-                format!("steps between neighbouring rows of 0.02-0.1 m: real {} vs model {}: {verdict}", pct(mid(real)), pct(mid(before)))
+                part_way_steps(real, before, format!("steps read part of the way across: {fitted}"), "the jitter is")
             }
         }
         Effect::Smoothing { .. } => {

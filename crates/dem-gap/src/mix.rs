@@ -9,6 +9,7 @@
 //! effect was named. Works without labels, where the fit cannot draw sim
 //! to real's terrain mix.
 
+use dem_core::distribution::mean_sd;
 use dem_core::format::{Dem, DemCells, COLS, GRID_ROWS};
 
 /// A record is level when its valid heights' sd is below this (m).
@@ -58,16 +59,12 @@ impl RecordKinds {
 
 /// The sd of a record's valid heights; `None` when no cell is valid.
 fn height_sd(d: &Dem) -> Option<f64> {
-    let h: Vec<f64> = (0..GRID_ROWS)
+    let h: Vec<f32> = (0..GRID_ROWS)
         .flat_map(|r| (0..COLS).map(move |c| (r, c)))
         .filter(|&(r, c)| d.is_valid(r, c))
-        .map(|(r, c)| d.height(r, c) as f64)
+        .map(|(r, c)| d.height(r, c))
         .collect();
-    if h.is_empty() {
-        return None;
-    }
-    let mean = h.iter().sum::<f64>() / h.len() as f64;
-    Some((h.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / h.len() as f64).sqrt())
+    (!h.is_empty()).then(|| mean_sd(&h).1)
 }
 
 /// Shares of level and tall records among those with a valid cell.

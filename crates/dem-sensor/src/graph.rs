@@ -244,9 +244,7 @@ fn effect(b: &mut Builder, e: &Effect, c: &Cells, u: Option<&str>, time: Option<
         }
         Effect::Shake { sigma, edge } => {
             let (z1, z2) = normal_pairs(b, &u(), 1);
-            let j = step_under_tracks(b, c);
-            let s = b.mul_const(&j, edge as f32);
-            let s = b.add_const(&s, sigma as f32);
+            let s = sd_with_the_step(b, c, sigma, edge);
             let a = b.bin("Mul", &s, &z1);
             let bb = b.bin("Mul", &s, &z2);
             tilt_plane(b, c, &a, &bb, |x| x)
@@ -306,6 +304,13 @@ fn step_under_tracks(b: &mut Builder, c: &Cells) -> String {
     let j = b.reshape(&j, &[-1, 1, 1]);
     let cap = b.scalar(SHAKE_MAX_STEP as f32);
     b.bin("Min", &j, &cap)
+}
+
+/// `shake`'s and `step-jitter`'s sd per record `(N, 1, 1)`: sigma + edge J.
+fn sd_with_the_step(b: &mut Builder, c: &Cells, sigma: f64, edge: f64) -> String {
+    let j = step_under_tracks(b, c);
+    let s = b.mul_const(&j, edge as f32);
+    b.add_const(&s, sigma as f32)
 }
 
 /// [`crate::effects::shift_rows`] in the graph: each row reads the column
@@ -418,9 +423,7 @@ fn cell_normals(b: &mut Builder, u: &str) -> String {
 fn step_jitter(b: &mut Builder, c: &Cells, u: &str, sigma: f64, edge: f64) -> Cells {
     let cell = dem_core::format::CELL as f32;
     let z = cell_normals(b, u);
-    let j = step_under_tracks(b, c);
-    let s = b.mul_const(&j, edge as f32);
-    let s = b.add_const(&s, sigma as f32);
+    let s = sd_with_the_step(b, c, sigma, edge);
     let dx = b.bin("Mul", &s, &z);
     let (lo, hi) = (b.scalar(-cell), b.scalar(cell));
     let dx = b.bin("Max", &dx, &lo);
