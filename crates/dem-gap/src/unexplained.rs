@@ -580,7 +580,7 @@ pub fn floor_at(raw: &[Vec<f64>], ratio: f64, beta: f64) -> f64 {
 }
 
 /// The sampling floor of `model` on the sim records `si` against the real
-/// records `ri` (paired: the same), as [`crate::noise_floor`] and
+/// records `ri` (paired: the same), as [`crate::sampling_floor`] and
 /// [`crate::draw_floor`] take it on all records: the larger of the model's
 /// two draws' gap and, unpaired with at least 100 real records, the gap of
 /// two halves of `ri` (whole runs from `min_runs` runs on) scaled to the

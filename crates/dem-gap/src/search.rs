@@ -1,0 +1,342 @@
+//! The measure-name-add loop ([`run`]), one function per step of it:
+//! measure the start model; per step, fit and rank every effect not yet
+//! in the model on the fitting subsample (`rank_candidates`), confirm the
+//! best on all records, with other draws and on the halves
+//! (`confirm_best`), check its close rivals ([`crate::ties`]) and add it;
+//! then re-fit each effect with the others in place (`polish`) and put
+//! the [`Outcome`] together ([`crate::outcome`]). What stays fixed over a
+//! run (real's statistics, halves, fitting subsample) is measured once,
+//! in [`crate::comparison`]; here is only what changes from step to step.
+
+use std::fmt::Display;
+
+use dem_core::distribution::{self, gap, Stats};
+use dem_sensor::effects::NAMES;
+use dem_sensor::{Effect, SensorModel};
+
+use crate::comparison::Comparison;
+use crate::load::{GapConfig, Sets};
+use crate::outcome::{finish, Outcome, Refit, Step};
+use crate::sampling::{below_floor, other_draws};
+use crate::ties::{self, Tie};
+use crate::{evidence, fit};
+
+/// A gap below this is left as it is: each statistic enters as
+/// ln(1 + z^2) averaged over rows, so a sum this small means no statistic
+/// differs from real by a fifth of its physical scale (0.4 % of cells,
+/// 1 mm of height). An effect fitted to such a gap fits what is left of
+/// the others' fits, not a physical effect.
+pub const NEGLIGIBLE_GAP: f64 = 0.05;
+
+/// Run the measure-name-add loop on loaded sets; `log` gets progress lines,
+/// `tick` is called after each candidate fit (for a progress bar).
+pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) -> Outcome {
+    let c = Comparison::new(cfg, sets);
+    let (start, state) = measure_start(&c, log);
+    let mut found = name_effects(&c, state, log, tick);
+    ties::settle_ties(&mut found.steps, log);
+    let refits = polish(&c, &mut found, log);
+    finish(c, start, found, refits, log)
+}
+
+/// Share of the gap `before` that `after` removes (0 when there was none).
+pub fn share_removed(before: f64, after: f64) -> f64 {
+    if before > 0.0 {
+        1.0 - after / before
+    } else {
+        0.0
+    }
+}
+
+/// The start model as measured, for the report's before and after.
+pub(crate) struct Start {
+    pub gap: f64,
+    /// Its sampling floor ([`Comparison::floor_of`]).
+    pub floor: f64,
+    pub stats: Stats,
+}
+
+/// Where the naming loop stands: the model so far, its gap and statistics
+/// on all records, and its statistics on each half of the comparison.
+pub(crate) struct State {
+    pub model: SensorModel,
+    pub gap: f64,
+    pub stats: Stats,
+    pub halves: Vec<Stats>,
+}
+
+/// What the naming loop leaves: the steps, why it stopped, and the model
+/// with its gap and statistics on all records (re-fits change these).
+pub(crate) struct Found {
+    pub steps: Vec<Step>,
+    pub stop: String,
+    pub model: SensorModel,
+    pub gap: f64,
+    pub stats: Stats,
+}
+
+/// A candidate fitted at one step, with the share of the gap it removes
+/// on the fitting subsample.
+pub(crate) struct Candidate {
+    pub fit: fit::Fitted,
+    pub share: f64,
+}
+
+/// The effect a step adds, and where the loop stands with it.
+pub(crate) struct Added {
+    pub effect: Effect,
+    pub state: State,
+}
+
+/// What confirming a step's best candidates gave.
+struct Confirmation {
+    added: Option<Added>,
+    /// Candidates whose model hides far more cells than real misses.
+    refused: Vec<(Effect, String)>,
+    /// The gain asked of a candidate on all records; 0 when every one
+    /// tried was refused.
+    threshold: f64,
+}
+
+/// The log of one step: each line headed by the step's number.
+pub(crate) struct StepLog<'a> {
+    number: usize,
+    log: &'a dyn Fn(String),
+}
+
+impl StepLog<'_> {
+    pub fn line(&self, line: impl Display) {
+        (self.log)(format!("step {}: {line}", self.number))
+    }
+}
+
+/// The start model as measured, said in the log's first line, and the
+/// loop's state with it.
+fn measure_start(c: &Comparison, log: &dyn Fn(String)) -> (Start, State) {
+    let model = c.cfg.start.clone();
+    let (start_out, stats) = c.measure(&model, c.cfg.seed);
+    let halves = c.half_stats(&start_out);
+    drop(start_out);
+    let gap_initial = gap(&stats, &c.real);
+    let floor_initial = c.floor_of(&model);
+    log(format!(
+        "{} mode, {} vs {} records; start model: {}; gap {gap_initial:.3} (sampling floor {floor_initial:.3}){}",
+        if c.paired { "paired" } else { "unpaired" },
+        c.sets.sim.len(),
+        c.sets.real.len(),
+        model.summary(),
+        if gap_initial < floor_initial { format!("; {}", below_floor(gap_initial, floor_initial)) } else { String::new() }
+    ));
+    let start = Start { gap: gap_initial, floor: floor_initial, stats: stats.clone() };
+    (start, State { model, gap: gap_initial, stats, halves })
+}
+
+/// Add effects to the model in `state`, one a step, while one holds up
+/// and the gap left is not negligible.
+fn name_effects(c: &Comparison, mut state: State, log: &dyn Fn(String), tick: &dyn Fn()) -> Found {
+    let mut steps = Vec::new();
+    let mut stop = format!("stopped after --max-steps {}", c.cfg.max_steps);
+    for number in 1..=c.cfg.max_steps {
+        let candidates: Vec<&str> = NAMES.iter().copied().filter(|n| !state.model.effects.iter().any(|e| e.name() == *n)).collect();
+        if candidates.is_empty() {
+            stop = "every effect of the vocabulary is in the model".into();
+            break;
+        }
+        if state.gap < NEGLIGIBLE_GAP {
+            stop = format!(
+                "the gap left, {:.4}, is below {NEGLIGIBLE_GAP}: no statistic differs by a fifth of its scale, so no effect is added for it",
+                state.gap
+            );
+            break;
+        }
+        let step_log = StepLog { number, log };
+        let ranking = rank_candidates(c, &state, &candidates, &step_log, tick);
+        let Confirmation { added, refused, threshold } = confirm_best(c, &state, &ranking, &step_log);
+        let Some(added) = added else {
+            stop = nothing_holds(c, &ranking, state.gap, threshold);
+            log(stop.clone());
+            break;
+        };
+        let tied_with = ties::check_rivals(c, &state, &added, &ranking, &step_log);
+        steps.push(record_step(c, &state, &added, &ranking, refused, tied_with, &step_log));
+        state = added.state;
+    }
+    Found { steps, stop, model: state.model, gap: state.gap, stats: state.stats }
+}
+
+/// Fit each of `candidates` on top of the model on the fitting subsample;
+/// the fitted ones ranked by the gap they leave there, best first.
+fn rank_candidates(c: &Comparison, state: &State, candidates: &[&str], log: &StepLog, tick: &dyn Fn()) -> Vec<Candidate> {
+    let real = c.fitting_real(&state.model, &state.stats);
+    let target = c.target(&real);
+    let base_fit = target.gap(&state.model);
+    let mut ranking = Vec::new();
+    for name in candidates {
+        if let Some(f) = fit::fit(name, &state.model, &target) {
+            let share = share_removed(base_fit, f.gap);
+            let edge = if f.at_edge.is_empty() { String::new() } else { format!(" [AT THE EDGE of its box: {}]", f.at_edge.join(", ")) };
+            log.line(format!("candidate {} removes {:.1}% of the gap on the fitting subsample{edge}", f.effect, 100.0 * share));
+            ranking.push(Candidate { fit: f, share });
+        } else {
+            log.line(format!("candidate {name}: no fit that does not hide far more cells than real misses"));
+        }
+        tick();
+    }
+    ranking.sort_by(|a, b| a.fit.gap.total_cmp(&b.fit.gap));
+    ranking
+}
+
+/// The best candidate on the subsample, confirmed on all data; the
+/// runner-up gets a chance when the best does not hold up. A gain must
+/// exceed `min_gain` of the gap with the model's draws and again with
+/// other draws, and, where the halves decide, hold on both halves.
+fn confirm_best(c: &Comparison, state: &State, ranking: &[Candidate], log: &StepLog) -> Confirmation {
+    let seed = c.cfg.seed;
+    let mut refused = Vec::new();
+    let mut threshold = 0.0;
+    // The model's own gap with other draws, measured once for both
+    // candidates that may need it.
+    let mut model_redrawn: Option<f64> = None;
+    // Paired, the halves decide only below the model's sampling floor
+    // (measured once, when a candidate gets that far): there what
+    // separates the sets may be the draws, and a gain that is an effect
+    // holds on both halves of the records.
+    let mut below_floor_now: Option<bool> = None;
+    for e in ranking.iter().take(2).map(|r| r.fit.effect) {
+        let trial = state.model.with(e);
+        let (out, s) = c.measure(&trial, seed);
+        if let Some(why) = distribution::hides_too_much(&s, &c.real) {
+            log.line(format!("{e} refused: {why}"));
+            refused.push((e, why));
+            continue;
+        }
+        let g = gap(&s, &c.real);
+        threshold = c.cfg.min_gain * state.gap;
+        let gain = state.gap - g;
+        // The gain once more with the models' other random draws: a
+        // gain that is the draw's luck does not repeat. (Half the draw
+        // floor was the bar before; the floor is mostly the per-row
+        // residual tails, which jump between draws however right the
+        // model, and it kept out effects whose gain repeats.)
+        let redrawn = if gain > threshold {
+            let other = other_draws(seed);
+            let before = *model_redrawn.get_or_insert_with(|| c.gap_with(&state.model, other));
+            let again = before - c.gap_with(&trial, other);
+            if again <= threshold {
+                log.line(format!(
+                    "{e} not added: it removes {gain:.3} of the gap, but {again:.3} with other random draws (the draws' luck, not an effect)"
+                ));
+            }
+            again > threshold
+        } else {
+            false
+        };
+        if !redrawn {
+            continue;
+        }
+        let halves = c.half_stats(&out);
+        let on_halves: Vec<f64> =
+            c.half_gaps(&state.halves).iter().zip(c.half_gaps(&halves)).map(|(before, after)| before - after).collect();
+        let halves_decide = !c.paired || *below_floor_now.get_or_insert_with(|| state.gap < c.floor_of(&state.model));
+        if !halves_decide || on_halves.iter().all(|&x| x > 0.0) {
+            let added = Added { effect: e, state: State { model: trial, gap: g, stats: s, halves } };
+            return Confirmation { added: Some(added), refused, threshold };
+        }
+        let why = format!(
+            "it removes {gain:.3} of the gap, but {} on the two halves (sim half against real half): not on both (sampling, not an effect)",
+            on_halves.iter().map(|x| format!("{x:.3}")).collect::<Vec<_>>().join(" and ")
+        );
+        log.line(format!("{e} not added: {why}"));
+    }
+    Confirmation { added: None, refused, threshold }
+}
+
+/// Why the loop stops when no candidate of a step holds up.
+fn nothing_holds(c: &Comparison, ranking: &[Candidate], gap_before: f64, threshold: f64) -> String {
+    let Some(best) = ranking.first() else { return "no candidate could be fitted".into() };
+    format!(
+        "nothing explains the rest: the best candidate, {}, removes {:.1}% of the gap {gap_before:.3} on the fitting subsample (needed on all data: more than {:.3}, {:.0}% of the gap, with the model's random draws and with others{})",
+        best.fit.effect,
+        100.0 * best.share,
+        threshold,
+        100.0 * c.cfg.min_gain,
+        if c.paired { "" } else { ", and a gain on each half of real" }
+    )
+}
+
+/// The step that adds `added` to `before`, with its evidence; a fit at
+/// the edge of its box is warned of in both.
+fn record_step(
+    c: &Comparison,
+    before: &State,
+    added: &Added,
+    ranking: &[Candidate],
+    refused: Vec<(Effect, String)>,
+    tied_with: Vec<Tie>,
+    log: &StepLog,
+) -> Step {
+    let effect = added.effect;
+    let (gap_before, gap_after) = (before.gap, added.state.gap);
+    let (at_edge, widened) =
+        ranking.iter().find(|r| r.fit.effect == effect).map(|r| (r.fit.at_edge.clone(), r.fit.widened.clone())).unwrap_or_default();
+    let mut ev = evidence::evidence(&effect, &before.stats, &added.state.stats, &c.real, gap_before, gap_after);
+    if !at_edge.is_empty() {
+        let w = if widened.is_empty() { String::new() } else { format!(" (widened: {})", widened.join(", ")) };
+        ev.push_str(&format!(
+            "; WARNING: {} at the edge of its search box{w}: {} is only the closest effect of the vocabulary, not the right one",
+            at_edge.join(", "),
+            effect.name()
+        ));
+        log.line(format!("WARNING: {effect} is at the edge of its box in {}", at_edge.join(", ")));
+    }
+    log.line(format!("added {effect}: gap {gap_before:.3} -> {gap_after:.3}; {ev}"));
+    Step {
+        effect,
+        gap_before,
+        gap_after,
+        evidence: ev,
+        ranking: ranking.iter().map(|r| (r.fit.effect, r.share)).collect(),
+        at_edge,
+        widened,
+        refused,
+        tied_with,
+    }
+}
+
+/// Polish: the greedy order can leave an early effect covering for one
+/// named later (an occlusion fitted before startup hides rows startup
+/// explains better). Re-fit each effect once with all others in place;
+/// keep the new parameters when they lower the gap on all data.
+fn polish(c: &Comparison, found: &mut Found, log: &dyn Fn(String)) -> Vec<Refit> {
+    let mut refits = Vec::new();
+    if found.model.effects.len() < 2 {
+        return refits;
+    }
+    let real = c.fitting_real(&found.model, &found.stats);
+    let target = c.target(&real);
+    for i in 0..found.model.effects.len() {
+        let old = found.model.effects[i];
+        let mut base = found.model.clone();
+        base.effects.remove(i);
+        let Some(f) = fit::fit(old.name(), &base, &target) else { continue };
+        if f.effect == old {
+            continue;
+        }
+        let trial = base.with(f.effect);
+        let (_, s) = c.measure(&trial, c.cfg.seed);
+        let g = gap(&s, &c.real);
+        if distribution::hides_too_much(&s, &c.real).is_none() && g < found.gap {
+            let edge = if f.at_edge.is_empty() {
+                String::new()
+            } else {
+                format!(" (WARNING: at the edge of its box in {})", f.at_edge.join(", "))
+            };
+            log(format!("re-fitted {old} with the others in place: {}{edge}; gap {:.3} -> {g:.3}", f.effect, found.gap));
+            refits.push(Refit { before: old, after: f.effect, gap_before: found.gap, gap_after: g, at_edge: f.at_edge });
+            found.model = trial;
+            found.gap = g;
+            found.stats = s;
+        }
+    }
+    refits
+}
