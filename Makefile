@@ -104,19 +104,19 @@ clean:
 
 # Speed against the peers, measured in one run (not part of the tests).
 bench: build venv
-	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench_npy.sh
-	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench_synth.sh
-	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench_prep.sh
-	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench_gap.sh
-	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench_apply.sh
-	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench_sensor.sh
-	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench_memory.sh
-	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench_import.sh
+	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench/npy.sh
+	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench/synth.sh
+	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench/prep.sh
+	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench/gap.sh
+	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench/apply.sh
+	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench/sensor.sh
+	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench/memory.sh
+	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench/import.sh
 	$(MAKE) venv-torch
-	$(TORCH_VENV)/bin/python scripts/torch_export.py .bench/apply_torch_w32.onnx --width 32 --seed 1
-	MODEL=.bench/apply_torch_w32.onnx REPORT=apply_torch.txt PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench_apply.sh
+	$(TORCH_VENV)/bin/python scripts/peers/torch_export.py .bench/apply_torch_w32.onnx --width 32 --seed 1
+	MODEL=.bench/apply_torch_w32.onnx REPORT=apply_torch.txt PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench/apply.sh
 	$(CARGO) build --release -p dem-nn --example step_speed
-	TORCH_PY=$(TORCH_VENV)/bin/python BIN=$(BIN) OUT=.bench bash scripts/bench_train.sh
+	TORCH_PY=$(TORCH_VENV)/bin/python BIN=$(BIN) OUT=.bench bash scripts/bench/train.sh
 	TORCH_PY=$(TORCH_VENV)/bin/python BIN=$(BIN) OUT=.bench bash scripts/torch_sensor_check.sh > .bench/torch_sensor.txt
 	@echo "Reports: .bench/npy.txt .bench/synth.txt .bench/prep.txt .bench/gap.txt .bench/apply.txt .bench/sensor.txt .bench/torch_sensor.txt .bench/apply_torch.txt .bench/import.txt .bench/train.txt"
 

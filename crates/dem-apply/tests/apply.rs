@@ -205,7 +205,7 @@ fn assert_like_onnxruntime(dir: &std::path::Path, model: &str, inp: &str, got: &
 }
 
 /// A generator built and exported by PyTorch (testdata/torch_gen_w4.onnx,
-/// `scripts/torch_export.py --width 4 --seed 7 --arch residual`: PyTorch's
+/// `scripts/peers/torch_export.py --width 4 --seed 7 --arch residual`: PyTorch's
 /// own nodes, not dem-onnx's) is recognised and runs on the native path,
 /// with onnxruntime's outputs within 1e-4.
 #[test]

@@ -1,5 +1,5 @@
 //! dem-gap against data with hidden effects. The "real" files are made by
-//! `scripts/hidden_effects.py`, a numpy implementation of the effects
+//! `crates/dem-sensor/tests/peers/hidden_effects.py`, a numpy implementation of the effects
 //! written from the spec, independent of the Rust sensor and fitting code,
 //! with parameters the fitter is not told (and off its search grids).
 //! Records: every 10th of testdata/sim.npy (302 records, all terrains);
@@ -27,7 +27,7 @@ fn setup(dir: &Path) -> (String, String) {
 /// Hide `effects` (e.g. `noise:sigma0=0.004,k=0.012`) in the sim records.
 fn hide(dir: &Path, sim: &str, name: &str, effects: &[&str]) -> String {
     let out = arg(dir, name);
-    let script = workspace_root().join("scripts/hidden_effects.py");
+    let script = workspace_root().join("crates/dem-sensor/tests/peers/hidden_effects.py");
     let o = Command::new(python()).arg(script).args([sim, &out, "11"]).args(effects).output().expect("python");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     out

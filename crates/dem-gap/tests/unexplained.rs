@@ -1,6 +1,6 @@
 //! What dem-gap cannot explain, it says, and where; how much data would
 //! show a gap below the sampling floor. The "real" files hide effects that
-//! are NOT in the vocabulary, made by `scripts/unmodelled_effects.py`
+//! are NOT in the vocabulary, made by `crates/dem-gap/tests/peers/unmodelled_effects.py`
 //! (numpy, independent of the Rust code) on every 5th record of
 //! testdata/sim.npy (605 records, all terrains, with their labels); pairs,
 //! where used, are the identity. The estimate of the data needed is checked
@@ -29,10 +29,10 @@ fn setup(dir: &Path) -> (String, String, String) {
     (sim, labels, pairs)
 }
 
-/// Hide `effects` of scripts/unmodelled_effects.py in the sim records.
+/// Hide `effects` of crates/dem-gap/tests/peers/unmodelled_effects.py in the sim records.
 fn hide(dir: &Path, sim: &str, labels: &str, effects: &[&str]) -> String {
     let out = arg(dir, "real.npy");
-    let script = workspace_root().join("scripts/unmodelled_effects.py");
+    let script = workspace_root().join("crates/dem-gap/tests/peers/unmodelled_effects.py");
     let o = Command::new(python()).arg(script).args([sim, labels, &out, "13"]).args(effects).output().expect("python");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     out

@@ -1,8 +1,8 @@
 //! Samples/s of the full training step on random batches, the measurement
-//! of `scripts/torch_cyclegan.py` (width, batch, steps as its
+//! of `scripts/peers/torch_cyclegan.py` (width, batch, steps as its
 //! arguments): `cargo run --release -p dem-nn --example step_speed -- 32 64 30`.
 //! A fourth argument `residual` builds dem-train's default network and
-//! losses instead of the thesis's, the peer of `scripts/torch_residual_step.py`.
+//! losses instead of the thesis's, the peer of `scripts/peers/torch_residual_step.py`.
 use dem_core::Dem;
 use dem_nn::train::{Batch, CycleGan, GanConfig};
 use rand::{Rng, SeedableRng};

@@ -1,5 +1,5 @@
 //! The parameters of the networks of `docs/network.md`, in PyTorch's layout
-//! (the layout of `scripts/torch_cyclegan.py` and of ONNX), so a
+//! (the layout of `scripts/peers/torch_cyclegan.py` and of ONNX), so a
 //! checkpoint, an export and the reference all name the same numbers.
 //!
 //! Feature orders fixed by the spec (NCHW inside the network):

@@ -1,6 +1,6 @@
 //! dem-sensor apply on the bundled sim data: deterministic by seed for any
 //! thread count, equal to the independent numpy implementation of the
-//! deterministic effects (scripts/hidden_effects.py), refusing bad models.
+//! deterministic effects (crates/dem-sensor/tests/peers/hidden_effects.py), refusing bad models.
 
 use std::process::Command;
 
@@ -76,7 +76,7 @@ fn deterministic_effects_equal_the_numpy_implementation() {
             .unwrap();
         let py_out = arg(dir.path(), "p.npy");
         let o = Command::new(python())
-            .arg(workspace_root().join("scripts/hidden_effects.py"))
+            .arg(workspace_root().join("crates/dem-sensor/tests/peers/hidden_effects.py"))
             .args([&small, &py_out, "1", spec])
             .output()
             .unwrap();
@@ -271,7 +271,7 @@ fn motion_effects_equal_the_numpy_implementation_in_distribution() {
             .unwrap();
         let py_out = arg(dir.path(), "p.npy");
         let o = Command::new(python())
-            .arg(workspace_root().join("scripts/hidden_effects.py"))
+            .arg(workspace_root().join("crates/dem-sensor/tests/peers/hidden_effects.py"))
             .args([&small, &py_out, "5", spec])
             .output()
             .unwrap();

@@ -1,9 +1,9 @@
 """A generator of docs/network.md built and exported by PyTorch, the way a
 user with a PyTorch training pipeline would hand one to dem-apply.
 
-    python scripts/torch_export.py OUT.onnx [--width 32] [--seed 1] [--arch thesis|residual]
+    python scripts/peers/torch_export.py OUT.onnx [--width 32] [--seed 1] [--arch thesis|residual]
 
-The network is scripts/torch_cyclegan.py's `Gen` (the thesis
+The network is scripts/peers/torch_cyclegan.py's `Gen` (the thesis
 network) with the toolkit's I/O: input `dem` (N, 21, 5, 2), output `dem_out`
 (N, 21, 5, 2), row 20 (the attitude) passed through; `--arch residual` adds
 the residual head of docs/training.md (heights (x_h + 0.1 o_h) sigmoid(20 o_m),

@@ -1,9 +1,9 @@
 """The PyTorch peer of dem-train's default network (`--arch residual`): one
 full Cycle GAN + paired step (2 G, 2 D) on random batches, samples/s.
 
-    python scripts/torch_residual_step.py [WIDTH] [BATCH] [STEPS]
+    python scripts/peers/torch_residual_step.py [WIDTH] [BATCH] [STEPS]
 
-scripts/torch_cyclegan.py builds the thesis network; dem-train's default
+scripts/peers/torch_cyclegan.py builds the thesis network; dem-train's default
 (`--arch residual`) differs in the generator's head and the paired losses
 (docs/training.md, "A generator that keeps the terrain"):
 
@@ -17,7 +17,7 @@ channels last in and out as the toolkit's files are: one permute each way,
 and the discriminators permute their input); the rest is the reference's,
 line for line (its structure too: the paired G_Y term runs G_Y(x) again,
 as the reference does), so
-scripts/bench_train.sh can set this against `step_speed ... residual` as it
+scripts/bench/train.sh can set this against `step_speed ... residual` as it
 sets the reference against the thesis network.
 """
 import os

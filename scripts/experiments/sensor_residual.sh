@@ -11,7 +11,7 @@
 # PAIRED_MODEL (an ONNX model trained the same way without --sensor).
 # Writes $OUT/table.csv, $OUT/table.md and $OUT/fig-sensor-paired.png.
 set -euo pipefail
-cd "$(dirname "$0")/.."
+cd "$(dirname "$0")/../.."
 # shellcheck source=scripts/eval_ci.sh
 source scripts/eval_ci.sh
 OUT=${OUT:-out/sensor}

@@ -18,7 +18,7 @@
 # under /usr/bin/time (wall seconds, peak RSS); the report gives the best
 # and the median. Files are read from the page cache (they were just written
 # or read): a cold read is bounded by the disk instead, twice (two passes).
-#   PY=.venv/bin/python BIN=target/release OUT=.bench bash scripts/bench_import.sh
+#   PY=.venv/bin/python BIN=target/release OUT=.bench bash scripts/bench/import.sh
 set -euo pipefail
 BIN=${BIN:-target/release}
 OUT=${OUT:-.bench}
@@ -27,7 +27,7 @@ RUNS=${RUNS:-70}
 PAD=${PAD:-200}
 SEED=${SEED:-1}
 REPEAT=${REPEAT:-5}
-here=$(cd "$(dirname "$0")" && pwd)
+here=$(cd "$(dirname "$0")/.." && pwd)
 [ -x "$PY" ] || { echo "no $PY: make venv" >&2; exit 2; }
 for t in dem-import dem-synth; do
   [ -x "$BIN/$t" ] || { echo "no $BIN/$t: cargo build --release -p dem-import -p dem-synth" >&2; exit 2; }
@@ -180,7 +180,7 @@ msg_kb=$(echo "$bag_mb $maps" | awk '{printf "%.0f", $1 * 1000 / $2}')
   printf '    full.bag %s MB (%s maps, %s MB of file), half1.bag %s MB (%s maps): +%s kB per map, against %s kB of bag per map\n' \
       "$(rss_mb bag1)" "$maps" "$bag_mb" "$(rss_mb half1)" "$maps_half1" "$grow" "$msg_kb"
   printf '    the map data is not held; up to 4,096 DEMs wait in memory for stamp order (more go to sorted runs on disk),\n'
-  printf '    and the TF and flipper samples grow with the recording (a 10-hour recording: PART=import bash scripts/bench_memory.sh)\n'
+  printf '    and the TF and flipper samples grow with the recording (a 10-hour recording: PART=import bash scripts/bench/memory.sh)\n'
   printf '    full_mcap %s MB; full.bag + full_mcap at once (2 threads) %s MB; full.bag, 2 threads %s MB\n' "$(rss_mb mcap1)" "$(rss_mb both2)" "$(rss_mb bag2)"
   echo "peer (same run): rosbags $rosbags_version reading full.bag and deserializing every GridMap message (no TF, no resampling), 1 core:"
   printf '    %s maps/s: %s s, median %s s (%s), peak RSS %s MB; dem-import (1 thread) is %s times as fast\n' \

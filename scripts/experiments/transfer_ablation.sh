@@ -4,7 +4,7 @@
 # the training set: sim heights with G_Y's masks, and G_Y's heights with
 # sim's masks (G_Y's height where it keeps the cell, sim's where it drops
 # it), each trained like the other sets and tested on the held-out runs.
-#   PY=.venv/bin/python BIN=target/release OUT=out/transfer bash scripts/transfer_ablation.sh
+#   PY=.venv/bin/python BIN=target/release OUT=out/transfer bash scripts/experiments/transfer_ablation.sh
 set -euo pipefail
 BIN=${BIN:-target/release}
 OUT=${OUT:-out/transfer}

@@ -1,6 +1,6 @@
 """NPY stream read + write throughput: dem-cat against numpy, in the same run.
 
-Run through scripts/bench_npy.sh (which picks the Python and the binaries).
+Run through scripts/bench/npy.sh (which picks the Python and the binaries).
 Environment:
   BIN      directory of the release binaries      (default target/release)
   OUT      working directory for files and report (default .bench)

@@ -12,14 +12,14 @@
 # always, as a ROS 2 MCAP bag (zstd) and a ROS 2 SQLite bag (.db3). Each is
 # imported under /usr/bin/time -v; it must give the DEMs of one pass over
 # the maps (imported alone) over and over, and peak under 100 MB.
-#   PART=import PY=.venv/bin/python BIN=target/release OUT=.bench bash scripts/bench_memory.sh
+#   PART=import PY=.venv/bin/python BIN=target/release OUT=.bench bash scripts/bench/memory.sh
 set -euo pipefail
 BIN=${BIN:-target/release}
 OUT=${OUT:-.bench}
 PY=${PY:-.venv/bin/python}
 PART=${PART:-all}
 LONG_HOURS=${LONG_HOURS:-10}
-here=$(cd "$(dirname "$0")" && pwd)
+here=$(cd "$(dirname "$0")/.." && pwd)
 mkdir -p "$OUT/memory"
 report="$OUT/memory.txt"
 if [ "$PART" = all ]; then

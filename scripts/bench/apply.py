@@ -2,7 +2,7 @@
 Python InferenceSession, same model, same records, same thread count, in
 the same run.
 
-Run through scripts/bench_apply.sh (which picks the Python, the binaries and
+Run through scripts/bench/apply.sh (which picks the Python, the binaries and
 makes the model). Environment:
   BIN       directory of the release binaries          (default target/release)
   OUT       working directory for files and report     (default .bench)

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Training speed against the PyTorch peer (scripts/torch_cyclegan.py,
+# Training speed against the PyTorch peer (scripts/peers/torch_cyclegan.py,
 # the thesis network and losses): samples/s of the full step (both
 # generators, both discriminators, paired term) at width 32, batch 64,
 # measured in the same run, alternating the two so machine noise hits both,
@@ -9,13 +9,13 @@
 # whole-process wall clock (start-up and data loading included), each
 # against the peer's step rate at the same thread count. Then the same for
 # dem-train's default network (`--arch residual`: the residual head and the
-# height term) against scripts/torch_residual_step.py, the reference with
+# height term) against scripts/peers/torch_residual_step.py, the reference with
 # that head and those losses (ARCHS="thesis residual", the default).
 set -euo pipefail
 BIN=${BIN:-target/release}
 OUT=${OUT:-.bench}
 TORCH_PY=${TORCH_PY:-.venv-torch/bin/python}
-REF=${REF:-scripts/torch_cyclegan.py}
+REF=${REF:-scripts/peers/torch_cyclegan.py}
 WIDTH=${WIDTH:-32}
 BATCH=${BATCH:-64}
 STEPS=${STEPS:-20}
@@ -30,11 +30,11 @@ speed() { sed -n 's/.*samples\/s=\([0-9.]*\).*/\1/p'; }
 median() { sort -g | awk '{a[NR]=$1} END {print a[int((NR+1)/2)]}'; }
 ratio() { awk -v o="$1" -v t="$2" 'BEGIN { printf "%.2fx", o / t }'; }
 echo "torch $("$TORCH_PY" -c 'import torch; print(torch.__version__)'), width $WIDTH, batch $BATCH, $(nproc) cores, load $(cut -d' ' -f1-3 /proc/loadavg)" | tee -a "$report"
-echo "commands: $TORCH_PY $REF|scripts/torch_residual_step.py $WIDTH $BATCH $STEPS ; $BIN/examples/step_speed $WIDTH $BATCH $STEPS [residual] ;" \
+echo "commands: $TORCH_PY $REF|scripts/peers/torch_residual_step.py $WIDTH $BATCH $STEPS ; $BIN/examples/step_speed $WIDTH $BATCH $STEPS [residual] ;" \
   "$BIN/dem-train --arch thesis|residual --width $WIDTH --batch $BATCH --max-steps $TRAIN_STEPS --threads T ..." | tee -a "$report"
 for arch in $ARCHS; do
 peer=$REF step_arch=()
-[[ $arch == residual ]] && peer=scripts/torch_residual_step.py step_arch=(residual)
+[[ $arch == residual ]] && peer=scripts/peers/torch_residual_step.py step_arch=(residual)
 echo "network: $arch (peer $peer)" | tee -a "$report"
 for threads in $THREADS_LIST; do
   ours=() theirs=()

@@ -4,7 +4,7 @@
 # (numpy drawing the uniforms), width-32 generator with testdata/residual.json,
 # the same records and 2 threads, batch 4,096 for onnxruntime; prints the
 # ratio and each side's records per second.
-#   PY=.venv/bin/python BIN=target/release OUT=.bench scripts/bench_sensor.sh
+#   PY=.venv/bin/python BIN=target/release OUT=.bench scripts/bench/sensor.sh
 set -euo pipefail
 export BIN=${BIN:-target/release}
 export OUT=${OUT:-.bench}
@@ -17,4 +17,4 @@ export MODEL=${MODEL:-$OUT/sensor_w32.onnx}
 if [ ! -f "$MODEL" ]; then
   "$CARGO" run -q --release -p dem-onnx --example export_random -- "$MODEL" 32 1 testdata/residual.json
 fi
-REPORT=${REPORT:-sensor.txt} BATCHES=${BATCHES:-4096} exec "$PY" scripts/bench_apply.py
+REPORT=${REPORT:-sensor.txt} BATCHES=${BATCHES:-4096} exec "$PY" scripts/bench/apply.py

@@ -3,8 +3,8 @@
 # against onnxruntime's
 # Python InferenceSession on the same width-32 model, the same 100,000
 # records and the same 2 threads, in the same run; prints the ratio.
-# Details and knobs in scripts/bench_apply.py.
-#   PY=.venv/bin/python BIN=target/release OUT=.bench RECORDS=100000 THREADS=2 scripts/bench_apply.sh
+# Details and knobs in scripts/bench/apply.py.
+#   PY=.venv/bin/python BIN=target/release OUT=.bench RECORDS=100000 THREADS=2 scripts/bench/apply.sh
 set -euo pipefail
 export BIN=${BIN:-target/release}
 export OUT=${OUT:-.bench}
@@ -19,4 +19,4 @@ export MODEL=${MODEL:-$OUT/apply_w32.onnx}
 if [ ! -f "$MODEL" ]; then
   "$CARGO" run -q --release -p dem-onnx --example export_random -- "$MODEL" 32 1
 fi
-exec "$PY" scripts/bench_apply.py
+exec "$PY" scripts/bench/apply.py
