@@ -276,79 +276,140 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
     if pairs.pairs.is_empty() {
         return Err(table::no_pairs(&q.pairs, q.split, "evaluate").into());
     }
-    let all_reals: BTreeSet<u64> = if q.real == "-" { pairs.pairs.iter().map(|p| p.1).collect() } else { BTreeSet::new() };
-    let mut reals = ByIndex::open(&q.real, |i| all_reals.contains(&i))?;
-    let n_real = reals.len();
-    drop(all_reals);
-    real_max.check(&q.pairs, n_real, &q.real, "real_index")?;
-    // One terrain byte per sim record; the labels' other columns are not kept.
-    let labels = q.labels_sim.as_deref().map(table::read_labels).transpose()?;
-    let terrains: Option<Vec<Terrain>> = labels.as_ref().map(|l| l.iter().map(|l| l.terrain).collect());
-    let times: Option<Vec<f64>> = labels.as_deref().map(table::times);
-    drop(labels);
-    // Labels are the sim file's own (a shard's are indexed from 0).
-    let first_index = q.first_index.unwrap_or(0);
-    let terrain_of = |i: u64| -> Option<Terrain> { terrains.as_ref().and_then(|t| t.get((i - first_index) as usize)).copied() };
-    let time_of =
-        |i: u64| -> Option<f64> { times.as_ref().and_then(|t| t.get((i - first_index) as usize)).copied().filter(|t| t.is_finite()) };
-    // The sims this run scores: the whole set, or a shard's range (its
-    // length from the labels or the file; a shard on stdin runs to the end).
-    let scored = if q.first_index.is_none() {
-        pairs.pairs.as_slice()
-    } else {
-        let len = match (&terrains, q.sim.as_str()) {
-            (Some(t), _) => t.len() as u64,
-            (None, "-") => u64::MAX - first_index,
-            (None, path) => RecordIndex::build(path)?.len(),
-        };
-        pairs.within(first_index..first_index.saturating_add(len))
-    };
-    // Rows of the table and their pair counts, for the gap samples' rates.
-    let mut row_sizes: HashMap<Option<Terrain>, u64> = HashMap::new();
-    for g in scored.chunk_by(|a, b| a.0 == b.0) {
-        *row_sizes.entry(None).or_default() += g.len() as u64;
-        if q.by_terrain {
-            *row_sizes.entry(terrain_of(g[0].0)).or_default() += g.len() as u64;
-        }
-    }
-    let model = match &q.method {
-        Method::Model(path) => Some(dem_onnx::OnnxModel::load(path)?),
-        _ => None,
-    };
-    // What dem-apply runs around the network: where its valid cells take
-    // their heights from (`--heights input`), then its residual model.
-    let (residual, heights) = match &q.method {
-        Method::Model(path) => {
-            let stored = dem_apply::stored(path)?;
-            (stored.residual.filter(|_| !q.network_only), stored.heights)
-        }
-        _ => (None, dem_onnx::Heights::Network),
-    };
-    if residual.as_ref().is_some_and(|r| r.uses_time()) && times.is_none() {
-        cli::log("note: the model's residual has `startup` but no --sim-labels gave the records' times: startup frames are drawn at its rate p instead of by time");
-    }
+    let mut reals = open_reals(q, &pairs)?;
+    real_max.check(&q.pairs, reals.len(), &q.real, "real_index")?;
+    let labels = SimLabels::read(q)?;
+    let row_sizes = row_sizes(q, scored_pairs(q, &pairs, &labels)?, &labels);
+    let network = Network::load(q, labels.times.is_some())?;
     let mut acc = Acc::default();
     let mut emit = Emit::create(q)?;
+    let ctx = BlockCtx {
+        q,
+        pairs: &pairs,
+        model: network.model.as_ref(),
+        residual: network.residual.as_ref(),
+        heights: network.heights,
+        labels: &labels,
+        row_sizes: &row_sizes,
+    };
+    let n_sim = evaluate_stream(&ctx, &sim_max, &mut reals, &mut emit, &mut acc)?;
+    if let (Some(t), Some(path)) = (&labels.terrains, &q.labels_sim) {
+        table::check_labels_cover(path, t.len(), &q.sim, n_sim)?;
+    }
+    if let Method::Model(path) = &q.method {
+        if let Some(w) = acc.attitude.warning(path, &q.sim) {
+            cli::log(w);
+        }
+    }
+    emit.finish()?;
+    let gaps = row_gaps(acc.samples, &row_sizes, &mut reals)?;
+    // After the run: a refused input still gets exactly one line.
+    if let Some(note) = network.model.as_ref().and_then(|m| m.note()) {
+        cli::log(note);
+    }
+    Ok(Evaluation { rows: acc.rows, gaps })
+}
+
+/// The real file, read by index; held whole only when it is stdin, and
+/// then only the records some pair names.
+fn open_reals(q: &Request, pairs: &Pairs) -> anyhow::Result<ByIndex> {
+    let all_reals: BTreeSet<u64> = if q.real == "-" { pairs.pairs.iter().map(|p| p.1).collect() } else { BTreeSet::new() };
+    Ok(ByIndex::open(&q.real, |i| all_reals.contains(&i))?)
+}
+
+/// What the engine keeps of the sim file's labels: one terrain byte and one
+/// time per record. Labels are the sim file's own, so a shard's are indexed
+/// from its first record.
+struct SimLabels {
+    terrains: Option<Vec<Terrain>>,
+    times: Option<Vec<f64>>,
+    first_index: u64,
+}
+
+impl SimLabels {
+    fn read(q: &Request) -> anyhow::Result<SimLabels> {
+        let labels = q.labels_sim.as_deref().map(table::read_labels).transpose()?;
+        Ok(SimLabels {
+            terrains: labels.as_ref().map(|l| l.iter().map(|l| l.terrain).collect()),
+            times: labels.as_deref().map(table::times),
+            first_index: q.first_index.unwrap_or(0),
+        })
+    }
+
+    fn terrain(&self, i: u64) -> Option<Terrain> {
+        self.terrains.as_ref().and_then(|t| t.get((i - self.first_index) as usize)).copied()
+    }
+
+    fn time(&self, i: u64) -> Option<f64> {
+        self.times.as_ref().and_then(|t| t.get((i - self.first_index) as usize)).copied().filter(|t| t.is_finite())
+    }
+}
+
+/// The pairs this run scores: the whole set, or a shard's range (its length
+/// from the labels or the file; a shard on stdin runs to the end).
+fn scored_pairs<'p>(q: &Request, pairs: &'p Pairs, labels: &SimLabels) -> anyhow::Result<&'p [(u64, u64)]> {
+    let Some(first_index) = q.first_index else {
+        return Ok(pairs.pairs.as_slice());
+    };
+    let len = match (&labels.terrains, q.sim.as_str()) {
+        (Some(t), _) => t.len() as u64,
+        (None, "-") => u64::MAX - first_index,
+        (None, path) => RecordIndex::build(path)?.len(),
+    };
+    Ok(pairs.within(first_index..first_index.saturating_add(len)))
+}
+
+/// Rows of the table and their pair counts, for the gap samples' rates.
+fn row_sizes(q: &Request, scored: &[(u64, u64)], labels: &SimLabels) -> HashMap<Option<Terrain>, u64> {
+    let mut sizes: HashMap<Option<Terrain>, u64> = HashMap::new();
+    for g in scored.chunk_by(|a, b| a.0 == b.0) {
+        *sizes.entry(None).or_default() += g.len() as u64;
+        if q.by_terrain {
+            *sizes.entry(labels.terrain(g[0].0)).or_default() += g.len() as u64;
+        }
+    }
+    sizes
+}
+
+/// A `--model` run's generator and what dem-apply runs around it: where its
+/// valid cells take their heights from (`--heights input`), then its
+/// residual sensor model.
+struct Network {
+    model: Option<dem_onnx::OnnxModel>,
+    residual: Option<dem_sensor::SensorModel>,
+    heights: dem_onnx::Heights,
+}
+
+impl Network {
+    fn load(q: &Request, has_times: bool) -> anyhow::Result<Network> {
+        let Method::Model(path) = &q.method else {
+            return Ok(Network { model: None, residual: None, heights: dem_onnx::Heights::Network });
+        };
+        let model = Some(dem_onnx::OnnxModel::load(path)?);
+        let stored = dem_apply::stored(path)?;
+        let residual = stored.residual.filter(|_| !q.network_only);
+        if residual.as_ref().is_some_and(|r| r.uses_time()) && !has_times {
+            cli::log("note: the model's residual has `startup` but no --sim-labels gave the records' times: startup frames are drawn at its rate p instead of by time");
+        }
+        Ok(Network { model, residual, heights: stored.heights })
+    }
+}
+
+/// Read the sim stream (and a prediction stream beside it) a chunk at a
+/// time and evaluate the paired records in blocks; checks both streams'
+/// lengths and returns the number of sim records.
+fn evaluate_stream(ctx: &BlockCtx, sim_max: &Largest, reals: &mut ByIndex, emit: &mut Emit, acc: &mut Acc) -> anyhow::Result<u64> {
+    let q = ctx.q;
     let mut sim_rdr = npy::open(&q.sim)?;
     let mut pred_rdr = match &q.method {
         Method::Pred(path) => Some((path, npy::open(path)?)),
         _ => None,
     };
-    let ctx = BlockCtx {
-        q,
-        pairs: &pairs,
-        model: model.as_ref(),
-        residual: residual.as_ref(),
-        heights,
-        terrain_of: &terrain_of,
-        time_of: &time_of,
-        row_sizes: &row_sizes,
-    };
     let (mut chunk, mut pchunk) = (Vec::with_capacity(CHUNK_RECORDS), Vec::with_capacity(CHUNK_RECORDS));
     let mut block: Vec<(u64, Dem, Dem)> = Vec::with_capacity(BLOCK);
     loop {
         chunk.clear();
-        let first = first_index + sim_rdr.records_read();
+        let first = ctx.labels.first_index + sim_rdr.records_read();
         let n = sim_rdr.read_chunk(&mut chunk, CHUNK_RECORDS)?;
         if let Some((path, r)) = &mut pred_rdr {
             pchunk.clear();
@@ -361,13 +422,13 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
                 .into());
             }
         }
-        for g in pairs.within(first..first + n as u64).chunk_by(|a, b| a.0 == b.0) {
+        for g in ctx.pairs.within(first..first + n as u64).chunk_by(|a, b| a.0 == b.0) {
             let k = (g[0].0 - first) as usize;
             let pred = if pred_rdr.is_some() { pchunk[k] } else { chunk[k] };
             block.push((g[0].0, chunk[k], pred));
         }
         if block.len() >= BLOCK || (n == 0 && !block.is_empty()) {
-            evaluate_block(&ctx, std::mem::take(&mut block), &mut reals, &mut emit, &mut acc)?;
+            evaluate_block(ctx, std::mem::take(&mut block), reals, emit, acc)?;
         }
         if n == 0 {
             break;
@@ -388,21 +449,7 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
             .into());
         }
     }
-    if let (Some(t), Some(path)) = (&terrains, &q.labels_sim) {
-        table::check_labels_cover(path, t.len(), &q.sim, n_sim)?;
-    }
-    if let Method::Model(path) = &q.method {
-        if let Some(w) = acc.attitude.warning(path, &q.sim) {
-            cli::log(w);
-        }
-    }
-    emit.finish()?;
-    let gaps = row_gaps(acc.samples, &row_sizes, &mut reals)?;
-    // After the run: a refused input still gets exactly one line.
-    if let Some(note) = model.as_ref().and_then(|m| m.note()) {
-        cli::log(note);
-    }
-    Ok(Evaluation { rows: acc.rows, gaps })
+    Ok(n_sim)
 }
 
 /// What every block needs to know.
@@ -412,8 +459,7 @@ struct BlockCtx<'a> {
     model: Option<&'a dem_onnx::OnnxModel>,
     residual: Option<&'a dem_sensor::SensorModel>,
     heights: dem_onnx::Heights,
-    terrain_of: &'a dyn Fn(u64) -> Option<Terrain>,
-    time_of: &'a (dyn Fn(u64) -> Option<f64> + Sync),
+    labels: &'a SimLabels,
     row_sizes: &'a HashMap<Option<Terrain>, u64>,
 }
 
@@ -435,7 +481,7 @@ fn evaluate_block(
         if let Some(r) = ctx.residual {
             // Keyed by the record's index in the whole sim set, as dem-apply
             // keys it: the same draws as `dem-apply | dem-eval --pred`.
-            block.par_iter_mut().for_each(|b| r.apply_at(&mut b.2, ctx.q.seed, b.0, (ctx.time_of)(b.0)));
+            block.par_iter_mut().for_each(|b| r.apply_at(&mut b.2, ctx.q.seed, b.0, ctx.labels.time(b.0)));
         }
     }
     let (lo, hi) = (block[0].0, block[block.len() - 1].0 + 1);
@@ -446,7 +492,7 @@ fn evaluate_block(
     let wanted: BTreeSet<u64> = sub.values().flatten().copied().collect();
     let real = reals.fetch(&wanted)?;
     let pred: HashMap<u64, Dem> = block.iter().map(|b| (b.0, b.2)).collect();
-    let results = validation::evaluate(&sub, |i| &pred[&i], |j| &real[&j], ctx.terrain_of);
+    let results = validation::evaluate(&sub, |i| &pred[&i], |j| &real[&j], |i| ctx.labels.terrain(i));
     for (r, b) in results.iter().zip(&block) {
         debug_assert_eq!(r.sim_index, b.0);
         if let Some(w) = &mut emit.records {
@@ -459,7 +505,7 @@ fn evaluate_block(
         }
         let mut keys = vec![None];
         if ctx.q.by_terrain {
-            keys.push((ctx.terrain_of)(b.0));
+            keys.push(ctx.labels.terrain(b.0));
         }
         for key in keys {
             acc.rows.entry(key).or_default().add(r);
