@@ -53,6 +53,10 @@ test: venv
 lint:
 	$(CARGO) fmt --all --check
 	$(CARGO) clippy --workspace --all-targets -- -D warnings
+	# The network library builds on the contract alone, without the tools'
+	# command-line edge (dem-core's `cli` feature: clap, indicatif).
+	! $(CARGO) tree -p dem-nn -e normal --prefix none | grep -E '^(clap|clap_complete|clap_mangen|indicatif) '
+	$(CARGO) check -q -p dem-nn -p dem-core --all-targets
 
 test-long: venv
 	DEM_PYTHON=$(abspath $(PY)) $(CARGO) test -p dem-gap --test gap --test unexplained
