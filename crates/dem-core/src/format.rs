@@ -121,6 +121,18 @@ pub fn empty_dem() -> Dem {
     d
 }
 
+/// A record with every grid cell valid at height `h` (m, relative to C) and
+/// a zero attitude: level ground, the simplest DEM a test builds on.
+pub fn level_dem(h: f32) -> Dem {
+    let mut d = empty_dem();
+    for r in 0..GRID_ROWS {
+        for c in 0..COLS {
+            d.set_valid(r, c, h);
+        }
+    }
+    d
+}
+
 /// Apply the contract's input rule: a NaN height is a missing cell, stored
 /// as height 0 and mask -1; a NaN attitude reads as 0 ("not recorded").
 /// Everything else is kept bit for bit, so tools that do not touch a record

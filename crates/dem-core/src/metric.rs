@@ -41,22 +41,12 @@ pub fn pair_error<'a>(measured: impl IntoIterator<Item = &'a Dem>, p: &Dem) -> O
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::format::{empty_dem, DemCells, FLAT_GROUND};
-
-    fn flat() -> Dem {
-        let mut d = empty_dem();
-        for r in 0..20 {
-            for c in 0..5 {
-                d.set_valid(r, c, FLAT_GROUND);
-            }
-        }
-        d
-    }
+    use crate::format::{empty_dem, level_dem, DemCells, FLAT_GROUND};
 
     // The worked checks of docs/format.md: whole DEMs differing in one cell.
     #[test]
     fn worked_check_mask_half_against_valid() {
-        let y = flat();
+        let y = level_dem(FLAT_GROUND);
         let mut p = y;
         p[crate::format::at(4, 2, 1)] = 0.5;
         assert!((dem_error(&y, &p) - 0.0025).abs() < 1e-12);
@@ -72,7 +62,7 @@ mod tests {
 
     #[test]
     fn worked_check_valid_height() {
-        let y = flat();
+        let y = level_dem(FLAT_GROUND);
         let mut p = y;
         p.set_valid(10, 3, -0.09);
         // (0.02)^2 / 100 = 4e-6, up to f32 rounding of -0.09 and -0.07.
@@ -89,7 +79,7 @@ mod tests {
 
     #[test]
     fn attitude_row_is_ignored() {
-        let y = flat();
+        let y = level_dem(FLAT_GROUND);
         let mut p = y;
         p.set_attitude([1.0; 5]);
         assert_eq!(dem_error(&y, &p), 0.0);
@@ -112,9 +102,9 @@ mod tests {
 
     #[test]
     fn pair_error_takes_the_best_measured() {
-        let p = flat();
+        let p = level_dem(FLAT_GROUND);
         let far = empty_dem();
-        let near = flat();
+        let near = level_dem(FLAT_GROUND);
         let (i, e) = pair_error([&far, &near, &far], &p).unwrap();
         assert_eq!((i, e), (1, 0.0));
         assert!(pair_error([], &p).is_none());

@@ -636,17 +636,7 @@ pub fn compare(baseline: &[TableRow], current: &[TableRow], tol: &Tolerances) ->
 #[cfg(test)]
 mod tests {
     use super::*;
-    use dem_core::format::{at, empty_dem, DemCells, FLAT_GROUND};
-
-    fn flat() -> Dem {
-        let mut d = empty_dem();
-        for r in 0..20 {
-            for c in 0..5 {
-                d.set_valid(r, c, FLAT_GROUND);
-            }
-        }
-        d
-    }
+    use dem_core::format::{at, empty_dem, level_dem, DemCells, FLAT_GROUND};
 
     fn row(method: &str, mean: f64, median: f64) -> TableRow {
         TableRow {
@@ -718,7 +708,7 @@ mod tests {
     // the paired real records is taken, before any mask threshold.
     #[test]
     fn evaluate_takes_the_best_pair_and_the_raw_mask() {
-        let y = flat();
+        let y = level_dem(FLAT_GROUND);
         let mut p = y;
         p[at(4, 2, 1)] = 0.5; // 0.0025 against the valid y
         let missing = empty_dem(); // against an all-missing y: mask term only
@@ -802,9 +792,9 @@ mod tests {
     // (5,2), 1 cm lower at (7,4): (0.03 + 0.01) / 98 cells.
     #[test]
     fn height_error_counts_only_cells_valid_in_both() {
-        let mut y = flat();
+        let mut y = level_dem(FLAT_GROUND);
         y.set_missing(0, 0);
-        let mut p = flat();
+        let mut p = level_dem(FLAT_GROUND);
         p.set_missing(0, 1);
         p.set_valid(0, 0, -0.05);
         p.set_valid(5, 2, -0.04);
@@ -822,7 +812,7 @@ mod tests {
     // across pairs 20 * 4 = 80, along 19 * 5 = 95 when all valid.
     #[test]
     fn roughness_across_and_along() {
-        let mut d = flat();
+        let mut d = level_dem(FLAT_GROUND);
         for r in 10..20 {
             for c in 0..5 {
                 d.set_valid(r, c, FLAT_GROUND + 0.1);
@@ -847,15 +837,15 @@ mod tests {
     // sums and counts (not means of records) per terrain.
     #[test]
     fn evaluate_measures_heights_against_the_closest_real_record_and_pools() {
-        let y = flat();
-        let mut far = flat();
+        let y = level_dem(FLAT_GROUND);
+        let mut far = level_dem(FLAT_GROUND);
         far.set_missing(0, 0); // a worse pair: the mask term of one cell
         for c in 0..5 {
             far.set_valid(12, c, FLAT_GROUND + 0.5);
         }
-        let mut p = flat();
+        let mut p = level_dem(FLAT_GROUND);
         p.set_valid(2, 2, FLAT_GROUND + 0.02); // 2 cm off in one cell
-        let mut q = flat();
+        let mut q = level_dem(FLAT_GROUND);
         for r in 0..20 {
             q.set_valid(r, 0, FLAT_GROUND + 0.01); // 1 cm off in 20 cells
         }

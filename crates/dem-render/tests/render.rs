@@ -7,7 +7,7 @@
 
 use std::path::Path;
 
-use dem_core::format::{empty_dem, Dem, DemCells};
+use dem_core::format::{level_dem, Dem, DemCells};
 use dem_core::npy;
 use dem_testkit::{arg, ok, run, stderr, tempdir};
 
@@ -61,17 +61,6 @@ impl Image {
     }
 }
 
-/// A DEM of flat ground at `h` everywhere.
-fn flat(h: f32) -> Dem {
-    let mut d = empty_dem();
-    for r in 0..20 {
-        for c in 0..5 {
-            d.set_valid(r, c, h);
-        }
-    }
-    d
-}
-
 fn write(dir: &Path, name: &str, recs: &[Dem]) -> String {
     let p = arg(dir, name);
     npy::write_all(&p, recs).unwrap();
@@ -80,7 +69,7 @@ fn write(dir: &Path, name: &str, recs: &[Dem]) -> String {
 
 /// Record 0: max height at (0, 0), min at (19, 4), a missing cell (10, 2).
 fn marked() -> Dem {
-    let mut d = flat(0.1);
+    let mut d = level_dem(0.1);
     d.set_valid(0, 0, 0.3);
     d.set_valid(19, 4, -0.1);
     d.set_missing(10, 2);
@@ -96,7 +85,7 @@ fn size_from_log(err: &str) -> (usize, usize) {
 #[test]
 fn grid_puts_row_0_at_the_top_max_dark_red_min_dark_blue_missing_white() {
     let dir = tempdir();
-    let input = write(dir.path(), "d.npy", &[marked(), flat(0.1), flat(0.0)]);
+    let input = write(dir.path(), "d.npy", &[marked(), level_dem(0.1), level_dem(0.0)]);
     let out = arg(dir.path(), "grid.png");
     let res = run("dem-render", &[&input, "-o", &out], None);
     ok(&res);
@@ -128,7 +117,7 @@ fn grid_puts_row_0_at_the_top_max_dark_red_min_dark_blue_missing_white() {
 #[test]
 fn fixed_range_colours_heights_against_vmin_vmax() {
     let dir = tempdir();
-    let mut d = flat(0.0);
+    let mut d = level_dem(0.0);
     d.set_valid(3, 1, 1.0);
     d.set_valid(4, 1, -1.0);
     let input = write(dir.path(), "d.npy", &[d]);
@@ -145,11 +134,11 @@ fn fixed_range_colours_heights_against_vmin_vmax() {
 #[test]
 fn indices_are_drawn_in_the_order_given() {
     let dir = tempdir();
-    let mut hi = flat(0.0);
+    let mut hi = level_dem(0.0);
     hi.set_valid(0, 0, 0.5);
-    let mut lo = flat(0.0);
+    let mut lo = level_dem(0.0);
     lo.set_valid(0, 0, -0.5);
-    let input = write(dir.path(), "d.npy", &[lo, flat(0.0), hi]);
+    let input = write(dir.path(), "d.npy", &[lo, level_dem(0.0), hi]);
     let out = arg(dir.path(), "i.png");
     ok(&run("dem-render", &[&input, "--indices", "2,0", "-o", &out], None));
     let img = Image::open(&out);
@@ -169,7 +158,7 @@ fn compare_stacks_three_files_as_rows_with_errors_under_columns() {
     let dir = tempdir();
     let files: Vec<String> = ["in", "real", "gen"]
         .iter()
-        .map(|name| write(dir.path(), &format!("{name}.npy"), &[marked(), flat(0.1), flat(0.0), flat(0.0)]))
+        .map(|name| write(dir.path(), &format!("{name}.npy"), &[marked(), level_dem(0.1), level_dem(0.0), level_dem(0.0)]))
         .collect();
     let one = arg(dir.path(), "one.png");
     ok(&run("dem-render", &[&files[0], "--count", "2", "-o", &one], None));
@@ -219,7 +208,7 @@ fn per_terrain_draws_evenly_spaced_records_of_each_terrain_in_terrain_order() {
     let dir = tempdir();
     // Nine records: terrains p f s p f p u p f (pallet, flat, stairs-down, stairs-up).
     let terrains = ["pallet", "flat", "stairs-down", "pallet", "flat", "pallet", "stairs-up", "pallet", "flat"];
-    let recs: Vec<Dem> = (0..9).map(|k| flat(k as f32 / 10.0)).collect();
+    let recs: Vec<Dem> = (0..9).map(|k| level_dem(k as f32 / 10.0)).collect();
     let input = write(dir.path(), "d.npy", &recs);
     let labels = arg(dir.path(), "l.csv");
     let rows: String = terrains.iter().enumerate().map(|(i, t)| format!("{i},{t}\n")).collect();
@@ -264,8 +253,8 @@ fn refused(dir: &Path, args: &[&str], needles: &[&str]) {
 fn bad_inputs_exit_2_naming_the_file_and_leave_no_output() {
     let dir = tempdir();
     let d = dir.path();
-    let good = write(d, "good.npy", &[flat(0.0); 4]);
-    let five = write(d, "five.npy", &[flat(0.0); 5]);
+    let good = write(d, "good.npy", &[level_dem(0.0); 4]);
+    let five = write(d, "five.npy", &[level_dem(0.0); 5]);
     let bytes = std::fs::read(&good).unwrap();
     let cut = arg(d, "cut.npy");
     std::fs::write(&cut, &bytes[..bytes.len() - 100]).unwrap();
@@ -288,7 +277,7 @@ fn bad_inputs_exit_2_naming_the_file_and_leave_no_output() {
 fn usage_errors_exit_2() {
     let dir = tempdir();
     let d = dir.path();
-    let good = write(d, "good.npy", &[flat(0.0); 4]);
+    let good = write(d, "good.npy", &[level_dem(0.0); 4]);
     let out = arg(d, "out.png");
     refused(d, &[&good, "--count", "401", "-o", &out], &["at most 400"]);
     refused(d, &[&good, &good, "-o", &out], &["--compare"]);
@@ -307,7 +296,7 @@ fn usage_errors_exit_2() {
 fn captions_from_a_csv_and_the_help_example() {
     let dir = tempdir();
     let d = dir.path();
-    let good = write(d, "good.npy", &[flat(0.0), flat(0.1)]);
+    let good = write(d, "good.npy", &[level_dem(0.0), level_dem(0.1)]);
     let csv = arg(d, "c.csv");
     std::fs::write(&csv, "sim_index,real_index,distance\n0,0,0.25\n1,1,0.5\n").unwrap();
     let with = arg(d, "with.png");
@@ -324,8 +313,8 @@ fn captions_from_a_csv_and_the_help_example() {
 fn compare_draws_a_range_every_file_holds_and_refuses_one_past_a_shorter_file() {
     let dir = tempdir();
     let d = dir.path();
-    let four = write(d, "four.npy", &[flat(0.0); 4]);
-    let six = write(d, "six.npy", &[flat(0.0); 6]);
+    let four = write(d, "four.npy", &[level_dem(0.0); 4]);
+    let six = write(d, "six.npy", &[level_dem(0.0); 6]);
     let out = arg(d, "out.png");
     // Files of unequal length: a range inside both is drawn whole ...
     let res = run("dem-render", &["--compare", &six, &four, "--start", "1", "--count", "3", "-o", &out], None);
