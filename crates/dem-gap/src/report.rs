@@ -473,6 +473,20 @@ pub fn line_plot(title: &str, xlabel: &str, xs: &[f64], series: &[(String, Rgb, 
 /// The Markdown report.
 pub fn markdown(o: &Outcome) -> String {
     let mut s = String::new();
+    summary_md(&mut s, o);
+    warnings_md(&mut s, o);
+    steps_md(&mut s, o);
+    terms_md(&mut s, o);
+    terrains_md(&mut s, o);
+    unexplained_md(&mut s, o);
+    more_data_md(&mut s, o);
+    missing_bands_md(&mut s, o);
+    let _ = writeln!(s, "\n## Pictures\n\n![sim, model(sim), real](compare.png)\n\n![missing rate per row](rows-missing.png)\n\n![heights per row](rows-height.png)");
+    s
+}
+
+/// The opening: what was compared, the gap before and after, and what the reader must know about the data.
+fn summary_md(s: &mut String, o: &Outcome) {
     let _ = writeln!(s, "# dem-gap report\n");
     let _ = writeln!(
         s,
@@ -509,6 +523,10 @@ pub fn markdown(o: &Outcome) -> String {
     } else {
         let _ = writeln!(s, "Terrain: {}.\n", o.record_kinds.sentence());
     }
+}
+
+/// Effects fitted at the edge of their box and tied steps, before the table.
+fn warnings_md(s: &mut String, o: &Outcome) {
     let flagged: Vec<String> = o
         .steps
         .iter()
@@ -536,6 +554,10 @@ pub fn markdown(o: &Outcome) -> String {
             tied.join("; ")
         );
     }
+}
+
+/// The steps table, why the search stopped, the re-fits and every step's candidates.
+fn steps_md(s: &mut String, o: &Outcome) {
     let _ = writeln!(
         s,
         "## Steps\n\n| step | effect | parameters | at box edge | tied with | gap before | gap after | evidence |\n|---|---|---|---|---|---|---|---|"
@@ -576,6 +598,10 @@ pub fn markdown(o: &Outcome) -> String {
         }
         let _ = writeln!(s);
     }
+}
+
+/// The gap per term, start model against final model.
+fn terms_md(s: &mut String, o: &Outcome) {
     let _ = writeln!(s, "## Where the gap is (per term, start model -> final model)\n\n| term | start | final |\n|---|---|---|");
     let (a, b) = (gap_terms(&o.stats[1], &o.stats[3]), gap_terms(&o.stats[2], &o.stats[3]));
     for ((n, x), (_, y)) in a.iter().zip(&b) {
@@ -587,6 +613,10 @@ pub fn markdown(o: &Outcome) -> String {
             "\nPaired equation 7.1 error (mean), reported beside the gap, not part of it (it grows when correct noise is added): sim as is {e0:.4}, start model {e1:.4}, final model {e2:.4}."
         );
     }
+}
+
+/// The gap and its terms per terrain.
+fn terrains_md(s: &mut String, o: &Outcome) {
     if !o.terrains.is_empty() {
         let (h, sp) = if o.paired { ("mean residual", "residual sd") } else { ("mean height", "roughness") };
         let _ = writeln!(
@@ -609,9 +639,4 @@ pub fn markdown(o: &Outcome) -> String {
             );
         }
     }
-    unexplained_md(&mut s, o);
-    more_data_md(&mut s, o);
-    missing_bands_md(&mut s, o);
-    let _ = writeln!(s, "\n## Pictures\n\n![sim, model(sim), real](compare.png)\n\n![missing rate per row](rows-missing.png)\n\n![heights per row](rows-height.png)");
-    s
 }

@@ -389,24 +389,63 @@ pub fn analyse(i: &Inputs) -> Unexplained {
     let all_s: Vec<usize> = (0..i.sim.len()).collect();
     let all_r: Vec<usize> = (0..i.real.len()).collect();
     let whole = compare(i.out_a, i.out_b, i.sim, i.real, i.paired, &all_s, &all_r, i.halves, &|d| *d);
-    let part = |name: &str, gap: f64, floor: f64| Part {
-        name: name.to_string(),
-        gap,
-        floor,
-        excess: excess(gap, floor),
-        share: 0.0,
-        records: 0,
-        top: None,
-    };
-    let mut by_statistic: Vec<Part> = whole.terms().into_iter().map(|(n, g, f)| part(n, g, f)).collect();
+    let mut by_statistic: Vec<Part> = whole.terms().into_iter().map(|(n, g, f)| Part::new(n, g, f)).collect();
     set_shares(&mut by_statistic);
     by_statistic.sort_by(|a, b| b.excess.total_cmp(&a.excess));
-    let mut by_row_band: Vec<Part> = whole.bands().into_iter().map(|(n, g, f)| part(n, g, f)).collect();
+    let mut by_row_band: Vec<Part> = whole.bands().into_iter().map(|(n, g, f)| Part::new(n, g, f)).collect();
     set_shares(&mut by_row_band);
     let (rg, _) = by_row(&whole.gap);
     let (rf, _) = by_row(&whole.floor);
     let rows: Vec<(f64, f64)> = rg.iter().zip(rf).map(|(&g, f)| (g, f)).collect();
-    let rows_of_top = by_statistic
+    let rows_of_top = rows_of_top(&whole, &by_statistic);
+    let mut by_side: Vec<Part> = [("left", true), ("right", false)]
+        .into_iter()
+        .map(|(n, left)| {
+            let c = compare(i.out_a, i.out_b, i.sim, i.real, i.paired, &all_s, &all_r, i.halves, &|d| side_view(d, left));
+            Part::new(n, c.gap(), c.floor())
+        })
+        .collect();
+    set_shares(&mut by_side);
+    let (by_terrain, rows_of_terrain) = by_terrain(i);
+    // A negligible gap (crate::NEGLIGIBLE_GAP) is explained, whatever the
+    // floor: no statistic differs by a fifth of its scale.
+    let ex = if i.gap < crate::NEGLIGIBLE_GAP { 0.0 } else { excess(i.gap, i.floor) };
+    let location = if ex > 0.0 { locate(&by_statistic, &by_row_band, &by_side, &by_terrain) } else { Location::default() };
+    let weak_steps = i
+        .steps
+        .iter()
+        .enumerate()
+        .filter(|(_, (_, b, a))| crate::share_removed(*b, *a) < WEAK)
+        .map(|(k, (e, b, a))| (k + 1, e.clone(), crate::share_removed(*b, *a)))
+        .collect();
+    Unexplained {
+        gap: i.gap,
+        floor: i.floor,
+        excess: ex,
+        share: if i.gap > 0.0 { ex / i.gap } else { 0.0 },
+        of_initial: if i.gap_initial > 0.0 { ex / i.gap_initial } else { 0.0 },
+        by_statistic,
+        by_row_band,
+        by_side,
+        by_terrain,
+        by_row: rows,
+        rows_of_top,
+        rows_of_terrain,
+        weak_steps,
+        location,
+    }
+}
+
+impl Part {
+    fn new(name: &str, gap: f64, floor: f64) -> Part {
+        Part { name: name.to_string(), gap, floor, excess: excess(gap, floor), share: 0.0, records: 0, top: None }
+    }
+}
+
+/// The per-row gap of the (at most four) statistics with the largest
+/// excess, for those whose gap lives in the grid's rows alone.
+fn rows_of_top(whole: &Compared, by_statistic: &[Part]) -> Vec<(String, Vec<f64>)> {
+    by_statistic
         .iter()
         .filter(|p| p.excess > 0.0)
         .take(4)
@@ -417,37 +456,38 @@ pub fn analyse(i: &Inputs) -> Unexplained {
             add_rows(v, &mut r, &mut rest);
             (rest == 0.0).then(|| (p.name.clone(), r.to_vec()))
         })
-        .collect();
-    let mut by_side: Vec<Part> = [("left", true), ("right", false)]
-        .into_iter()
-        .map(|(n, left)| {
-            let c = compare(i.out_a, i.out_b, i.sim, i.real, i.paired, &all_s, &all_r, i.halves, &|d| side_view(d, left));
-            part(n, c.gap(), c.floor())
-        })
-        .collect();
-    set_shares(&mut by_side);
-    let mut by_terrain = Vec::new();
-    let mut rows_of_terrain = Vec::new();
-    if let Some((ts, tr)) = i.terrains {
-        for t in Terrain::ALL {
-            let si: Vec<usize> = (0..ts.len()).filter(|&k| ts[k] == t).collect();
-            let ri: Vec<usize> = (0..tr.len()).filter(|&k| tr[k] == t).collect();
-            if si.len() < 20 || ri.len() < 20 {
-                continue;
-            }
-            let c = compare(i.out_a, i.out_b, i.sim, i.real, i.paired, &si, &ri, i.halves, &|d| *d);
-            let mut p = part(t.as_str(), c.gap(), c.floor());
-            p.records = ri.len();
-            p.top = (p.excess > 0.0).then(|| c.top());
-            rows_of_terrain.push((t.as_str().to_string(), by_row(&c.gap).0.to_vec()));
-            by_terrain.push(p);
+        .collect()
+}
+
+/// The gap per terrain held by at least 20 records on each side, largest
+/// excess first, and each terrain's gap per row.
+fn by_terrain(i: &Inputs) -> (Vec<Part>, Vec<(String, Vec<f64>)>) {
+    let mut parts = Vec::new();
+    let mut rows = Vec::new();
+    let Some((ts, tr)) = i.terrains else {
+        return (parts, rows);
+    };
+    for t in Terrain::ALL {
+        let si: Vec<usize> = (0..ts.len()).filter(|&k| ts[k] == t).collect();
+        let ri: Vec<usize> = (0..tr.len()).filter(|&k| tr[k] == t).collect();
+        if si.len() < 20 || ri.len() < 20 {
+            continue;
         }
-        set_shares(&mut by_terrain);
-        by_terrain.sort_by(|a, b| b.excess.total_cmp(&a.excess));
+        let c = compare(i.out_a, i.out_b, i.sim, i.real, i.paired, &si, &ri, i.halves, &|d| *d);
+        let mut p = Part::new(t.as_str(), c.gap(), c.floor());
+        p.records = ri.len();
+        p.top = (p.excess > 0.0).then(|| c.top());
+        rows.push((t.as_str().to_string(), by_row(&c.gap).0.to_vec()));
+        parts.push(p);
     }
-    // A negligible gap (crate::NEGLIGIBLE_GAP) is explained, whatever the
-    // floor: no statistic differs by a fifth of its scale.
-    let ex = if i.gap < crate::NEGLIGIBLE_GAP { 0.0 } else { excess(i.gap, i.floor) };
+    set_shares(&mut parts);
+    parts.sort_by(|a, b| b.excess.total_cmp(&a.excess));
+    (parts, rows)
+}
+
+/// Where the unexplained part lives: the statistic and row band of the
+/// largest excess, the side(s) and the terrain(s).
+fn locate(by_statistic: &[Part], by_row_band: &[Part], by_side: &[Part], by_terrain: &[Part]) -> Location {
     let first = |v: &[Part]| v.iter().filter(|p| p.excess > 0.0).max_by(|a, b| a.excess.total_cmp(&b.excess)).map(|p| p.name.clone());
     let side = match (by_side.first(), by_side.get(1)) {
         (Some(l), Some(r)) if l.excess + r.excess > 0.0 => Some(
@@ -472,34 +512,7 @@ pub fn analyse(i: &Inputs) -> Unexplained {
             held.join("+")
         }
     });
-    let location = if ex > 0.0 {
-        Location { statistic: first(&by_statistic), row_band: first(&by_row_band), side, terrain }
-    } else {
-        Location::default()
-    };
-    let weak_steps = i
-        .steps
-        .iter()
-        .enumerate()
-        .filter(|(_, (_, b, a))| crate::share_removed(*b, *a) < WEAK)
-        .map(|(k, (e, b, a))| (k + 1, e.clone(), crate::share_removed(*b, *a)))
-        .collect();
-    Unexplained {
-        gap: i.gap,
-        floor: i.floor,
-        excess: ex,
-        share: if i.gap > 0.0 { ex / i.gap } else { 0.0 },
-        of_initial: if i.gap_initial > 0.0 { ex / i.gap_initial } else { 0.0 },
-        by_statistic,
-        by_row_band,
-        by_side,
-        by_terrain,
-        by_row: rows,
-        rows_of_top,
-        rows_of_terrain,
-        weak_steps,
-        location,
-    }
+    Location { statistic: first(by_statistic), row_band: first(by_row_band), side, terrain }
 }
 
 impl Unexplained {
