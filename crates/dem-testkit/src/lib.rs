@@ -7,6 +7,26 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 
+/// Every tool of the workspace, as `make install` installs them; the
+/// install test checks the list against the crates with a `main.rs` and the
+/// Makefile's `TOOLS`.
+pub const TOOLS: [&str; 14] = [
+    "dem-apply",
+    "dem-cat",
+    "dem-clean-pallet",
+    "dem-eval",
+    "dem-fill-nans",
+    "dem-filter",
+    "dem-gap",
+    "dem-import",
+    "dem-pair",
+    "dem-render",
+    "dem-sensor",
+    "dem-split",
+    "dem-synth",
+    "dem-train",
+];
+
 /// Root of the workspace.
 pub fn workspace_root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..").canonicalize().expect("workspace root")

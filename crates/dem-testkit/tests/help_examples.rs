@@ -7,25 +7,7 @@
 
 use std::process::Command;
 
-use dem_testkit::{bin, ok, run};
-
-/// Every tool of the workspace (install.rs checks the list against crates/).
-const TOOLS: [&str; 14] = [
-    "dem-apply",
-    "dem-cat",
-    "dem-clean-pallet",
-    "dem-eval",
-    "dem-fill-nans",
-    "dem-filter",
-    "dem-gap",
-    "dem-import",
-    "dem-pair",
-    "dem-render",
-    "dem-sensor",
-    "dem-split",
-    "dem-synth",
-    "dem-train",
-];
+use dem_testkit::{bin, ok, run, TOOLS};
 
 /// Terminal widths the help is printed at.
 const WIDTHS: [&str; 3] = ["40", "100", "200"];

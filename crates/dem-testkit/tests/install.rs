@@ -2,29 +2,11 @@
 //! shell completions, generated from the same clap definition as `--help`
 //! (`TOOL --generate KIND`).
 
-use dem_testkit::{ok, run, stderr};
-
-/// Every tool of the workspace, as `make install` installs them.
-const TOOLS: [&str; 14] = [
-    "dem-apply",
-    "dem-cat",
-    "dem-clean-pallet",
-    "dem-eval",
-    "dem-fill-nans",
-    "dem-filter",
-    "dem-gap",
-    "dem-import",
-    "dem-pair",
-    "dem-render",
-    "dem-sensor",
-    "dem-split",
-    "dem-synth",
-    "dem-train",
-];
+use dem_testkit::{ok, run, stderr, TOOLS};
 
 #[test]
 fn every_tool_generates_its_man_page_and_completions() {
-    // The list is the workspace's: a new tool must be added here and to the Makefile's TOOLS.
+    // The list is the workspace's: a new tool is added to dem_testkit::TOOLS and the Makefile's TOOLS.
     let crates: Vec<String> = std::fs::read_dir(dem_testkit::workspace_root().join("crates"))
         .unwrap()
         .flatten()

@@ -9,25 +9,7 @@ use std::collections::BTreeSet;
 use std::path::Path;
 use std::process::Command;
 
-use dem_testkit::{ok, run, stderr, tempdir};
-
-/// Every tool of the workspace (install.rs checks the list against crates/).
-const TOOLS: [&str; 14] = [
-    "dem-apply",
-    "dem-cat",
-    "dem-clean-pallet",
-    "dem-eval",
-    "dem-fill-nans",
-    "dem-filter",
-    "dem-gap",
-    "dem-import",
-    "dem-pair",
-    "dem-render",
-    "dem-sensor",
-    "dem-split",
-    "dem-synth",
-    "dem-train",
-];
+use dem_testkit::{ok, run, stderr, tempdir, TOOLS};
 
 fn text(out: &[u8]) -> String {
     String::from_utf8(out.to_vec()).expect("UTF-8")
