@@ -25,7 +25,7 @@ use dem_onnx::sensor::Stored;
 use dem_onnx::{Heights, OnnxModel};
 use rayon::prelude::*;
 
-pub use dem_onnx::export::RESIDUAL_KEY;
+pub use dem_onnx::generator::RESIDUAL_KEY;
 
 /// What to run, validated from the command line.
 #[derive(Clone, Debug)]

@@ -22,13 +22,15 @@
 
 pub mod apply;
 pub mod export;
+pub mod generator;
 pub mod heights;
 pub mod masks;
 pub mod model;
 pub mod native;
 pub mod sensor;
 
-pub use export::{export_checked, export_checked_with, generator_model, read_info, ExportReport, ModelInfo, TOLERANCE};
+pub use export::{export_checked, export_checked_with, ExportReport};
+pub use generator::{generator_model, read_info, ModelInfo, TOLERANCE};
 pub use heights::{Heights, HEIGHTS_KEY};
 pub use model::{Engine, OnnxModel};
 

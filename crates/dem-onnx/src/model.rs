@@ -58,7 +58,7 @@ pub const NATIVE_PROBE: usize = 32;
 /// Largest `|native - tract|` per output value the native path may show on
 /// the probe batch: the export's tolerance ([`crate::TOLERANCE`]); the two
 /// compute in `f32` with different summation orders (~1e-6 apart).
-pub const NATIVE_TOLERANCE: f32 = crate::TOLERANCE;
+pub const NATIVE_TOLERANCE: f32 = crate::generator::TOLERANCE;
 
 /// What runs a model's batches.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

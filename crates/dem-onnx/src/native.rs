@@ -18,7 +18,7 @@
 //! Weights come from the graph's initializers or `Constant` nodes. Whether the
 //! wiring between those layers is the generator's is not proved here: the
 //! caller runs the recognised network and tract on a probe batch and keeps
-//! the native path only when they agree (see [`crate::run`]); every operator
+//! the native path only when they agree (see [`crate::model`]); every operator
 //! allowed is continuous, so a different wiring shows on random records.
 
 use std::collections::HashMap;

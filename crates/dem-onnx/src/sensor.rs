@@ -13,7 +13,7 @@
 //! ```
 //!
 //! A generator without a residual model and with the network's heights is
-//! exported as the network alone ([`crate::export::generator_model`]).
+//! exported as the network alone ([`crate::generator::generator_model`]).
 //! [`Stored::finish`] is the same tail in native code: dem-apply runs the
 //! network on its fast path, then this, and a runtime fed the uniforms
 //! dem-apply drew (`dem-apply --emit-uniform`) computes the same DEMs.
@@ -32,7 +32,7 @@ use dem_sensor::graph::{self as sensor_graph, Cells};
 use dem_sensor::SensorModel;
 use tract_onnx::pb;
 
-use crate::export::{generator_nodes, model_proto, ModelInfo, INPUT, OUTPUT, RESIDUAL_KEY};
+use crate::generator::{generator_nodes, model_proto, ModelInfo, INPUT, OUTPUT, RESIDUAL_KEY};
 use crate::heights::{Heights, HEIGHTS_KEY};
 
 pub use dem_sensor::graph::{GRAPH_KEY, GRAPH_NETWORK_SENSOR as GRAPH_SENSOR, GRAPH_SENSOR_ONLY};

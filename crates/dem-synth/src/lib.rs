@@ -15,6 +15,7 @@
 //! - [`dataset`]: many runs in parallel, written as NPY and CSV files.
 
 pub mod camera;
+pub mod camera_config;
 pub mod dataset;
 pub mod elevation_map;
 pub mod motion;

@@ -19,7 +19,7 @@
 //! the map registers each hit as the point at the same place in the camera
 //! frame of the believed camera ([`registration`]).
 
-use super::camera::CameraConfig;
+use super::camera_config::CameraConfig;
 use super::pose::{track_profile, Pose};
 use super::terrain::World;
 

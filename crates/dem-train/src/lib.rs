@@ -22,7 +22,7 @@ use anyhow::Result;
 use dem_core::{cli, npy, output, table, DemError};
 use dem_nn::train::checkpoint;
 use dem_nn::train::{CycleGan, Sampler, TrainData};
-use dem_onnx::export::RESIDUAL_KEY;
+use dem_onnx::generator::RESIDUAL_KEY;
 use dem_onnx::Heights;
 use dem_sensor::SensorModel;
 
