@@ -16,20 +16,8 @@ use dem_sensor::SensorModel;
 
 use crate::fit;
 use crate::load::{pick, GapConfig, Sets};
+use crate::measurement::measure_at;
 use crate::sampling::{draw_floor, real_halves, sampling_floor, sim_halves};
-
-/// Apply `model` to `sim` and summarise (residuals against `sim` when paired).
-pub fn measure(model: &SensorModel, sim: &[Dem], paired: bool, seed: u64) -> (Vec<Dem>, Stats) {
-    measure_at(model, sim, None, paired, seed)
-}
-
-/// [`measure`] with the records' times in their runs, when known.
-pub fn measure_at(model: &SensorModel, sim: &[Dem], times: Option<&[f64]>, paired: bool, seed: u64) -> (Vec<Dem>, Stats) {
-    let mut out = sim.to_vec();
-    model.apply_all_at(&mut out, seed, 0, times);
-    let s = distribution::stats(&out, paired.then_some(sim));
-    (out, s)
-}
 
 /// One run's comparison of model(sim) with real.
 pub(crate) struct Comparison<'a> {
@@ -166,6 +154,7 @@ fn fitting_subsample(cfg: &GapConfig, n: usize) -> Vec<usize> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::measurement::measure;
     use dem_core::format::{empty_dem, DemCells};
     use dem_core::metric;
     use dem_sensor::Effect;

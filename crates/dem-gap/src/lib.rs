@@ -35,6 +35,7 @@ pub mod comparison;
 pub mod evidence;
 pub mod fit;
 pub mod load;
+pub mod measurement;
 pub mod mix;
 pub mod outcome;
 pub mod report;
@@ -45,9 +46,9 @@ pub mod unexplained;
 
 // The public items stay at the crate root, where the binary, the tests and
 // the other tools name them.
-pub use comparison::{measure, measure_at};
 pub use dem_core::distribution::{gap, gap_terms, Stats};
 pub use load::{load, terrain_mix, GapConfig, Sets};
+pub use measurement::{measure, measure_at};
 pub use outcome::{Outcome, Refit, Step, TerrainRow};
 pub use sampling::{
     below_floor, draw_floor, halves, halves_of_runs, real_halves, sampling_floor, sim_halves, two_draws, MIN_RUNS_FOR_HALVES,

@@ -8,8 +8,9 @@ use dem_core::format::Terrain;
 use dem_core::metric;
 use dem_sensor::{Effect, SensorModel};
 
-use crate::comparison::{measure, measure_at, Comparison};
+use crate::comparison::Comparison;
 use crate::load::{pick, Sets};
+use crate::measurement::{measure, measure_at};
 use crate::sampling::{real_halves, two_draws, unseen_draws};
 use crate::search::{Found, Start};
 use crate::ties::Tie;

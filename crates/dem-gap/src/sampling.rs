@@ -9,8 +9,8 @@ use dem_core::distribution::{self, gap, Stats};
 use dem_core::format::{Dem, Terrain};
 use dem_sensor::SensorModel;
 
-use crate::comparison::measure_at;
 use crate::load::{pick, Sets};
+use crate::measurement::measure_at;
 
 /// Records per block of [`real_halves`]: neighbouring frames of a run
 /// look alike, so they go to the same half.
