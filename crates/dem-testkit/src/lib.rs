@@ -3,6 +3,8 @@
 //! the numpy peer from the venv the Makefile makes.
 #![deny(missing_docs)]
 
+pub mod imports;
+
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
