@@ -141,30 +141,34 @@ pub fn load(cfg: &GapConfig) -> Result<Sets> {
     let sim = Side::new(sim, read_record_labels(&cfg.labels_sim, n_sim)?);
     let real = Side::new(real, read_record_labels(&cfg.labels_real, n_real)?);
     let Some(pp) = &cfg.pairs else { return Ok(unpaired_sets(cfg, sim, real)) };
-    let (si, ri) = pair_indices(cfg, pp, n_sim, n_real)?;
+    let (si, ri) = pair_indices(cfg.split, pp, n_sim, n_real)?;
     let (sim, real) = (sim.pick(&si), real.pick(&ri));
     Ok(if cfg.over_pairs { over_pairs_sets(sim, real) } else { paired_sets(sim, real) })
 }
 
 /// The sim and real record of each pair of `cfg` (of its split, when one
 /// is chosen), checked against the records read.
-fn pair_indices(cfg: &GapConfig, pp: &str, n_sim: usize, n_real: usize) -> Result<(Vec<usize>, Vec<usize>)> {
-    let mut pairs = table::read_pairs(pp)?;
-    if let Some(split) = cfg.split {
-        pairs.retain(|p| p.split == Some(split));
-    }
+fn pair_indices(split: Option<Split>, pp: &str, n_sim: usize, n_real: usize) -> Result<(Vec<usize>, Vec<usize>)> {
+    // Each pair with its line in the CSV (the header is line 1), kept
+    // before the split is chosen so an error names the file's own line.
+    let pairs: Vec<(u64, table::Pair)> = table::read_pairs(pp)?
+        .into_iter()
+        .zip(2..)
+        .map(|(p, line)| (line, p))
+        .filter(|(_, p)| split.is_none() || p.split == split)
+        .collect();
     if pairs.is_empty() {
-        let of = cfg.split.map_or(String::new(), |s| format!(" of split {s}"));
+        let of = split.map_or(String::new(), |s| format!(" of split {s}"));
         return Err(DemError::input(pp, format!("no pairs{of}")));
     }
     let mut sim_idx = Vec::with_capacity(pairs.len());
     let mut real_idx = Vec::with_capacity(pairs.len());
-    for (line, p) in pairs.iter().enumerate() {
+    for (line, p) in &pairs {
         let (si, ri) = (p.sim_index as usize, p.real_index as usize);
         if si >= n_sim || ri >= n_real {
             return Err(DemError::Table {
                 path: pp.to_string(),
-                line: line as u64 + 2,
+                line: *line,
                 reason: format!("pair ({si}, {ri}) past the data ({n_sim} sim, {n_real} real records)"),
             });
         }
@@ -286,6 +290,21 @@ pub(crate) fn pick<T: Copy>(v: &[T], idx: &[usize]) -> Vec<T> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A pair past the data is named by its line in the file, also when
+    /// `--split` leaves out the lines before it.
+    #[test]
+    fn a_pair_past_the_data_names_its_line_in_the_file() {
+        let dir = dem_testkit::tempdir();
+        let pp = dir.path().join("pairs.csv");
+        std::fs::write(&pp, "sim_index,real_index,split\n0,0,val\n1,1,val\n2,2,train\n9,3,train\n").unwrap();
+        let pp = pp.to_str().unwrap();
+        for split in [None, Some(Split::Train)] {
+            let e = pair_indices(split, pp, 5, 5).unwrap_err().to_string();
+            assert!(e.contains("line 5") && e.contains("pair (9, 3) past the data"), "{split:?}: {e}");
+        }
+        assert_eq!(pair_indices(Some(Split::Val), pp, 5, 5).unwrap(), (vec![0, 1], vec![0, 1]));
+    }
 
     /// Equal mixes keep every record once; a sim set heavy in stairs is
     /// drawn to real's shares: a terrain real lacks is left out, one with
