@@ -189,37 +189,34 @@ fn unpaired_sets(cfg: &GapConfig, mut sim: Side, real: Side) -> Sets {
             sim = sim.pick(&keep);
         }
     }
-    Sets {
-        sim: sim.records,
-        real: real.records,
-        paired: false,
-        sim_terrain: sim.terrain,
-        real_terrain: real.terrain,
-        sim_time: sim.time,
-        real_runs: real.runs,
-        sim_runs: sim.runs,
-        terrain_mix: mix,
-        over_pairs: false,
+    Sets { terrain_mix: mix, ..Sets::unpaired(sim, real) }
+}
+
+impl Sets {
+    /// The two sides compared as distributions of records, each with its
+    /// own labels and runs.
+    fn unpaired(sim: Side, real: Side) -> Sets {
+        Sets {
+            sim: sim.records,
+            real: real.records,
+            paired: false,
+            sim_terrain: sim.terrain,
+            real_terrain: real.terrain,
+            sim_time: sim.time,
+            real_runs: real.runs,
+            sim_runs: sim.runs,
+            terrain_mix: None,
+            over_pairs: false,
+        }
     }
 }
 
 /// The pairs' records compared as two sets, each record once per pair it
 /// is in (`sim` and `real` aligned by pair).
 fn over_pairs_sets(sim: Side, real: Side) -> Sets {
-    Sets {
-        sim: sim.records,
-        real: real.records,
-        paired: false,
-        sim_terrain: sim.terrain,
-        real_terrain: real.terrain,
-        sim_time: sim.time,
-        real_runs: real.runs,
-        // Over pairs the i-th sim record is the i-th real record's
-        // pair: the halves split both sides alike by the real runs.
-        sim_runs: None,
-        terrain_mix: None,
-        over_pairs: true,
-    }
+    // Over pairs the i-th sim record is the i-th real record's pair: the
+    // halves split both sides alike by the real runs.
+    Sets { sim_runs: None, over_pairs: true, ..Sets::unpaired(sim, real) }
 }
 
 /// The pairs compared per position (`sim` and `real` aligned by pair).
