@@ -601,6 +601,32 @@ mod tests {
     use dem_core::distribution::stats;
     use dem_core::format::{empty_dem, DemCells, COLS, GRID_ROWS};
 
+    /// Every effect of the vocabulary has its evidence, paired and
+    /// unpaired: a sentence that names the fitted effect and ends with what
+    /// it removed.
+    #[test]
+    fn every_effect_has_evidence() {
+        let mut stairs = empty_dem();
+        for r in 0..GRID_ROWS {
+            for c in 0..COLS {
+                stairs.set_valid(r, c, -0.07 + 0.15 * (r / 3) as f32);
+            }
+        }
+        let sim = vec![stairs; 20];
+        for paired in [Some(sim.as_slice()), None] {
+            let s = stats(&sim, paired);
+            for spec in dem_sensor::effects::SPECS {
+                let values: Vec<f64> = spec.params.iter().map(|p| p.fit.at(0.5)).collect();
+                let e = Effect::from_values(spec.name, &values).unwrap();
+                let sentence = evidence(&e, &s, &s, &s, 2.0, 1.0);
+                let fitted =
+                    sentence.contains(&format!("the fitted {e} ")) && sentence.ends_with("removes 50.0% of the gap (2.000 -> 1.000)");
+                assert!(fitted, "{}: {sentence}", spec.name);
+                assert!(sentence.len() > 80, "{}: {sentence}", spec.name);
+            }
+        }
+    }
+
     /// Paired, `riser-blend`'s sentence gives the step-side shares: every
     /// foot cell of a riser moved 3 cm up in real, none in the model; and
     /// with nothing moved in real it says the effect is not a clear one.
