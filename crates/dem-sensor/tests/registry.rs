@@ -2,11 +2,12 @@
 //! spec in the vocabulary's order, parameters that round-trip through
 //! [`Effect::from_values`], [`Effect::params`] and JSON, a fit box inside
 //! its limits whose corners pass the effect's check, draws the effect
-//! reads, and a row in docs/dem-sensor.md's table. dem-gap's tests check
-//! the evidence sentence.
+//! reads, a row in docs/dem-sensor.md's table of effects, and the emulator
+//! stages it models as that page's table of stages says. dem-gap's tests
+//! check the evidence sentence.
 
 use dem_core::format::{empty_dem, Dem, DemCells, COLS, GRID_ROWS};
-use dem_sensor::effects::{spec_named, EffectSpec, NAMES, SPECS};
+use dem_sensor::effects::{modelling, spec_named, EffectSpec, EMULATOR_STAGES, NAMES, SPECS};
 use dem_sensor::{Effect, SensorModel};
 
 /// The effect of `spec` at `u` (0 to 1) of its fit box in each parameter.
@@ -148,4 +149,50 @@ fn the_docs_table_lists_every_effect_with_its_parameters() {
         let spec = spec_named(name).unwrap();
         assert_eq!(params, &spec.params.iter().map(|p| p.name).collect::<Vec<_>>(), "{name}'s parameters in the docs");
     }
+}
+
+/// The items of a table cell separated by commas outside parentheses.
+fn items(cell: &str) -> Vec<&str> {
+    let (mut out, mut depth, mut start) = (Vec::new(), 0, 0);
+    for (i, ch) in cell.char_indices() {
+        match ch {
+            '(' => depth += 1,
+            ')' => depth -= 1,
+            ',' if depth == 0 => {
+                out.push(cell[start..i].trim());
+                start = i + 1;
+            }
+            _ => {}
+        }
+    }
+    out.push(cell[start..].trim());
+    out
+}
+
+/// docs/dem-sensor.md's table of emulator stages names, first in each
+/// item of its last column, exactly the effects whose spec lists the
+/// stage; every stage is modelled, and `dem-sensor effects` prints them.
+#[test]
+fn the_emulator_stages_are_the_specs_and_the_docs_table() {
+    let doc = std::fs::read_to_string(dem_testkit::workspace_root().join("docs/dem-sensor.md")).unwrap();
+    let table =
+        doc.split("| emulator stage (`--no-<stage>`) | what it does to the DEMs | effects that model it |").nth(1).expect("the table");
+    let mut stages = Vec::new();
+    for line in table.lines().skip(2).take_while(|l| l.starts_with("| `")) {
+        let stage = line[3..].split('`').next().unwrap();
+        let cells: Vec<&str> = line.trim_end_matches(" |").split(" | ").collect();
+        let mut listed: Vec<&str> = items(cells[2]).iter().map(|i| i.split('`').nth(1).unwrap_or(i)).collect();
+        listed.sort_unstable();
+        let mut registry = modelling(stage);
+        registry.sort_unstable();
+        assert_eq!(listed, registry, "--no-{stage}: the docs against the specs");
+        stages.push(stage);
+    }
+    assert_eq!(stages, EMULATOR_STAGES, "the docs' stages");
+    for spec in SPECS {
+        assert!(spec.emulator.iter().all(|s| EMULATOR_STAGES.contains(s)), "{}: {:?}", spec.name, spec.emulator);
+    }
+    let csv = dem_sensor::effects::csv();
+    assert_eq!(csv.lines().count(), SPECS.len() + 1);
+    assert!(csv.contains("\nstep-jitter,steps,registration,100,sigma edge,vibration\n"), "{csv}");
 }

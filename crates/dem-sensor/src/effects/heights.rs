@@ -46,6 +46,7 @@ pub const MAX_CLIMB_PITCH: f64 = 1.0;
 pub const NOISE: EffectSpec = EffectSpec {
     name: "noise",
     family: Family::Heights,
+    emulator: &["noise"],
     formula: "h += sigma z, z a standard normal (Box-Muller, crate::draws), sigma = sigma0 + k d^2, d = distance from the nominal \
         sensor mount NOISE_ORIGIN to the cell's centre at its height (clamped to +-NOISE_RANGE_HEIGHT)",
     params: &[
@@ -66,6 +67,7 @@ pub const NOISE: EffectSpec = EffectSpec {
 pub const BIAS: EffectSpec = EffectSpec {
     name: "bias",
     family: Family::Heights,
+    emulator: &[],
     formula: "h += b + t x",
     params: &[
         ParamSpec { name: "b", doc: "Offset (m).", fit: Range::lin(-0.1, 0.1), limit: Limit::new(-0.5, 0.5) },
@@ -79,6 +81,7 @@ pub const BIAS: EffectSpec = EffectSpec {
 pub const QUANTIZATION: EffectSpec = EffectSpec {
     name: "quantization",
     family: Family::Heights,
+    emulator: &[],
     formula: "h = q floor(h / q + ROUND_UP_FROM) (half steps round up, the same in every runtime)",
     params: &[ParamSpec { name: "q", doc: "Step (m).", fit: Range::log(0.002, 0.05), limit: Limit::new(0.0005, 0.2) }],
     stage: Stage::Quantization,
@@ -89,6 +92,7 @@ pub const QUANTIZATION: EffectSpec = EffectSpec {
 pub const TILT: EffectSpec = EffectSpec {
     name: "tilt",
     family: Family::Heights,
+    emulator: &["extrinsic"],
     formula: "per record a = `pitch` z1, b = `roll` z2 (z1, z2 standard normals, one Box-Muller pair; radians, used as slopes), h += a \
         (`range` + max(x, x0) - x0) + b y: the camera's pitch and roll off their calibration (the extrinsic error). A point seen \
         at horizontal range d moves by a d in height, and the map fuses each cell over the ranges it was seen from: a cell past \
@@ -134,6 +138,7 @@ pub const TILT: EffectSpec = EffectSpec {
 pub const SHAKE: EffectSpec = EffectSpec {
     name: "shake",
     family: Family::Heights,
+    emulator: &["vibration"],
     formula: "per record s = `sigma` + `edge` J, J the largest height step (m, capped at SHAKE_MAX_STEP) between valid x-neighbours of \
         the rows under the tracks (TRACK_ROWS, |x| <= 0.35 m) of the DEM as it comes in; a = s z1, b = s z2 (one Box-Muller \
         pair), h += a x + b y: the body rocks about C, more on edges. Unlike `tilt` it pivots at C (rows behind C move the other \
@@ -158,6 +163,7 @@ pub const SHAKE: EffectSpec = EffectSpec {
 pub const LAG: EffectSpec = EffectSpec {
     name: "lag",
     family: Family::Heights,
+    emulator: &["latency"],
     formula: "per record shift s_r = `s` (1 + `spread` (2u - 1)), u uniform; h'(x) = h(x - s_r) + s_r tan(pitch), pitch the record's \
         row 20 column 0 (clamped to +-MAX_CLIMB_PITCH, 0 if not finite): the DEM is the map of a frame s_r / v old, cut at that \
         older pose. See shift_rows for the interpolation; validity is kept",
@@ -186,6 +192,7 @@ pub const LAG: EffectSpec = EffectSpec {
 pub const DRIFT: EffectSpec = EffectSpec {
     name: "drift",
     family: Family::Heights,
+    emulator: &["drift"],
     formula: "rows whose centre x < `x0` are displaced by a random walk going back from x0: per row r, from the row just behind x0 \
         backward, dx(r) = `rate` sqrt(0.1) sum of xi_j and dz(r) = `zrate` sqrt(0.1) sum of zeta_j over the rows j from r to the \
         last row behind x0 (xi_j, zeta_j the normals of Box-Muller pair j); h'(x) = h(x - dx) + dz by shift_rows; rows from x0 \

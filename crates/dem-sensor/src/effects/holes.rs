@@ -17,6 +17,7 @@ const RATE: (Range, Limit) = (Range::lin(0.0, 0.6), Limit::new(0.0, 1.0).natural
 pub const DROPOUT: EffectSpec = EffectSpec {
     name: "dropout",
     family: Family::Holes,
+    emulator: &["dropout", "holes"],
     formula: "each valid cell missing with probability p",
     params: &[ParamSpec { name: "p", doc: "Probability per valid cell.", fit: RATE.0, limit: RATE.1 }],
     stage: Stage::Dropout,
@@ -28,6 +29,7 @@ pub const DROPOUT: EffectSpec = EffectSpec {
 pub const ROW_DROPOUT: EffectSpec = EffectSpec {
     name: "row-dropout",
     family: Family::Holes,
+    emulator: &[],
     formula: "each grid row wholly missing with probability p",
     params: &[ParamSpec { name: "p", doc: "Probability per row.", fit: RATE.0, limit: RATE.1 }],
     stage: Stage::RowDropout,
@@ -39,6 +41,7 @@ pub const ROW_DROPOUT: EffectSpec = EffectSpec {
 pub const PATCH_DROPOUT: EffectSpec = EffectSpec {
     name: "patch-dropout",
     family: Family::Holes,
+    emulator: &["dropout", "holes"],
     formula: "blobs: each of PATCH_SLOTS slots holds a blob with probability n / slots, centred uniformly over the grid widened by r; \
         of each cell's four quarter-cell centres (x +- 2.5 cm, y +- 2.5 cm) those within r of a blob centre are covered; three \
         or four covered: the cell is missing (the map needs two of four); one or two: h += a (h_low - h), h_low the lowest of h \
@@ -78,6 +81,7 @@ const LOST: (Range, Limit) = (Range::lin(0.0, 1.0), Limit::new(0.0, 1.0).natural
 pub const EDGE_HOLES: EffectSpec = EffectSpec {
     name: "edge-holes",
     family: Family::Holes,
+    emulator: &["smoothing", "holes"],
     formula: "a valid cell whose valid 4-neighbour is higher by more than g is missing with probability p (the foot of a height jump)",
     params: &[
         ParamSpec { name: "g", doc: "Jump (m) above which the lower cell may be lost.", fit: JUMP.0, limit: JUMP.1 },
@@ -92,6 +96,7 @@ pub const EDGE_HOLES: EffectSpec = EffectSpec {
 pub const RIM_HOLES: EffectSpec = EffectSpec {
     name: "rim-holes",
     family: Family::Holes,
+    emulator: &["smoothing", "holes"],
     formula: "a valid cell whose valid 4-neighbour is lower by more than g is missing with probability p (the rim of a height jump)",
     params: &[
         ParamSpec { name: "g", doc: "Jump (m) above which the higher cell may be lost.", fit: JUMP.0, limit: JUMP.1 },
@@ -106,6 +111,7 @@ pub const RIM_HOLES: EffectSpec = EffectSpec {
 pub const PIT_FILL: EffectSpec = EffectSpec {
     name: "pit-fill",
     family: Family::Holes,
+    emulator: &["occlusion"],
     formula: "a valid cell lower by more than g than both valid neighbours of a line through it (rows r +- 1, or columns c +- 1) reads \
         the lower of the two with probability p",
     params: &[
@@ -127,6 +133,7 @@ pub const PIT_FILL: EffectSpec = EffectSpec {
 pub const DROP_HOLES: EffectSpec = EffectSpec {
     name: "drop-holes",
     family: Family::Holes,
+    emulator: &["smoothing", "holes"],
     formula: "at a drop along x (valid cells of rows r and r + 1, row r + 1 lower by more than MIXED_JUMP), with probability p the \
         cell that holds the edge is missing: the lip (row r) or the floor (row r + 1), one of the two with equal chance (the \
         edge lies anywhere between their centres): the map cells over a drop edge get points from the lip and, as the view \
@@ -147,6 +154,7 @@ pub const DROP_HOLES: EffectSpec = EffectSpec {
 pub const HOLE_GROWTH: EffectSpec = EffectSpec {
     name: "hole-growth",
     family: Family::Holes,
+    emulator: &["smoothing", "holes"],
     formula: "a valid cell with k missing 4-neighbours (inside the grid) is missing with probability 1 - (1 - p)^k (the edge of a \
         hole, where a 10 cm cell holds fewer seen map cells than the two of four the map needs)",
     params: &[ParamSpec { name: "p", doc: "Probability per missing 4-neighbour that the cell is lost.", fit: RATE.0, limit: RATE.1 }],

@@ -127,6 +127,54 @@ pub enum Stage {
     RowDropout,
 }
 
+impl Stage {
+    /// The stage's name in `dem-sensor effects`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Stage::Pose => "pose",
+            Stage::FieldOfView => "field-of-view",
+            Stage::Startup => "startup",
+            Stage::Occlusion => "occlusion",
+            Stage::JumpHoles => "jump-holes",
+            Stage::PitFill => "pit-fill",
+            Stage::MixedCells => "mixed-cells",
+            Stage::DropMoves => "drop-moves",
+            Stage::RiserMoves => "riser-moves",
+            Stage::Smoothing => "smoothing",
+            Stage::Registration => "registration",
+            Stage::Noise => "noise",
+            Stage::Quantization => "quantization",
+            Stage::Dropout => "dropout",
+            Stage::Patches => "patches",
+            Stage::HoleGrowth => "hole-growth",
+            Stage::RowDropout => "row-dropout",
+        }
+    }
+}
+
+/// The stages dem-synth's emulator switches off with `--no-<stage>`.
+pub const EMULATOR_STAGES: [&str; 10] =
+    ["fov", "occlusion", "smoothing", "noise", "dropout", "holes", "drift", "latency", "extrinsic", "vibration"];
+
+/// The effects that model emulator stage `stage`, in the vocabulary's order.
+pub fn modelling(stage: &str) -> Vec<&'static str> {
+    SPECS.iter().filter(|s| s.emulator.contains(&stage)).map(|s| s.name).collect()
+}
+
+/// The vocabulary as CSV, one effect a line in the vocabulary's order:
+/// `effect,family,stage,draws,params,emulator_stages`, lists separated by
+/// spaces.
+pub fn csv() -> String {
+    let mut out = String::from("effect,family,stage,draws,params,emulator_stages\n");
+    for s in SPECS {
+        let params: Vec<&str> = s.params.iter().map(|p| p.name).collect();
+        let line = [s.name, s.family.name(), s.stage.name(), &s.draws.to_string(), &params.join(" "), &s.emulator.join(" ")].join(",");
+        out.push_str(&line);
+        out.push('\n');
+    }
+    out
+}
+
 /// One parameter's fit box for dem-gap; `log` searches log(value).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Range {
@@ -219,6 +267,10 @@ pub struct EffectSpec {
     pub params: &'static [ParamSpec],
     /// Its place in the physical chain.
     pub stage: Stage,
+    /// The stages of dem-synth's emulator ([`EMULATOR_STAGES`]) whose
+    /// absence it models: dem-synth `--no-<stage>` against all stages
+    /// names one of the effects that list the stage (docs/dem-sensor.md).
+    pub emulator: &'static [&'static str],
     /// Uniforms it reads per record, whatever its parameters (common random
     /// numbers for the fitter; the width of its slice of the ONNX graph's
     /// `uniform` input).

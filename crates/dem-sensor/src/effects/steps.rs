@@ -21,6 +21,7 @@ const SHARE: (Range, Limit) = (Range::lin(0.0, 1.0), Limit::new(0.0, 1.0).natura
 pub const SMOOTHING: EffectSpec = EffectSpec {
     name: "smoothing",
     family: Family::Steps,
+    emulator: &["smoothing"],
     formula: "h = (w h + (1-w)/8 sum of valid 3x3 neighbours) / (w + (1-w)/8 n_valid)",
     params: &[ParamSpec {
         name: "w",
@@ -36,6 +37,7 @@ pub const SMOOTHING: EffectSpec = EffectSpec {
 pub const MIXED_CELLS: EffectSpec = EffectSpec {
     name: "mixed-cells",
     family: Family::Steps,
+    emulator: &["occlusion", "smoothing"],
     formula: "a cell is the mean of its two half cells along x; at a jump of more than MIXED_JUMP between valid x-neighbours the step \
         lies at s, uniform over the 10 cm between their centres (one draw per row boundary), and the higher surface reaches e = \
         u r past it into the lower cell (u uniform per cell; r = `up` when the higher cell lies ahead, `down` when it lies \
@@ -67,6 +69,7 @@ pub const MIXED_CELLS: EffectSpec = EffectSpec {
 pub const DROP_BLEND: EffectSpec = EffectSpec {
     name: "drop-blend",
     family: Family::Steps,
+    emulator: &["smoothing"],
     formula: "at a drop along x (valid cells of rows r and r + 1, row r + 1 lower by more than MIXED_JUMP), each of the two cells \
         reads, with probability p, h + u a (h_n - h), u uniform, h_n the other cell (a cell between two drops takes the larger; \
         the one behind only when larger by more than TIE_MARGIN): the stereo window straddles the jump in range at a drop edge \
@@ -85,6 +88,7 @@ pub const DROP_BLEND: EffectSpec = EffectSpec {
 pub const FLOOR_LIFT: EffectSpec = EffectSpec {
     name: "floor-lift",
     family: Family::Steps,
+    emulator: &["fov", "occlusion", "smoothing"],
     formula: "in rows whose centre x < `x`, a valid cell whose valid neighbour behind (row r - 1) is higher by more than MIXED_JUMP \
         (the ground just beyond a drop edge) reads, with probability p, h + min(1, u a) (h_n - h), u uniform, h_n that \
         neighbour: the edge hides the floor nearest it, and the cell keeps points lifted toward the edge (x past the grid: every \
@@ -118,6 +122,7 @@ pub const FLOOR_LIFT: EffectSpec = EffectSpec {
 pub const RISER_BLEND: EffectSpec = EffectSpec {
     name: "riser-blend",
     family: Family::Steps,
+    emulator: &["fov", "smoothing"],
     formula: "at a riser along x (valid cells of rows r and r + 1, row r + 1 higher by more than MIXED_JUMP), the cell at its foot \
         reads h + u `foot` (h_n - h) and the cell on its top h + u `top` (h_n - h), u uniform per cell, h_n the other cell (a \
         cell beside two risers takes the larger step; the one behind only when larger by more than TIE_MARGIN); `foot`, `top` in \
@@ -149,6 +154,7 @@ pub const RISER_BLEND: EffectSpec = EffectSpec {
 pub const STEP_JITTER: EffectSpec = EffectSpec {
     name: "step-jitter",
     family: Family::Steps,
+    emulator: &["vibration"],
     formula: "per record s = `sigma` + `edge` J (J as in `shake`); each valid cell reads dx = clamp(s z, +-0.1 m) off along x, z a \
         standard normal per cell (as `noise` draws them): h += dx (h(r + 1) - h(r - 1)) / 0.2, a neighbour missing or outside \
         the grid read as the cell's own height (jitter_steps): each map cell beside a step keeps the points of the few frames \

@@ -17,6 +17,7 @@ const X_BACK: f64 = -0.6;
 pub const OCCLUSION: EffectSpec = EffectSpec {
     name: "occlusion",
     family: Family::View,
+    emulator: &["occlusion"],
     formula: "in each column, a sensor at (x0, h) looks at the far edge of each cell's top; the cell is missing when the line of sight \
         passes more than OCCLUSION_TOLERANCE below the top of a valid cell between, or when its top is more than that above the \
         sensor and its valid neighbour toward the sensor is not more than that lower (a top above the sensor faces away from it; \
@@ -35,6 +36,7 @@ pub const OCCLUSION: EffectSpec = EffectSpec {
 pub const FOV: EffectSpec = EffectSpec {
     name: "fov",
     family: Family::View,
+    emulator: &["fov"],
     formula: "cells whose centre x is outside [x_min, x_max] missing",
     params: &[
         ParamSpec {
@@ -58,6 +60,7 @@ pub const FOV: EffectSpec = EffectSpec {
 pub const VIEW_TOP: EffectSpec = EffectSpec {
     name: "view-top",
     family: Family::View,
+    emulator: &["fov"],
     formula: "cells whose height lies above the line z = h - t x (the upper edge of the camera's vertical field of view) missing",
     // A camera 0.2-1.2 m above C whose top ray falls 0-60 degrees. High
     // enough or flat enough, the ray clears everything: natural ends.
@@ -83,6 +86,7 @@ pub const VIEW_TOP: EffectSpec = EffectSpec {
 pub const STARTUP: EffectSpec = EffectSpec {
     name: "startup",
     family: Family::View,
+    emulator: &["fov"],
     formula: "rows whose centre x < e missing: e = x0 - v t for a record t seconds into its run (labels' `time`, v > 0); without a \
         time, with probability p the record is a startup frame and e = x0 - u (x0 + 0.6), u uniform",
     // v is fitted when the records' times are known, p when not (dem-gap's fit).
