@@ -105,11 +105,12 @@ enum Command {
         #[arg(long = "sensor", value_name = "JSON")]
         model: String,
     },
-    /// Print the vocabulary of effects as CSV, one a line in the order
-    /// dem-gap tries them: effect, family (the module that defines it),
-    /// stage (its place in the physical chain), draws per record,
-    /// parameters, and the dem-synth stages (`--no-<stage>`) it models;
-    /// lists are separated by spaces.
+    /// Print the vocabulary of effects as CSV, one a line.
+    ///
+    /// In the order dem-gap tries them: effect, family (the module that
+    /// defines it), stage (its place in the physical chain), draws per
+    /// record, parameters, and the dem-synth stages (`--no-<stage>`) it
+    /// models; lists are separated by spaces.
     Effects,
 }
 
