@@ -20,14 +20,14 @@ pub(super) fn noise(c: &Context) -> String {
             "the model's spread is already as large or larger in part (terrain, not noise): the noise is named for the equal neighbours and the small height steps"
         };
         format!(
-                "neighbouring cells of equal height real {} vs model {}; height spread ({spread}) near (rows 6-9) real {} vs model {}, far (rows 15-19) real {} vs model {}: {verdict}",
-                pct(real.mean_over("level-pairs", 0..20)),
-                pct(before.mean_over("level-pairs", 0..20)),
-                mm(rn),
-                mm(bn),
-                mm(rf),
-                mm(bf),
-            )
+            "neighbouring cells of equal height real {} vs model {}; height spread ({spread}) near (rows 6-9) real {} vs model {}, far (rows 15-19) real {} vs model {}: {verdict}",
+            pct(real.mean_over("level-pairs", 0..20)),
+            pct(before.mean_over("level-pairs", 0..20)),
+            mm(rn),
+            mm(bn),
+            mm(rf),
+            mm(bf),
+        )
     };
     c.fitted(body)
 }
@@ -57,22 +57,22 @@ pub(super) fn tilt(c: &Context, pitch: f64, roll: f64, x0: f64, range: f64) -> S
         let (rn, bn, rf, bf) = (sd(real, near.clone()), sd(before, near.clone()), sd(real, 15..20), sd(before, 15..20));
         let verdict = if rf > bf && rf - bf > rn - bn {
             format!(
-                    "real spreads more the farther ahead of x0: heights tilted by a camera angle that differs from record to record (sd pitch {:.2}, roll {:.2} degrees), seen from {range:.1} m at x0 and farther beyond",
-                    pitch.to_degrees(),
-                    roll.to_degrees()
-                )
+                "real spreads more the farther ahead of x0: heights tilted by a camera angle that differs from record to record (sd pitch {:.2}, roll {:.2} degrees), seen from {range:.1} m at x0 and farther beyond",
+                pitch.to_degrees(),
+                roll.to_degrees()
+            )
         } else {
             "real's extra spread does not grow with range: the tilt is the closest effect, not a clear one".to_string()
         };
         format!(
-                "height spread ({spread}) just ahead of x = {x0:.2} m (rows {}-{}) real {} vs model {}, far ahead (rows 15-19) real {} vs model {}: {verdict}",
-                near.start,
-                near.end - 1,
-                mm(rn),
-                mm(bn),
-                mm(rf),
-                mm(bf),
-            )
+            "height spread ({spread}) just ahead of x = {x0:.2} m (rows {}-{}) real {} vs model {}, far ahead (rows 15-19) real {} vs model {}: {verdict}",
+            near.start,
+            near.end - 1,
+            mm(rn),
+            mm(bn),
+            mm(rf),
+            mm(bf),
+        )
     };
     c.fitted(body)
 }
@@ -101,22 +101,22 @@ pub(super) fn shake(c: &Context, sigma: f64, edge: f64) -> String {
             (sd(real, 0..3), sd(before, 0..3), sd(real, 5..7), sd(before, 5..7), sd(real, 16..20), sd(before, 16..20));
         let verdict = if (rb - bb).min(rf - bf) > rm - bm {
             format!(
-                    "real spreads more at both ends than over C: the body rocks about its centre, with sd {:.2} degrees plus {:.2} degrees per 10 cm of step under the tracks",
-                    sigma.to_degrees(),
-                    (0.1 * edge).to_degrees()
-                )
+                "real spreads more at both ends than over C: the body rocks about its centre, with sd {:.2} degrees plus {:.2} degrees per 10 cm of step under the tracks",
+                sigma.to_degrees(),
+                (0.1 * edge).to_degrees()
+            )
         } else {
             "real's extra spread is not larger at both ends than over C: the shake is the closest effect, not a clear one".to_string()
         };
         format!(
-                "height spread ({spread}) behind the robot (rows 0-2) real {} vs model {}, over C (rows 5-6) real {} vs model {}, far ahead (rows 16-19) real {} vs model {}: {verdict}",
-                mm(rb),
-                mm(bb),
-                mm(rm),
-                mm(bm),
-                mm(rf),
-                mm(bf),
-            )
+            "height spread ({spread}) behind the robot (rows 0-2) real {} vs model {}, over C (rows 5-6) real {} vs model {}, far ahead (rows 16-19) real {} vs model {}: {verdict}",
+            mm(rb),
+            mm(bb),
+            mm(rm),
+            mm(bm),
+            mm(rf),
+            mm(bf),
+        )
     };
     c.fitted(body)
 }
@@ -162,26 +162,26 @@ pub(super) fn drift(c: &Context, rate: f64, zrate: f64, x0: f64) -> String {
         let ex = |rows: std::ops::Range<usize>| sd(real, rows.clone()) - sd(before, rows);
         let verdict = if ex(old.clone()) > ex(just.clone()) && ex(old.clone()) > ex(ahead.clone()) {
             format!(
-                    "real's extra spread grows going back from x0: rows seen earlier are displaced by a pose that walks {:.0} mm along x and {:.0} mm in height per sqrt(m) travelled",
-                    1000.0 * rate,
-                    1000.0 * zrate
-                )
+                "real's extra spread grows going back from x0: rows seen earlier are displaced by a pose that walks {:.0} mm along x and {:.0} mm in height per sqrt(m) travelled",
+                1000.0 * rate,
+                1000.0 * zrate
+            )
         } else {
             "real's extra spread does not grow going back: the drift is the closest effect, not a clear one".to_string()
         };
         format!(
-                "height spread ({spread}) in the oldest rows (0-1) real {} vs model {}, just behind x = {x0:.2} m (rows {}-{}) real {} vs model {}, ahead of it (rows {}-{}) real {} vs model {}: {verdict}",
-                mm(sd(real, old.clone())),
-                mm(sd(before, old)),
-                just.start,
-                just.end - 1,
-                mm(sd(real, just.clone())),
-                mm(sd(before, just.clone())),
-                ahead.start,
-                ahead.end - 1,
-                mm(sd(real, ahead.clone())),
-                mm(sd(before, ahead.clone())),
-            )
+            "height spread ({spread}) in the oldest rows (0-1) real {} vs model {}, just behind x = {x0:.2} m (rows {}-{}) real {} vs model {}, ahead of it (rows {}-{}) real {} vs model {}: {verdict}",
+            mm(sd(real, old.clone())),
+            mm(sd(before, old)),
+            just.start,
+            just.end - 1,
+            mm(sd(real, just.clone())),
+            mm(sd(before, just.clone())),
+            ahead.start,
+            ahead.end - 1,
+            mm(sd(real, ahead.clone())),
+            mm(sd(before, ahead.clone())),
+        )
     };
     c.fitted(body)
 }
@@ -207,15 +207,15 @@ pub(super) fn lag(c: &Context, s: f64) -> String {
                 "real moves no more cells on that side of steps than the other: the lag is the closest effect, not a clear one".to_string()
             };
             format!(
-                    "cells on the {} side of steps (riser {}, drop {}) moved more than 2 cm toward the other surface: real {} vs model {}; on the other side real {} vs model {}: {verdict}",
-                    if s >= 0.0 { "far" } else { "near" },
-                    if s >= 0.0 { "tops" } else { "feet" },
-                    if s >= 0.0 { "floors" } else { "lips" },
-                    pct(rl),
-                    pct(bl),
-                    pct(rt),
-                    pct(bt),
-                )
+                "cells on the {} side of steps (riser {}, drop {}) moved more than 2 cm toward the other surface: real {} vs model {}; on the other side real {} vs model {}: {verdict}",
+                if s >= 0.0 { "far" } else { "near" },
+                if s >= 0.0 { "tops" } else { "feet" },
+                if s >= 0.0 { "floors" } else { "lips" },
+                pct(rl),
+                pct(bl),
+                pct(rt),
+                pct(bt),
+            )
         } else {
             let fitted =
                 format!("steps read part of the way across where a shift {ahead} of {:.1} cm puts a cell on both sides", 100.0 * s.abs());

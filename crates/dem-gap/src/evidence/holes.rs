@@ -15,20 +15,20 @@ pub(super) fn dropout(c: &Context) -> String {
         let shadow = per_rec(real, "shadow") - per_rec(before, "shadow");
         if extra <= 0.0 {
             return format!(
-                    "missing cells real {} vs model {}: no extra missing cells, the fitted {effect} trades where cells are missing; it removes {} of the gap ({gap_before:.3} -> {gap_after:.3})",
-                    pct(real.mean_over("missing", 0..20)),
-                    pct(before.mean_over("missing", 0..20)),
-                    pct(removed)
-                );
-        }
-        format!(
-                "missing cells real {} vs model {}; of the {:.1} extra missing cells per record only {} are whole rows and {} lie in shadows: scattered single cells",
+                "missing cells real {} vs model {}: no extra missing cells, the fitted {effect} trades where cells are missing; it removes {} of the gap ({gap_before:.3} -> {gap_after:.3})",
                 pct(real.mean_over("missing", 0..20)),
                 pct(before.mean_over("missing", 0..20)),
-                extra,
-                pct((rows / extra.max(1e-9)).clamp(0.0, 1.0)),
-                pct((shadow / extra.max(1e-9)).clamp(0.0, 1.0)),
-            )
+                pct(removed)
+            );
+        }
+        format!(
+            "missing cells real {} vs model {}; of the {:.1} extra missing cells per record only {} are whole rows and {} lie in shadows: scattered single cells",
+            pct(real.mean_over("missing", 0..20)),
+            pct(before.mean_over("missing", 0..20)),
+            extra,
+            pct((rows / extra.max(1e-9)).clamp(0.0, 1.0)),
+            pct((shadow / extra.max(1e-9)).clamp(0.0, 1.0)),
+        )
     };
     c.fitted(body)
 }
@@ -87,17 +87,17 @@ pub(super) fn drop_holes(c: &Context) -> String {
         let (rs, bs) = (real.mean_over("shadow", 0..20), before.mean_over("shadow", 0..20));
         let (rj, bj) = (real.mean_over("jump-missing", 0..20), before.mean_over("jump-missing", 0..20));
         format!(
-                "missing cells behind cells at least 0.08 m taller: real {} vs model {}; between valid cells of their column that differ by 5 cm or more: real {} vs model {}: {}",
-                pct(rs),
-                pct(bs),
-                pct(rj),
-                pct(bj),
-                if rs > bs && rj > bj {
-                    "holes where the terrain drops away, one cell at its edge"
-                } else {
-                    "no more holes at drops in real: holes at drop edges are the closest effect, not a clear one"
-                }
-            )
+            "missing cells behind cells at least 0.08 m taller: real {} vs model {}; between valid cells of their column that differ by 5 cm or more: real {} vs model {}: {}",
+            pct(rs),
+            pct(bs),
+            pct(rj),
+            pct(bj),
+            if rs > bs && rj > bj {
+                "holes where the terrain drops away, one cell at its edge"
+            } else {
+                "no more holes at drops in real: holes at drop edges are the closest effect, not a clear one"
+            }
+        )
     };
     c.fitted(body)
 }
@@ -122,13 +122,13 @@ pub(super) fn rim_holes(c: &Context) -> String {
     let body = {
         let (r, b) = (real.mean_over("jump-missing", 0..20), before.mean_over("jump-missing", 0..20));
         format!(
-                "missing cells between valid cells of their column that differ by 5 cm or more: real {} vs model {}; missing cells real {} vs model {}: {}",
-                pct(r),
-                pct(b),
-                pct(real.mean_over("missing", 0..20)),
-                pct(before.mean_over("missing", 0..20)),
-                if r > b { "holes at height jumps, on their upper side too" } else { "no more holes at jumps in real: the rim holes are the closest effect, not a clear one" }
-            )
+            "missing cells between valid cells of their column that differ by 5 cm or more: real {} vs model {}; missing cells real {} vs model {}: {}",
+            pct(r),
+            pct(b),
+            pct(real.mean_over("missing", 0..20)),
+            pct(before.mean_over("missing", 0..20)),
+            if r > b { "holes at height jumps, on their upper side too" } else { "no more holes at jumps in real: the rim holes are the closest effect, not a clear one" }
+        )
     };
     c.fitted(body)
 }

@@ -121,10 +121,10 @@ pub(super) fn step_jitter(c: &Context, sigma: f64, edge: f64) -> String {
     let before = c.before;
     let body = {
         let fitted = format!(
-                "each cell beside a step reads a random distance off along x (a frame's misregistration kept where fusion does not average), sd {:.0} mm plus {:.0} mm per 10 cm of step under the tracks",
-                1000.0 * sigma,
-                100.0 * edge
-            );
+            "each cell beside a step reads a random distance off along x (a frame's misregistration kept where fusion does not average), sd {:.0} mm plus {:.0} mm per 10 cm of step under the tracks",
+            1000.0 * sigma,
+            100.0 * edge
+        );
         if real.paired {
             // Both ways across the step: cells moved > 2 cm toward the
             // other surface (component 2) and away from it (3).
@@ -136,12 +136,12 @@ pub(super) fn step_jitter(c: &Context, sigma: f64, edge: f64) -> String {
                 "real moves no more step cells both ways than the model: the jitter is the closest effect, not a clear one".to_string()
             };
             format!(
-                    "cells beside steps moved more than 2 cm toward the other surface real {} vs model {}, away from it real {} vs model {}: {verdict}",
-                    pct(rt),
-                    pct(bt),
-                    pct(ra),
-                    pct(ba),
-                )
+                "cells beside steps moved more than 2 cm toward the other surface real {} vs model {}, away from it real {} vs model {}: {verdict}",
+                pct(rt),
+                pct(bt),
+                pct(ra),
+                pct(ba),
+            )
         } else {
             part_way_steps(real, before, format!("steps read part of the way across: {fitted}"), "the jitter is")
         }

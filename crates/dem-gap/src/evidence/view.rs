@@ -14,20 +14,20 @@ pub(super) fn occlusion(c: &Context) -> String {
         let shadow = per_rec(real, "shadow") - per_rec(before, "shadow");
         if extra <= 0.0 || shadow <= 0.0 {
             return format!(
-                    "shadowed cells (missing behind cells at least 0.08 m taller) real {} vs model {}, missing cells real {} vs model {}: the fitted {effect} changes where cells are missing more than how many; it removes {} of the gap ({gap_before:.3} -> {gap_after:.3})",
-                    pct(real.mean_over("shadow", 0..20)),
-                    pct(before.mean_over("shadow", 0..20)),
-                    pct(real.mean_over("missing", 0..20)),
-                    pct(before.mean_over("missing", 0..20)),
-                    pct(removed)
-                );
-        }
-        format!(
-                "{} of the extra missing cells lie behind cells at least 0.08 m taller, in the sensor's line of sight (shadowed cells real {} vs model {})",
-                pct((shadow / extra.max(1e-9)).clamp(0.0, 1.0)),
+                "shadowed cells (missing behind cells at least 0.08 m taller) real {} vs model {}, missing cells real {} vs model {}: the fitted {effect} changes where cells are missing more than how many; it removes {} of the gap ({gap_before:.3} -> {gap_after:.3})",
                 pct(real.mean_over("shadow", 0..20)),
                 pct(before.mean_over("shadow", 0..20)),
-            )
+                pct(real.mean_over("missing", 0..20)),
+                pct(before.mean_over("missing", 0..20)),
+                pct(removed)
+            );
+        }
+        format!(
+            "{} of the extra missing cells lie behind cells at least 0.08 m taller, in the sensor's line of sight (shadowed cells real {} vs model {})",
+            pct((shadow / extra.max(1e-9)).clamp(0.0, 1.0)),
+            pct(real.mean_over("shadow", 0..20)),
+            pct(before.mean_over("shadow", 0..20)),
+        )
     };
     c.fitted(body)
 }
@@ -90,12 +90,12 @@ pub(super) fn view_top(c: &Context, h: f64, t: f64) -> String {
     let body = {
         let far = |s: &Stats| s.mean_over("missing", 15..20);
         format!(
-                "cells far ahead (rows 15-19) missing: real {} vs model {}: terrain above a line {} above C falling {} per metre is out of view",
-                pct(far(real)),
-                pct(far(before)),
-                mm(h),
-                mm(t),
-            )
+            "cells far ahead (rows 15-19) missing: real {} vs model {}: terrain above a line {} above C falling {} per metre is out of view",
+            pct(far(real)),
+            pct(far(before)),
+            mm(h),
+            mm(t),
+        )
     };
     c.fitted(body)
 }
