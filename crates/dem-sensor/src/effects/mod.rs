@@ -3,8 +3,9 @@
 //!
 //! An effect is an [`Effect`] variant (its JSON form) plus an
 //! [`EffectSpec`] in its family's module: name, parameters with their doc
-//! line, fit box and physical limits, formula, stage in the physical chain
-//! and draw count; beside the spec, the family module holds the effect's
+//! line, fit box and physical limits, formula, stage in the physical chain,
+//! draw count and the emulator stages it models (`dem-sensor effects`
+//! prints them); beside the spec, the family module holds the effect's
 //! validity check and the function that applies it. [`SPECS`] lists every
 //! spec in the vocabulary's order, and [`Effect::spec`], [`Effect::params`]
 //! and [`Effect::from_values`] come from one table (`registry!` below), so
