@@ -1,5 +1,6 @@
-//! Fitting one candidate effect: a grid search over its parameter box,
-//! refined around the best point (four times; for four parameters, whose
+//! Fitting one candidate effect: a grid search over its parameter box
+//! (the fit boxes and limits of its [`EffectSpec`], defined with the
+//! effect in dem-sensor), refined around the best point (four times; for four parameters, whose
 //! first grid is coarser, five times around each of its three best), of
 //! the gap between
 //! model(sim) with the candidate added and real. Every evaluation uses the
