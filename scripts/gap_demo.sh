@@ -47,23 +47,15 @@ for st in $STAGES; do
 done
 run_gap exact-paired "$A/sim.npy" "$A/real.npy" "$A/pairs.csv" "$A/sim_labels.csv" "$A/real_labels.csv"
 run_gap exact-unpaired "$A/sim.npy" "$A/real.npy" "" "$A/sim_labels.csv" "$A/real_labels.csv"
+# The effects that model each emulator stage: the registry's (docs/dem-sensor.md).
+"$BIN/dem-sensor" effects > "$dir/effects.csv"
 "$PY" - "$dir" $STAGES <<'PYEOF' | tee "$dir/summary.md"
-import json, sys
+import csv, json, sys
 d, stages = sys.argv[1], sys.argv[2:]
-# The effects that model each emulator stage (docs/dem-sensor.md).
-expect = {
-    "fov": {"fov", "startup", "view-top", "riser-blend", "floor-lift"},
-    "occlusion": {"occlusion", "pit-fill", "mixed-cells", "floor-lift"},
-    "smoothing": {"smoothing", "drop-blend", "riser-blend", "hole-growth", "edge-holes", "rim-holes", "mixed-cells", "drop-holes",
-                  "floor-lift"},
-    "noise": {"noise"},
-    "dropout": {"patch-dropout", "dropout"},
-    "holes": {"hole-growth", "drop-holes", "edge-holes", "rim-holes", "dropout", "patch-dropout"},
-    "drift": {"drift"},
-    "latency": {"lag"},
-    "extrinsic": {"tilt"},
-    "vibration": {"shake", "step-jitter"},
-}
+expect = {}
+for row in csv.DictReader(open(f"{d}/effects.csv")):
+    for st in row["emulator_stages"].split():
+        expect.setdefault(st, set()).add(row["effect"])
 cases = [(f"no-{s}-{m}", f"{s} ({m})", s) for s in stages for m in ("paired", "unpaired")]
 cases += [("exact-paired", "exact sim -> all (paired)", None), ("exact-unpaired", "exact sim -> all (unpaired)", None)]
 # "unseen draws": the final model applied with random draws no fit saw.

@@ -11,7 +11,7 @@
 use std::fmt::Display;
 
 use dem_core::distribution::{self, gap, Stats};
-use dem_sensor::effects::NAMES;
+use dem_sensor::effects::{EffectSpec, SPECS};
 use dem_sensor::{Effect, SensorModel};
 
 use crate::comparison::Comparison;
@@ -137,7 +137,8 @@ fn name_effects(c: &Comparison, mut state: State, log: &dyn Fn(String), tick: &d
     let mut steps = Vec::new();
     let mut stop = format!("stopped after --max-steps {}", c.cfg.max_steps);
     for number in 1..=c.cfg.max_steps {
-        let candidates: Vec<&str> = NAMES.iter().copied().filter(|n| !state.model.effects.iter().any(|e| e.name() == *n)).collect();
+        let candidates: Vec<&EffectSpec> =
+            SPECS.iter().copied().filter(|s| !state.model.effects.iter().any(|e| e.name() == s.name)).collect();
         if candidates.is_empty() {
             stop = "every effect of the vocabulary is in the model".into();
             break;
@@ -166,19 +167,19 @@ fn name_effects(c: &Comparison, mut state: State, log: &dyn Fn(String), tick: &d
 
 /// Fit each of `candidates` on top of the model on the fitting subsample;
 /// the fitted ones ranked by the gap they leave there, best first.
-fn rank_candidates(c: &Comparison, state: &State, candidates: &[&str], log: &StepLog, tick: &dyn Fn()) -> Vec<Candidate> {
+fn rank_candidates(c: &Comparison, state: &State, candidates: &[&EffectSpec], log: &StepLog, tick: &dyn Fn()) -> Vec<Candidate> {
     let real = c.fitting_real(&state.model, &state.stats);
     let target = c.target(&real);
     let base_fit = target.gap(&state.model);
     let mut ranking = Vec::new();
-    for name in candidates {
-        if let Some(f) = fit::fit(name, &state.model, &target) {
+    for spec in candidates {
+        if let Some(f) = fit::fit(spec, &state.model, &target) {
             let share = share_removed(base_fit, f.gap);
             let edge = if f.at_edge.is_empty() { String::new() } else { format!(" [AT THE EDGE of its box: {}]", f.at_edge.join(", ")) };
             log.line(format!("candidate {} removes {:.1}% of the gap on the fitting subsample{edge}", f.effect, 100.0 * share));
             ranking.push(Candidate { fit: f, share });
         } else {
-            log.line(format!("candidate {name}: no fit that does not hide far more cells than real misses"));
+            log.line(format!("candidate {}: no fit that does not hide far more cells than real misses", spec.name));
         }
         tick();
     }
@@ -318,7 +319,7 @@ fn polish(c: &Comparison, found: &mut Found, log: &dyn Fn(String)) -> Vec<Refit>
         let old = found.model.effects[i];
         let mut base = found.model.clone();
         base.effects.remove(i);
-        let Some(f) = fit::fit(old.name(), &base, &target) else { continue };
+        let Some(f) = fit::fit(old.spec(), &base, &target) else { continue };
         if f.effect == old {
             continue;
         }

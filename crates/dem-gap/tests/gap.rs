@@ -540,26 +540,25 @@ type Mount<'a> = (&'a str, &'a str, &'a str, &'a str, bool, &'a [&'a str], f64);
 /// scripts/gap_demo.sh.)
 #[test]
 fn leave_one_stage_out_on_other_camera_mounts() {
-    // The effects that model the occlusion stage (docs/dem-sensor.md): its
-    // shadows, pallet gaps never seen to the bottom, the ground past an
-    // edge hidden so the cell there reads part of the way up (mixed-cells,
-    // floor-lift).
-    const OCCLUSION: &[&str] = &["occlusion", "pit-fill", "mixed-cells", "floor-lift"];
+    // The effects that model the occlusion stage (the registry's, as
+    // docs/dem-sensor.md lists them): its shadows, pallet gaps never seen
+    // to the bottom, the ground past an edge hidden so the cell there reads
+    // part of the way up (mixed-cells, floor-lift).
+    let occlusion = dem_sensor::effects::modelling("occlusion");
     // And the smoothing stage's: the stereo window at drops and risers,
     // ramps, and the pixels its consistency check rejects. On this mount
     // the top cell after a riser reads part of the way down (riser-blend);
     // the check loses a cell at a drop's edge (drop-holes); the window
     // lifts the floor beyond a drop more than it moves the lip (floor-lift).
-    const SMOOTHING: &[&str] =
-        &["smoothing", "drop-blend", "riser-blend", "hole-growth", "edge-holes", "rim-holes", "mixed-cells", "drop-holes", "floor-lift"];
+    let smoothing = dem_sensor::effects::modelling("smoothing");
     let dir = tempdir();
     let cases: [Mount; 6] = [
-        ("0.7", "25", "2", "occlusion", true, OCCLUSION, 0.2),
-        ("0.7", "25", "2", "smoothing", true, SMOOTHING, 0.5),
+        ("0.7", "25", "2", "occlusion", true, occlusion.as_slice(), 0.2),
+        ("0.7", "25", "2", "smoothing", true, smoothing.as_slice(), 0.5),
         ("0.7", "25", "2", "fov", true, &["startup", "fov", "view-top", "floor-lift"], 0.3),
         ("0.7", "25", "2", "noise", false, &["noise"], 0.5),
         ("0.32", "42", "3", "noise", true, &["noise"], 0.5),
-        ("0.32", "42", "3", "occlusion", true, OCCLUSION, 0.15),
+        ("0.32", "42", "3", "occlusion", true, occlusion.as_slice(), 0.15),
     ];
     for (h, tilt, seed, stage, paired, first, removed) in cases {
         let synth = |name: &str, extra: &[&str]| -> String {

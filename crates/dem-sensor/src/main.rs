@@ -22,6 +22,7 @@ use dem_sensor::{apply_shard_emit, SensorModel};
   dem-apply --model gy.onnx sim.npy | dem-sensor apply --sensor gap/sensor.json --only startup \
       --labels sim_labels.csv -o realistic.npy
   dem-sensor show --sensor sensor.json        # the effects, one a line
+  dem-sensor effects                          # the vocabulary: effect,family,stage,draws,params,emulator_stages
   dem-sensor export --sensor gap/sensor.json -o sensor.onnx   # one ONNX graph: dem, uniform, time -> dem_out
   dem-sensor apply --sensor sensor.json --seed 1 --emit-uniform u.npy sim.npy -o out.npy   # sensor.onnx fed u.npy gives out.npy
   dem-split --shards 4 --out part sim.npy | tail -n +2 | while IFS=, read shard first n; do
@@ -104,6 +105,13 @@ enum Command {
         #[arg(long = "sensor", value_name = "JSON")]
         model: String,
     },
+    /// Print the vocabulary of effects as CSV, one a line.
+    ///
+    /// In the order dem-gap tries them: effect, family (the module that
+    /// defines it), stage (its place in the physical chain), draws per
+    /// record, parameters, and the dem-synth stages (`--no-<stage>`) it
+    /// models; lists are separated by spaces.
+    Effects,
 }
 
 fn main() -> ExitCode {
@@ -160,6 +168,12 @@ fn main() -> ExitCode {
             for e in &m.effects {
                 writeln!(out, "{e}")?;
             }
+            Ok(())
+        }
+        Command::Effects => {
+            dem_core::output::check_outputs(&[], &["-"])?;
+            use std::io::Write;
+            std::io::stdout().lock().write_all(dem_sensor::effects::csv().as_bytes())?;
             Ok(())
         }
     })

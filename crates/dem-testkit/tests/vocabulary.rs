@@ -25,6 +25,7 @@ const TOOLS: &[&[&str]] = &[
     &["dem-render"],
     &["dem-sensor", "apply"],
     &["dem-sensor", "show"],
+    &["dem-sensor", "effects"],
     &["dem-sensor", "export"],
     &["dem-split"],
     &["dem-synth"],

@@ -1,0 +1,318 @@
+//! A sensor model as ONNX operators: the same effects as [`crate::effects`],
+//! on a batch, with the record's uniforms and time as graph inputs.
+//!
+//! The grid travels through the graph as two float32 tensors `(N, 20, 5)`
+//! ([`Cells`]): `v`, 1 where a cell is valid and 0 where it is missing, and
+//! `h`, its height (0 where missing, as the contract stores it). Each effect
+//! reads the cells as they come in (a snapshot, as the native code reads
+//! [`heights`](crate::effects) before it writes) and returns new ones.
+//! Neighbours are the grid shifted by one row or column, padded with
+//! missing cells ([`dem_graph::Builder::shift`]).
+//!
+//! The graph computes in float32 where the native code computes in float64
+//! from float32 heights: heights agree within ~1e-6 m, and a cell's validity
+//! differs only where a comparison lies within float32's rounding of its
+//! threshold. Comparisons of a uniform with a probability are exact in both
+//! (24-bit uniforms, [`crate::draws`]).
+
+use dem_core::format::{col_center_y, row_center_x, COLS, GRID_ROWS};
+use dem_graph::{Builder, Input};
+
+use crate::effects::{
+    Effect, MAX_CLIMB_PITCH, MAX_SHIFT, MIXED_JUMP, NOISE_ORIGIN, NOISE_RANGE_HEIGHT, OCCLUSION_TOLERANCE, PATCH_SLOTS, SHAKE_MAX_STEP,
+    TRACK_ROWS,
+};
+use crate::SensorModel;
+
+mod heights;
+mod holes;
+mod steps;
+mod view;
+
+/// Name of a sensor graph's DEM input (`(N, 21, 5, 2)`, the file layout).
+pub const INPUT: &str = "dem";
+/// Name of the uniforms input: `(N, K)`, float32 in [0, 1), K =
+/// [`SensorModel::draws`], each effect's slice in the model's order.
+pub const UNIFORM: &str = "uniform";
+/// Name of the time input: `(N,)`, float32 seconds into the run; NaN where
+/// unknown (`startup` then draws startup frames at its rate `p`).
+pub const TIME: &str = "time";
+/// Name of the output DEM (`(N, 21, 5, 2)`).
+pub const OUTPUT: &str = "dem_out";
+
+/// Half a cell's edge (m).
+const HALF: f64 = 0.05;
+/// Stands in for "no value" in maxima and minima (heights are never near it).
+const FAR: f32 = 1e9;
+
+/// The grid of a batch inside a graph: `h` heights and `v` validity (1/0),
+/// both float32 `(N, 20, 5)`.
+#[derive(Clone, Debug)]
+pub struct Cells {
+    /// Heights, 0 where missing.
+    pub h: String,
+    /// 1 where valid, 0 where missing.
+    pub v: String,
+}
+
+/// Neighbour directions on the grid.
+#[derive(Clone, Copy)]
+enum Side {
+    /// Row r + 1 (farther along x).
+    Ahead,
+    /// Row r - 1.
+    Behind,
+    /// Column c - 1.
+    Left,
+    /// Column c + 1.
+    Right,
+}
+
+/// `x` at each cell's neighbour on `side`; `fill` outside the grid.
+fn nb(b: &mut Builder, x: &str, side: Side, fill: f32) -> String {
+    let (rows, cols) = (GRID_ROWS as i64, COLS as i64);
+    match side {
+        Side::Ahead => b.shift(x, 1, 3, rows, 1, fill),
+        Side::Behind => b.shift(x, 1, 3, rows, -1, fill),
+        Side::Left => b.shift(x, 2, 3, cols, -1, fill),
+        Side::Right => b.shift(x, 2, 3, cols, 1, fill),
+    }
+}
+
+/// A per-row constant `(1, 20, 1)`.
+fn per_row(b: &mut Builder, f: impl Fn(usize) -> f64) -> String {
+    let data: Vec<f32> = (0..GRID_ROWS).map(|r| f(r) as f32).collect();
+    b.constant(&[1, GRID_ROWS, 1], &data)
+}
+
+/// A per-cell constant `(1, 20, 5)`.
+fn per_cell(b: &mut Builder, f: impl Fn(usize, usize) -> f64) -> String {
+    let data: Vec<f32> = (0..GRID_ROWS * COLS).map(|i| f(i / COLS, i % COLS) as f32).collect();
+    b.constant(&[1, GRID_ROWS, COLS], &data)
+}
+
+/// A boolean tensor: where `v` (1/0) is valid.
+fn is_valid(b: &mut Builder, v: &str) -> String {
+    b.gt_const(v, 0.5)
+}
+
+/// The cells with `miss` (boolean, broadcast to the grid) made missing.
+fn drop_cells(b: &mut Builder, c: &Cells, miss: &str) -> Cells {
+    let zero = b.scalar(0.0);
+    Cells { v: b.select(miss, &zero, &c.v), h: b.select(miss, &zero, &c.h) }
+}
+
+/// The cells with height `new` where `cond` (boolean) holds.
+fn set_heights(b: &mut Builder, c: &Cells, cond: &str, new: &str) -> Cells {
+    Cells { v: c.v.clone(), h: b.select(cond, new, &c.h) }
+}
+
+/// `u < p`, the uniform against a probability.
+fn below(b: &mut Builder, u: &str, p: f64) -> String {
+    b.lt_const(u, p as f32)
+}
+
+/// A valid neighbour on `side` and its height: `(valid (bool), height)`.
+fn neighbour(b: &mut Builder, c: &Cells, side: Side) -> (String, String) {
+    let v = nb(b, &c.v, side, 0.0);
+    let h = nb(b, &c.h, side, 0.0);
+    (is_valid(b, &v), h)
+}
+
+/// The uniforms of one effect: `u[:, at..at + n]` reshaped to `shape`
+/// (batch axis first, as `-1`).
+fn uniforms(b: &mut Builder, u: &str, at: usize, n: usize, shape: &[i64]) -> String {
+    let s = b.take(u, 1, at as i64, (at + n) as i64);
+    b.reshape(&s, shape)
+}
+
+/// The per-cell uniform pairs `(u, v)` of a 200-draw effect: two `(N, 20, 5)`.
+fn cell_pairs(b: &mut Builder, u: &str) -> (String, String) {
+    let pairs = b.reshape(u, &[-1, GRID_ROWS as i64, COLS as i64, 2]);
+    let first = b.take(&pairs, 3, 0, 1);
+    let second = b.take(&pairs, 3, 1, 2);
+    let grid = [-1, GRID_ROWS as i64, COLS as i64];
+    (b.reshape(&first, &grid), b.reshape(&second, &grid))
+}
+
+/// The input DEM `(N, 21, 5, 2)` split into [`Cells`] (a cell is valid
+/// where its mask is > 0) and row 20 `(N, 1, 5, 2)`.
+pub fn split_dem(b: &mut Builder, dem: &str) -> (Cells, String) {
+    let grid = b.take(dem, 1, 0, GRID_ROWS as i64);
+    let row20 = b.take(dem, 1, GRID_ROWS as i64, GRID_ROWS as i64 + 1);
+    let shape = [-1, GRID_ROWS as i64, COLS as i64];
+    let h = b.take(&grid, 3, 0, 1);
+    let h = b.reshape(&h, &shape);
+    let m = b.take(&grid, 3, 1, 2);
+    let m = b.reshape(&m, &shape);
+    let valid = b.gt_const(&m, 0.0);
+    let v = b.to_float(&valid);
+    let zero = b.scalar(0.0);
+    let h = b.select(&valid, &h, &zero);
+    (Cells { h, v }, row20)
+}
+
+/// [`Cells`] and row 20 joined into a DEM `(N, 21, 5, 2)` named `out`:
+/// valid cells with mask +1, missing ones height 0 and mask -1.
+pub fn join_dem(b: &mut Builder, c: &Cells, row20: &str, out: &str) -> String {
+    let valid = is_valid(b, &c.v);
+    let (one, minus, zero) = (b.scalar(1.0), b.scalar(-1.0), b.scalar(0.0));
+    let m = b.select(&valid, &one, &minus);
+    let h = b.select(&valid, &c.h, &zero);
+    let shape = [-1, GRID_ROWS as i64, COLS as i64, 1];
+    let h = b.reshape(&h, &shape);
+    let m = b.reshape(&m, &shape);
+    let grid = b.concat(&[&h, &m], 3);
+    b.node("Concat", &[&grid, row20], vec![dem_graph::attr_int("axis", 1)], out)
+}
+
+/// Every effect of `model`, in order, on `cells`; `uniform` is the graph's
+/// `(N, K)` uniforms (needed when K > 0), `time` its `(N,)` times (needed
+/// when the model has `startup`).
+pub fn apply(b: &mut Builder, model: &SensorModel, cells: Cells, uniform: Option<&str>, time: Option<&str>) -> Cells {
+    let mut at = 0;
+    let mut c = cells;
+    let base = b.prefix().to_string();
+    for (i, e) in model.effects.iter().enumerate() {
+        let scope = format!("sensor.{i}.{}", e.name());
+        b.set_prefix(&if base.is_empty() { scope } else { format!("{base}.{scope}") });
+        let n = e.draws();
+        let u = (n > 0).then(|| uniforms(b, uniform.expect("a model with draws has a uniform input"), at, n, &[-1, n as i64]));
+        c = effect(b, e, &c, u.as_deref(), time);
+        at += n;
+    }
+    b.set_prefix(&base);
+    c
+}
+
+/// One effect on `c`; `u` its uniforms `(N, draws)`, each effect's
+/// operators in the module of its family.
+fn effect(b: &mut Builder, e: &Effect, c: &Cells, u: Option<&str>, time: Option<&str>) -> Cells {
+    let u = || u.expect("an effect with draws gets its uniforms").to_string();
+    match *e {
+        Effect::Noise { sigma0, k } => heights::noise(b, c, &u(), sigma0, k),
+        Effect::Dropout { p } => holes::dropout(b, c, &u(), p),
+        Effect::RowDropout { p } => holes::row_dropout(b, c, &u(), p),
+        Effect::Occlusion { h, x0 } => view::occlusion(b, c, h, x0),
+        Effect::Fov { x_min, x_max } => view::fov(b, c, x_min, x_max),
+        Effect::ViewTop { h, t } => view::view_top(b, c, h, t),
+        Effect::Smoothing { w } => steps::smoothing(b, c, w),
+        Effect::Bias { b: off, t } => heights::bias(b, c, off, t),
+        Effect::Quantization { q } => heights::quantization(b, c, q),
+        Effect::Startup { x0, v, p } => view::startup(b, c, &u(), time, x0, v, p),
+        Effect::PatchDropout { n, r, a } => holes::patches(b, c, &u(), n, r, a),
+        Effect::EdgeHoles { g, p } => holes::jump_holes(b, c, &u(), g, p, 1.0),
+        Effect::RimHoles { g, p } => holes::jump_holes(b, c, &u(), g, p, -1.0),
+        Effect::DropHoles { p } => holes::drop_holes(b, c, &u(), p),
+        Effect::HoleGrowth { p } => holes::hole_growth(b, c, &u(), p),
+        Effect::PitFill { g, p } => holes::pit_fill(b, c, &u(), g, p),
+        Effect::DropBlend { p, a } => steps::drop_blend(b, c, &u(), p, a),
+        Effect::FloorLift { x, p, a } => steps::floor_lift(b, c, &u(), x, p, a),
+        Effect::RiserBlend { foot, top } => steps::riser_blend(b, c, &u(), foot, top),
+        Effect::MixedCells { up, down } => steps::mixed_cells(b, c, &u(), up, down),
+        Effect::Tilt { pitch, roll, x0, range } => heights::tilt(b, c, &u(), pitch, roll, x0, range),
+        Effect::Shake { sigma, edge } => heights::shake(b, c, &u(), sigma, edge),
+        Effect::StepJitter { sigma, edge } => steps::step_jitter(b, c, &u(), sigma, edge),
+        Effect::Lag { s, spread } => heights::lag(b, c, &u(), s, spread),
+        Effect::Drift { rate, zrate, x0 } => heights::drift(b, c, &u(), rate, zrate, x0),
+    }
+}
+
+/// The ONNX model of `model` alone: a virtual sensor without a network.
+/// Inputs [`INPUT`] `(N, 21, 5, 2)`, [`UNIFORM`] `(N, K)` when the model
+/// draws (K = [`SensorModel::draws`]), [`TIME`] `(N,)` when it has
+/// `startup`; output [`OUTPUT`] `(N, 21, 5, 2)`. The metadata says what
+/// the inputs are (see [`io_metadata`]).
+pub fn sensor_model(model: &SensorModel, name: &str, extra_metadata: &[(String, String)]) -> dem_graph::proto::ModelProto {
+    let mut b = Builder::new();
+    let (cells, row20) = split_dem(&mut b, INPUT);
+    let k = model.draws();
+    let uniform = (k > 0).then_some(UNIFORM);
+    let time = model.uses_time().then_some(TIME);
+    let cells = apply(&mut b, model, cells, uniform, time);
+    join_dem(&mut b, &cells, &row20, OUTPUT);
+    let mut metadata = vec![(GRAPH_KEY.to_string(), GRAPH_SENSOR_ONLY.to_string())];
+    metadata.extend(io_metadata(model));
+    metadata.push((RESIDUAL_JSON_KEY.into(), serde_json::to_string(model).expect("a model serialises")));
+    metadata.extend_from_slice(extra_metadata);
+    let doc = format!(
+        "dem-tools virtual sensor of named effects ({}), no network. Inputs: {}. Output: dem_out float32 (N,21,5,2), \
+         masks +-1, missing cells height 0, row 20 passed through.",
+        model.summary(),
+        input_list(model)
+    );
+    b.model(name, graph_inputs(model), vec![dem_graph::batch_value(OUTPUT, &[21, 5, 2])], doc, &metadata)
+}
+
+/// The `metadata_props` key that says what a dem-tools graph holds.
+pub const GRAPH_KEY: &str = "dem.graph";
+/// [`GRAPH_KEY`]'s value for a sensor model alone (`dem-sensor export`).
+pub const GRAPH_SENSOR_ONLY: &str = "sensor";
+/// [`GRAPH_KEY`]'s value for a generator followed by its sensor tail.
+pub const GRAPH_NETWORK_SENSOR: &str = "network+sensor";
+
+/// The `metadata_props` key holding the sensor model's JSON.
+pub const RESIDUAL_JSON_KEY: &str = "dem.residual";
+/// The key stating K, the uniforms per record.
+pub const UNIFORM_COUNT_KEY: &str = "dem.uniform_count";
+/// The key stating the graph's inputs, comma-separated.
+pub const INPUTS_KEY: &str = "dem.inputs";
+
+/// The graph's inputs for `model`: `dem`, then `uniform` and `time` as needed.
+pub fn graph_inputs(model: &SensorModel) -> Vec<dem_graph::proto::ValueInfoProto> {
+    let mut v = vec![dem_graph::batch_value(INPUT, &[21, 5, 2])];
+    if model.draws() > 0 {
+        v.push(dem_graph::batch_value(UNIFORM, &[model.draws() as i64]));
+    }
+    if model.uses_time() {
+        v.push(dem_graph::batch_value(TIME, &[]));
+    }
+    v
+}
+
+/// One line naming each input and its meaning.
+pub fn input_list(model: &SensorModel) -> String {
+    let mut parts = vec!["dem float32 (N,21,5,2)".to_string()];
+    if model.draws() > 0 {
+        parts.push(format!("uniform float32 (N,{}) in [0,1), drawn fresh per call", model.draws()));
+    }
+    if model.uses_time() {
+        parts.push("time float32 (N) seconds into the run, NaN where unknown".to_string());
+    }
+    parts.join("; ")
+}
+
+/// `metadata_props` that say what the inputs are: K and the input names.
+pub fn io_metadata(model: &SensorModel) -> Vec<(String, String)> {
+    let mut names = vec![INPUT];
+    if model.draws() > 0 {
+        names.push(UNIFORM);
+    }
+    if model.uses_time() {
+        names.push(TIME);
+    }
+    vec![(UNIFORM_COUNT_KEY.into(), model.draws().to_string()), (INPUTS_KEY.into(), names.join(","))]
+}
+
+/// Run `proto` (a sensor graph, or any graph with the same inputs) with
+/// tract on `records`, with their uniforms (`records.len() x K`, row-major)
+/// and times (NaN where unknown).
+pub fn run_tract(
+    proto: &dem_graph::proto::ModelProto,
+    model: &SensorModel,
+    records: &[dem_core::Dem],
+    uniform: &[f32],
+    times: &[f32],
+) -> anyhow::Result<Vec<dem_core::Dem>> {
+    let n = records.len();
+    let flat: Vec<f32> = records.iter().flat_map(|d| d.iter().copied()).collect();
+    let mut inputs = vec![Input { name: INPUT, shape: vec![n, 21, 5, 2], data: &flat }];
+    if model.draws() > 0 {
+        inputs.push(Input { name: UNIFORM, shape: vec![n, model.draws()], data: uniform });
+    }
+    if model.uses_time() {
+        inputs.push(Input { name: TIME, shape: vec![n], data: times });
+    }
+    let out = dem_graph::run(proto, &inputs)?;
+    Ok(out.chunks(dem_core::format::RECORD_LEN).map(|c| std::array::from_fn(|i| c[i])).collect())
+}
