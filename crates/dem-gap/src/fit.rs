@@ -159,65 +159,28 @@ fn fit_in(name: &str, base: &SensorModel, target: &Target, ranges: &[Range], fix
             _ => f64::INFINITY,
         }
     };
-    let n = match (name, dims) {
-        ("occlusion", _) => 13,
-        // Rounding makes the gap spiky in q (flat ground at -0.07 lands on
-        // another multiple for a 3 % change of q): a fine grid.
-        ("quantization", _) => 121,
-        (_, 1) => 41,
-        // Four parameters (tilt): 9^4 first points cost eight times 9^3, so
-        // a coarser first grid, refined three points a side for one more
-        // round, to the same final step, from the best few points of it
-        // that are not neighbours (a coarse grid's best cell can miss the
-        // deepest valley).
-        (_, 4..) => 5,
-        _ => 9,
-    };
-    let (per, rounds, starts) = if dims >= 4 { (3, 5, 3) } else { (5, 4, 1) };
-    let grid = |centre: &[f64], step: f64, per: usize| -> Vec<Vec<f64>> {
-        let mut pts = vec![vec![]];
-        for &c in centre.iter().take(dims) {
-            let offsets: Vec<f64> = (0..per).map(|i| c + step * (i as f64 - (per - 1) as f64 / 2.0)).collect();
-            pts = pts
-                .into_iter()
-                .flat_map(|p| offsets.iter().filter(|u| (-1e-9..=1.0 + 1e-9).contains(*u)).map(move |&u| [p.clone(), vec![u]].concat()))
-                .collect();
-        }
-        pts
-    };
-    let order = |a: &(Vec<f64>, f64), b: &(Vec<f64>, f64)| {
-        a.1.total_cmp(&b.1).then_with(|| a.0.partial_cmp(&b.0).unwrap_or(std::cmp::Ordering::Equal))
-    };
     let scored = |pts: Vec<Vec<f64>>| {
         pts.into_par_iter().map(|p| {
             let g = eval(&p);
             (p, g)
         })
     };
-    let best_of = |pts: Vec<Vec<f64>>| -> Option<(Vec<f64>, f64)> { scored(pts).min_by(order) };
+    let best_of = |pts: Vec<Vec<f64>>| -> Option<(Vec<f64>, f64)> { scored(pts).min_by(by_gap) };
+    let n = first_grid(name, dims);
+    let (per, rounds, starts) = if dims >= 4 { (3, 5, 3) } else { (5, 4, 1) };
     let spacing = 1.0 / (n - 1) as f64;
-    let first = grid(&vec![0.5; dims], spacing, n);
+    let first = grid(&vec![0.5; dims], spacing, n, dims);
     let mut seeds: Vec<(Vec<f64>, f64)> = if starts == 1 {
         vec![best_of(first)?]
     } else {
         let mut all: Vec<(Vec<f64>, f64)> = scored(first).collect();
-        all.sort_by(order);
-        let mut chosen: Vec<(Vec<f64>, f64)> = Vec::new();
-        for (p, g) in all {
-            let apart = |q: &Vec<f64>| p.iter().zip(q).any(|(a, b)| (a - b).abs() > 1.5 * spacing);
-            if chosen.len() < starts && g.is_finite() && chosen.iter().all(|(q, _)| apart(q)) {
-                chosen.push((p, g));
-            }
-        }
-        if chosen.is_empty() {
-            return None;
-        }
-        chosen
+        all.sort_by(by_gap);
+        apart_starts(all, starts, spacing)?
     };
     for (best, best_gap) in seeds.iter_mut() {
         let mut step = spacing / 2.0;
         for _ in 0..rounds {
-            if let Some((p, g)) = best_of(grid(best, step, per)) {
+            if let Some((p, g)) = best_of(grid(best, step, per, dims)) {
                 if g < *best_gap {
                     (*best, *best_gap) = (p, g);
                 }
@@ -236,6 +199,57 @@ fn fit_in(name: &str, base: &SensorModel, target: &Target, ranges: &[Range], fix
         u[i] = best[k];
     }
     Some((effect, u, best_gap))
+}
+
+/// Points of the first grid a side.
+fn first_grid(name: &str, dims: usize) -> usize {
+    match (name, dims) {
+        ("occlusion", _) => 13,
+        // Rounding makes the gap spiky in q (flat ground at -0.07 lands on
+        // another multiple for a 3 % change of q): a fine grid.
+        ("quantization", _) => 121,
+        (_, 1) => 41,
+        // Four parameters (tilt): 9^4 first points cost eight times 9^3, so
+        // a coarser first grid, refined three points a side for one more
+        // round, to the same final step, from the best few points of it
+        // that are not neighbours (a coarse grid's best cell can miss the
+        // deepest valley).
+        (_, 4..) => 5,
+        _ => 9,
+    }
+}
+
+/// The `per`^`dims` points `step` apart around `centre` (box units) that
+/// lie inside the box.
+fn grid(centre: &[f64], step: f64, per: usize, dims: usize) -> Vec<Vec<f64>> {
+    let mut pts = vec![vec![]];
+    for &c in centre.iter().take(dims) {
+        let offsets: Vec<f64> = (0..per).map(|i| c + step * (i as f64 - (per - 1) as f64 / 2.0)).collect();
+        pts = pts
+            .into_iter()
+            .flat_map(|p| offsets.iter().filter(|u| (-1e-9..=1.0 + 1e-9).contains(*u)).map(move |&u| [p.clone(), vec![u]].concat()))
+            .collect();
+    }
+    pts
+}
+
+/// Lower gap first; equal gaps by the point, so the order is total and a
+/// parallel search picks the same point on any thread count.
+fn by_gap(a: &(Vec<f64>, f64), b: &(Vec<f64>, f64)) -> std::cmp::Ordering {
+    a.1.total_cmp(&b.1).then_with(|| a.0.partial_cmp(&b.0).unwrap_or(std::cmp::Ordering::Equal))
+}
+
+/// The best `starts` points of a first grid (sorted best first) that are
+/// not neighbours on it; `None` when no point has a finite gap.
+fn apart_starts(sorted: Vec<(Vec<f64>, f64)>, starts: usize, spacing: f64) -> Option<Vec<(Vec<f64>, f64)>> {
+    let mut chosen: Vec<(Vec<f64>, f64)> = Vec::new();
+    for (p, g) in sorted {
+        let apart = |q: &Vec<f64>| p.iter().zip(q).any(|(a, b)| (a - b).abs() > 1.5 * spacing);
+        if chosen.len() < starts && g.is_finite() && chosen.iter().all(|(q, _)| apart(q)) {
+            chosen.push((p, g));
+        }
+    }
+    (!chosen.is_empty()).then_some(chosen)
 }
 
 /// fov acts on row centres only, so any x_min between two centres gives the

@@ -41,6 +41,7 @@ pub mod outcome;
 pub mod report;
 pub mod sampling;
 pub mod search;
+mod state;
 pub mod ties;
 pub mod unexplained;
 
@@ -49,12 +50,13 @@ pub mod unexplained;
 pub use dem_core::distribution::{gap, gap_terms, Stats};
 pub use load::{load, terrain_mix, GapConfig, Sets};
 pub use measurement::{measure, measure_at};
+pub use outcome::Tie;
 pub use outcome::{Outcome, Refit, Step, TerrainRow};
 pub use sampling::{
     below_floor, draw_floor, halves, halves_of_runs, real_halves, sampling_floor, sim_halves, two_draws, MIN_RUNS_FOR_HALVES,
 };
 pub use search::{run, share_removed, NEGLIGIBLE_GAP};
-pub use ties::{named_ahead, tie_sentence, Tie, MAX_RIVALS, RIVAL_SHARE, SAME_PART};
+pub use ties::{named_ahead, tie_sentence, MAX_RIVALS, RIVAL_SHARE, SAME_PART};
 
 // The subset floors of `unexplained` take the second draws as the run does.
 pub(crate) use sampling::other_draws;

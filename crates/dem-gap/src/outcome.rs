@@ -12,8 +12,6 @@ use crate::comparison::Comparison;
 use crate::load::{pick, Sets};
 use crate::measurement::{measure, measure_at};
 use crate::sampling::{real_halves, two_draws, unseen_draws};
-use crate::search::{Found, Start};
-use crate::ties::Tie;
 use crate::{mix, unexplained};
 
 /// One added effect.
@@ -42,6 +40,46 @@ pub struct Step {
     pub tied_with: Vec<Tie>,
 }
 
+/// A candidate that came close to the named effect (on the fitting
+/// subsample and on all records, [`crate::ties::RIVAL_SHARE`]), that the data does
+/// not order behind it (the named effect
+/// does not remove more of the gap than the rival on all records and on
+/// each of two halves of them, [`crate::ties::named_ahead`]) and that explains the same
+/// part of the gap (on top of the named effect it removes little, and no
+/// later step names it). Two effects of the
+/// vocabulary can leave the same trace (the floor beyond a drop edge read
+/// part of the way up: the edge's occlusion or the stereo window's blend);
+/// the step then names one of the two, and says so.
+#[derive(Debug, Clone)]
+pub struct Tie {
+    /// The rival with its fitted parameters.
+    pub effect: Effect,
+    /// Gap it removes on all records, in place of the named effect.
+    pub gain: f64,
+    /// Gap it removes added on top of the named effect (its parameters
+    /// as fitted alone): less than [`crate::ties::SAME_PART`] of `gain`.
+    pub gain_on_top: f64,
+    /// Gap it removes on each half of the records.
+    pub gains_halves: Vec<f64>,
+    /// Gap the named effect removes on each half.
+    pub named_gains_halves: Vec<f64>,
+}
+/// The start model as measured, for the report's before and after.
+pub(crate) struct Start {
+    pub gap: f64,
+    /// Its sampling floor ([`Comparison::floor_of`]).
+    pub floor: f64,
+    pub stats: Stats,
+}
+/// What the naming loop leaves: the steps, why it stopped, and the model
+/// with its gap and statistics on all records (re-fits change these).
+pub(crate) struct Found {
+    pub steps: Vec<Step>,
+    pub stop: String,
+    pub model: SensorModel,
+    pub gap: f64,
+    pub stats: Stats,
+}
 /// An effect re-fitted after the naming loop with all others in place.
 #[derive(Debug, Clone)]
 pub struct Refit {
@@ -86,7 +124,7 @@ pub struct Outcome {
     /// Gap of the final model.
     pub gap_final: f64,
     /// Gap of the final model with random draws of its effects that no
-    /// fit and no check saw ([`unseen_draws`]).
+    /// fit and no check saw (`unseen_draws`).
     pub gap_final_unseen: f64,
     /// The final model.
     pub model: SensorModel,

@@ -121,7 +121,7 @@ pub fn draw_floor(model: &SensorModel, sim: &[Dem], times: Option<&[f64]>, paire
 }
 
 /// model(sim) and its statistics with the draws of `seed` and of
-/// [`other_draws`]: the two outputs [`draw_floor`] compares.
+/// `other_draws`: the two outputs [`draw_floor`] compares.
 pub fn two_draws(model: &SensorModel, sim: &[Dem], times: Option<&[f64]>, paired: bool, seed: u64) -> [(Vec<Dem>, Stats); 2] {
     [measure_at(model, sim, times, paired, seed), measure_at(model, sim, times, paired, other_draws(seed))]
 }

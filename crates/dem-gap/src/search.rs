@@ -8,17 +8,16 @@
 //! run (real's statistics, halves, fitting subsample) is measured once,
 //! in [`crate::comparison`]; here is only what changes from step to step.
 
-use std::fmt::Display;
-
-use dem_core::distribution::{self, gap, Stats};
+use dem_core::distribution::{self, gap};
 use dem_sensor::effects::{EffectSpec, SPECS};
-use dem_sensor::{Effect, SensorModel};
+use dem_sensor::Effect;
 
 use crate::comparison::Comparison;
 use crate::load::{GapConfig, Sets};
-use crate::outcome::{finish, Outcome, Refit, Step};
+use crate::outcome::{finish, Found, Outcome, Refit, Start, Step, Tie};
 use crate::sampling::{below_floor, other_draws};
-use crate::ties::{self, Tie};
+use crate::state::{Added, Candidate, State, StepLog};
+use crate::ties;
 use crate::{evidence, fit};
 
 /// A gap below this is left as it is: each statistic enters as
@@ -48,46 +47,6 @@ pub fn share_removed(before: f64, after: f64) -> f64 {
     }
 }
 
-/// The start model as measured, for the report's before and after.
-pub(crate) struct Start {
-    pub gap: f64,
-    /// Its sampling floor ([`Comparison::floor_of`]).
-    pub floor: f64,
-    pub stats: Stats,
-}
-
-/// Where the naming loop stands: the model so far, its gap and statistics
-/// on all records, and its statistics on each half of the comparison.
-pub(crate) struct State {
-    pub model: SensorModel,
-    pub gap: f64,
-    pub stats: Stats,
-    pub halves: Vec<Stats>,
-}
-
-/// What the naming loop leaves: the steps, why it stopped, and the model
-/// with its gap and statistics on all records (re-fits change these).
-pub(crate) struct Found {
-    pub steps: Vec<Step>,
-    pub stop: String,
-    pub model: SensorModel,
-    pub gap: f64,
-    pub stats: Stats,
-}
-
-/// A candidate fitted at one step, with the share of the gap it removes
-/// on the fitting subsample.
-pub(crate) struct Candidate {
-    pub fit: fit::Fitted,
-    pub share: f64,
-}
-
-/// The effect a step adds, and where the loop stands with it.
-pub(crate) struct Added {
-    pub effect: Effect,
-    pub state: State,
-}
-
 /// What confirming a step's best candidates gave.
 struct Confirmation {
     added: Option<Added>,
@@ -96,18 +55,6 @@ struct Confirmation {
     /// The gain asked of a candidate on all records; 0 when every one
     /// tried was refused.
     threshold: f64,
-}
-
-/// The log of one step: each line headed by the step's number.
-pub(crate) struct StepLog<'a> {
-    number: usize,
-    log: &'a dyn Fn(String),
-}
-
-impl StepLog<'_> {
-    pub fn line(&self, line: impl Display) {
-        (self.log)(format!("step {}: {line}", self.number))
-    }
 }
 
 /// The start model as measured, said in the log's first line, and the

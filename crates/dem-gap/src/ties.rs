@@ -9,33 +9,8 @@ use dem_core::distribution::{self, gap};
 use dem_sensor::Effect;
 
 use crate::comparison::Comparison;
-use crate::outcome::Step;
-use crate::search::{Added, Candidate, State, StepLog};
-
-/// A candidate that came close to the named effect (on the fitting
-/// subsample and on all records, [`RIVAL_SHARE`]), that the data does
-/// not order behind it (the named effect
-/// does not remove more of the gap than the rival on all records and on
-/// each of two halves of them, [`named_ahead`]) and that explains the same
-/// part of the gap (on top of the named effect it removes little, and no
-/// later step names it). Two effects of the
-/// vocabulary can leave the same trace (the floor beyond a drop edge read
-/// part of the way up: the edge's occlusion or the stereo window's blend);
-/// the step then names one of the two, and says so.
-#[derive(Debug, Clone)]
-pub struct Tie {
-    /// The rival with its fitted parameters.
-    pub effect: Effect,
-    /// Gap it removes on all records, in place of the named effect.
-    pub gain: f64,
-    /// Gap it removes added on top of the named effect (its parameters
-    /// as fitted alone): less than [`SAME_PART`] of `gain`.
-    pub gain_on_top: f64,
-    /// Gap it removes on each half of the records.
-    pub gains_halves: Vec<f64>,
-    /// Gap the named effect removes on each half.
-    pub named_gains_halves: Vec<f64>,
-}
+use crate::outcome::{Step, Tie};
+use crate::state::{Added, Candidate, State, StepLog};
 
 /// A rival is checked when it removes at least this share of what the
 /// named effect removes on the fitting subsample, and is one only when it
