@@ -52,9 +52,6 @@ struct Confirmation {
     added: Option<Added>,
     /// Candidates whose model hides far more cells than real misses.
     refused: Vec<(Effect, String)>,
-    /// The gain asked of a candidate on all records; 0 when every one
-    /// tried was refused.
-    threshold: f64,
 }
 
 /// The start model as measured, said in the log's first line, and the
@@ -99,9 +96,9 @@ fn name_effects(c: &Comparison, mut state: State, log: &dyn Fn(String), tick: &d
         }
         let step_log = StepLog { number, log };
         let ranking = rank_candidates(c, &state, &candidates, &step_log, tick);
-        let Confirmation { added, refused, threshold } = confirm_best(c, &state, &ranking, &step_log);
+        let Confirmation { added, refused } = confirm_best(c, &state, &ranking, &step_log);
         let Some(added) = added else {
-            stop = nothing_holds(c, &ranking, state.gap, threshold);
+            stop = nothing_holds(c.cfg.min_gain, c.paired, &ranking, state.gap, &refused);
             log(stop.clone());
             break;
         };
@@ -141,7 +138,7 @@ fn rank_candidates(c: &Comparison, state: &State, candidates: &[&EffectSpec], lo
 fn confirm_best(c: &Comparison, state: &State, ranking: &[Candidate], log: &StepLog) -> Confirmation {
     let seed = c.cfg.seed;
     let mut refused = Vec::new();
-    let mut threshold = 0.0;
+    let threshold = c.cfg.min_gain * state.gap;
     // The model's own gap with other draws, measured once for both
     // candidates that may need it.
     let mut model_redrawn: Option<f64> = None;
@@ -159,7 +156,6 @@ fn confirm_best(c: &Comparison, state: &State, ranking: &[Candidate], log: &Step
             continue;
         }
         let g = gap(&s, &c.real);
-        threshold = c.cfg.min_gain * state.gap;
         let gain = state.gap - g;
         // The gain once more with the models' other random draws: a
         // gain that is the draw's luck does not repeat. (Half the draw
@@ -188,7 +184,7 @@ fn confirm_best(c: &Comparison, state: &State, ranking: &[Candidate], log: &Step
         let halves_decide = !c.paired || *below_floor_now.get_or_insert_with(|| state.gap < c.floor_of(&state.model));
         if !halves_decide || on_halves.iter().all(|&x| x > 0.0) {
             let added = Added { effect: e, state: State { model: trial, gap: g, stats: s, halves } };
-            return Confirmation { added: Some(added), refused, threshold };
+            return Confirmation { added: Some(added), refused };
         }
         let why = format!(
             "it removes {gain:.3} of the gap, but {} on the two halves (sim half against real half): not on both (sampling, not an effect)",
@@ -196,19 +192,25 @@ fn confirm_best(c: &Comparison, state: &State, ranking: &[Candidate], log: &Step
         );
         log.line(format!("{e} not added: {why}"));
     }
-    Confirmation { added: None, refused, threshold }
+    Confirmation { added: None, refused }
 }
 
 /// Why the loop stops when no candidate of a step holds up.
-fn nothing_holds(c: &Comparison, ranking: &[Candidate], gap_before: f64, threshold: f64) -> String {
+fn nothing_holds(min_gain: f64, paired: bool, ranking: &[Candidate], gap_before: f64, refused: &[(Effect, String)]) -> String {
     let Some(best) = ranking.first() else { return "no candidate could be fitted".into() };
+    let refusals = if refused.is_empty() {
+        String::new()
+    } else {
+        let names: Vec<&str> = refused.iter().map(|(e, _)| e.name()).collect();
+        format!("; refused, as their models hide far more cells than real misses: {}", names.join(", "))
+    };
     format!(
-        "nothing explains the rest: the best candidate, {}, removes {:.1}% of the gap {gap_before:.3} on the fitting subsample (needed on all data: more than {:.3}, {:.0}% of the gap, with the model's random draws and with others{})",
+        "nothing explains the rest: the best candidate, {}, removes {:.1}% of the gap {gap_before:.3} on the fitting subsample (needed on all data: more than {:.3}, {:.0}% of the gap, with the model's random draws and with others{}){refusals}",
         best.fit.effect,
         100.0 * best.share,
-        threshold,
-        100.0 * c.cfg.min_gain,
-        if c.paired { "" } else { ", and a gain on each half of real" }
+        min_gain * gap_before,
+        100.0 * min_gain,
+        if paired { "" } else { ", and a gain on each half of real" }
     )
 }
 
@@ -287,4 +289,25 @@ fn polish(c: &Comparison, found: &mut Found, log: &dyn Fn(String)) -> Vec<Refit>
         }
     }
     refits
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The stop names the gain a candidate needed, also when every one
+    /// tried was refused, and says which were refused.
+    #[test]
+    fn the_stop_names_the_gain_needed_and_the_refused() {
+        let occlusion = Effect::Occlusion { h: 0.3, x0: 0.0 };
+        let ranking = [Candidate { fit: fit::Fitted { effect: occlusion, gap: 1.5, at_edge: vec![], widened: vec![] }, share: 0.25 }];
+        let refused = [(occlusion, "it hides too much".to_string())];
+        let stop = nothing_holds(0.05, true, &ranking, 2.0, &refused);
+        assert!(stop.contains("removes 25.0% of the gap 2.000"), "{stop}");
+        assert!(stop.contains("more than 0.100, 5% of the gap"), "{stop}");
+        assert!(stop.ends_with("refused, as their models hide far more cells than real misses: occlusion"), "{stop}");
+        let stop = nothing_holds(0.05, false, &ranking, 2.0, &[]);
+        assert!(stop.ends_with("and a gain on each half of real)"), "{stop}");
+        assert_eq!(nothing_holds(0.05, true, &[], 2.0, &[]), "no candidate could be fitted");
+    }
 }
