@@ -12,7 +12,7 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use dem_testkit::imports::{circles, edges, module_of, read_sources};
+use dem_testkit::imports::{circles, edges, module_named, module_of, read_sources};
 
 /// Top-level modules and their layers, bottom first. A new module must be
 /// placed here before the test passes.
@@ -107,9 +107,7 @@ fn check(files: &[(String, String)]) -> Vec<String> {
             continue;
         };
         for e in edges(from, text) {
-            // The longest module (file) the path names; an item's path ends in it.
-            let to = modules.iter().filter(|m| !m.is_empty() && e.to.starts_with(m)).max_by_key(|m| m.len());
-            let Some(to) = to else {
+            let Some(to) = module_named(&modules, &e.to) else {
                 problems.push(format!("{path}:{}: `crate::{}` names no module with a layer", e.line, e.to.join("::")));
                 continue;
             };

@@ -50,6 +50,13 @@ pub struct Edge {
     pub test: bool,
 }
 
+/// The module (file) a path names: the longest of `modules` it starts
+/// with, as an item's path ends in its module; `None` for the crate root
+/// alone or a path outside every module.
+pub fn module_named<'a>(modules: &'a [Vec<String>], path: &[String]) -> Option<&'a Vec<String>> {
+    modules.iter().filter(|m| !m.is_empty() && path.starts_with(m)).max_by_key(|m| m.len())
+}
+
 /// The production imports between the modules (files) of one crate: for
 /// each module, the modules it names outside test code, resolved to the
 /// longest module the path names. A module's own items and its ancestors
@@ -60,7 +67,7 @@ pub fn production_graph(files: &[(String, String)]) -> BTreeMap<String, Vec<Stri
     let mut graph: BTreeMap<String, Vec<String>> = BTreeMap::new();
     for ((_, text), from) in files.iter().zip(&modules) {
         for e in edges(from, text).into_iter().filter(|e| !e.test) {
-            let Some(to) = modules.iter().filter(|m| !m.is_empty() && e.to.starts_with(m)).max_by_key(|m| m.len()) else { continue };
+            let Some(to) = module_named(&modules, &e.to) else { continue };
             if to.starts_with(from) || from.starts_with(to) {
                 continue;
             }
