@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 7, item 5: does pre-applying dem-gap's fitted sensor model help the
+# Does pre-applying dem-gap's fitted sensor model help the
 # generator? dem-gap fits a sensor model on testdata (sim vs measured, true
 # pairs); dem-train --sensor then learns only the residual. Rows, on the val
 # split of the prepared data (as scripts/thesis_table.sh):

@@ -1,4 +1,4 @@
-//! Issue 16: the holes a hostile test found, each closed and kept closed by a
+//! The holes a hostile test found, each closed and kept closed by a
 //! run of the real binaries. docs/reliability.md lists every case with the
 //! test that proves it; the test names here are the ones it cites.
 
