@@ -38,14 +38,7 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
     finish(c, start, found, refits, log)
 }
 
-/// Share of the gap `before` that `after` removes (0 when there was none).
-pub fn share_removed(before: f64, after: f64) -> f64 {
-    if before > 0.0 {
-        1.0 - after / before
-    } else {
-        0.0
-    }
-}
+pub use dem_sensor::evidence::share_removed;
 
 /// What confirming a step's best candidates gave.
 struct Confirmation {

@@ -15,6 +15,7 @@
 
 pub mod draws;
 pub mod effects;
+pub mod evidence;
 pub mod export;
 pub mod graph;
 

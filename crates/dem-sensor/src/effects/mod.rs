@@ -27,6 +27,8 @@ use rand::RngCore;
 use serde::{Deserialize, Serialize};
 
 use crate::draws::Draws;
+use crate::evidence;
+use dem_core::distribution::Stats;
 use dem_core::format::{Dem, DemCells, COLS, GRID_ROWS};
 
 pub mod heights;
@@ -675,6 +677,39 @@ impl Effect {
             Effect::Shake { sigma, edge } => heights::shake(d, rng, sigma, edge),
             Effect::Lag { s, spread } => heights::lag(d, rng, s, spread),
             Effect::Drift { rate, zrate, x0 } => heights::drift(d, rng, rate, zrate, x0),
+        }
+    }
+    /// One sentence of evidence for the effect as fitted, from the
+    /// statistics of the model before it was added and of real, and the
+    /// gap before and after ([`crate::evidence`]).
+    pub fn evidence(&self, before: &Stats, real: &Stats, gap_before: f64, gap_after: f64) -> String {
+        let c = evidence::Context { effect: self, before, real, gap_before, gap_after };
+        match *self {
+            Effect::Noise { .. } => evidence::heights::noise(&c),
+            Effect::Dropout { .. } => evidence::holes::dropout(&c),
+            Effect::RowDropout { .. } => evidence::holes::row_dropout(&c),
+            Effect::Occlusion { .. } => evidence::view::occlusion(&c),
+            Effect::Fov { x_min, x_max } => evidence::view::fov(&c, x_min, x_max),
+            Effect::Startup { x0, v, p } => evidence::view::startup(&c, x0, v, p),
+            Effect::PatchDropout { .. } => evidence::holes::patch_dropout(&c),
+            Effect::EdgeHoles { .. } => evidence::holes::edge_holes(&c),
+            Effect::DropHoles { .. } => evidence::holes::drop_holes(&c),
+            Effect::HoleGrowth { .. } => evidence::holes::hole_growth(&c),
+            Effect::ViewTop { h, t } => evidence::view::view_top(&c, h, t),
+            Effect::RimHoles { .. } => evidence::holes::rim_holes(&c),
+            Effect::PitFill { .. } => evidence::holes::pit_fill(&c),
+            Effect::MixedCells { .. } => evidence::steps::mixed_cells(&c),
+            Effect::DropBlend { .. } => evidence::steps::drop_blend(&c),
+            Effect::FloorLift { x, .. } => evidence::steps::floor_lift(&c, x),
+            Effect::RiserBlend { foot, top } => evidence::steps::riser_blend(&c, foot, top),
+            Effect::Tilt { pitch, roll, x0, range } => evidence::heights::tilt(&c, pitch, roll, x0, range),
+            Effect::Shake { sigma, edge } => evidence::heights::shake(&c, sigma, edge),
+            Effect::Drift { rate, zrate, x0 } => evidence::heights::drift(&c, rate, zrate, x0),
+            Effect::Lag { s, .. } => evidence::heights::lag(&c, s),
+            Effect::StepJitter { sigma, edge } => evidence::steps::step_jitter(&c, sigma, edge),
+            Effect::Smoothing { .. } => evidence::steps::smoothing(&c),
+            Effect::Bias { .. } => evidence::heights::bias(&c),
+            Effect::Quantization { q } => evidence::heights::quantization(&c, q),
         }
     }
 }

@@ -3,7 +3,7 @@
 use super::*;
 
 /// The evidence for `occlusion`.
-pub(super) fn occlusion(c: &Context) -> String {
+pub(crate) fn occlusion(c: &Context) -> String {
     let real = c.real;
     let before = c.before;
     let removed = c.removed();
@@ -33,7 +33,7 @@ pub(super) fn occlusion(c: &Context) -> String {
 }
 
 /// The evidence for `fov`.
-pub(super) fn fov(c: &Context, x_min: f64, x_max: f64) -> String {
+pub(crate) fn fov(c: &Context, x_min: f64, x_max: f64) -> String {
     let real = c.real;
     let before = c.before;
     let body = {
@@ -61,7 +61,7 @@ pub(super) fn fov(c: &Context, x_min: f64, x_max: f64) -> String {
 }
 
 /// The evidence for `startup`.
-pub(super) fn startup(c: &Context, x0: f64, v: f64, p: f64) -> String {
+pub(crate) fn startup(c: &Context, x0: f64, v: f64, p: f64) -> String {
     let real = c.real;
     let before = c.before;
     let body = {
@@ -84,7 +84,7 @@ pub(super) fn startup(c: &Context, x0: f64, v: f64, p: f64) -> String {
 }
 
 /// The evidence for `view-top`.
-pub(super) fn view_top(c: &Context, h: f64, t: f64) -> String {
+pub(crate) fn view_top(c: &Context, h: f64, t: f64) -> String {
     let real = c.real;
     let before = c.before;
     let body = {

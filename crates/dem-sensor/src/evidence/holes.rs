@@ -3,7 +3,7 @@
 use super::*;
 
 /// The evidence for `dropout`.
-pub(super) fn dropout(c: &Context) -> String {
+pub(crate) fn dropout(c: &Context) -> String {
     let real = c.real;
     let before = c.before;
     let removed = c.removed();
@@ -34,7 +34,7 @@ pub(super) fn dropout(c: &Context) -> String {
 }
 
 /// The evidence for `row-dropout`.
-pub(super) fn row_dropout(c: &Context) -> String {
+pub(crate) fn row_dropout(c: &Context) -> String {
     let real = c.real;
     let before = c.before;
     let body = {
@@ -51,7 +51,7 @@ pub(super) fn row_dropout(c: &Context) -> String {
 }
 
 /// The evidence for `patch-dropout`.
-pub(super) fn patch_dropout(c: &Context) -> String {
+pub(crate) fn patch_dropout(c: &Context) -> String {
     let real = c.real;
     let before = c.before;
     let body = paired_misses(
@@ -64,7 +64,7 @@ pub(super) fn patch_dropout(c: &Context) -> String {
 }
 
 /// The evidence for `edge-holes`.
-pub(super) fn edge_holes(c: &Context) -> String {
+pub(crate) fn edge_holes(c: &Context) -> String {
     let real = c.real;
     let before = c.before;
     let body = {
@@ -80,7 +80,7 @@ pub(super) fn edge_holes(c: &Context) -> String {
 }
 
 /// The evidence for `drop-holes`.
-pub(super) fn drop_holes(c: &Context) -> String {
+pub(crate) fn drop_holes(c: &Context) -> String {
     let real = c.real;
     let before = c.before;
     let body = {
@@ -103,7 +103,7 @@ pub(super) fn drop_holes(c: &Context) -> String {
 }
 
 /// The evidence for `hole-growth`.
-pub(super) fn hole_growth(c: &Context) -> String {
+pub(crate) fn hole_growth(c: &Context) -> String {
     let real = c.real;
     let before = c.before;
     let body = paired_misses(
@@ -116,7 +116,7 @@ pub(super) fn hole_growth(c: &Context) -> String {
 }
 
 /// The evidence for `rim-holes`.
-pub(super) fn rim_holes(c: &Context) -> String {
+pub(crate) fn rim_holes(c: &Context) -> String {
     let real = c.real;
     let before = c.before;
     let body = {
@@ -134,7 +134,7 @@ pub(super) fn rim_holes(c: &Context) -> String {
 }
 
 /// The evidence for `pit-fill`.
-pub(super) fn pit_fill(c: &Context) -> String {
+pub(crate) fn pit_fill(c: &Context) -> String {
     let real = c.real;
     let before = c.before;
     let body = {

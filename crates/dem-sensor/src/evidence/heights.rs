@@ -3,7 +3,7 @@
 use super::*;
 
 /// The evidence for `noise`.
-pub(super) fn noise(c: &Context) -> String {
+pub(crate) fn noise(c: &Context) -> String {
     let real = c.real;
     let before = c.before;
     let spread = c.spread();
@@ -33,7 +33,7 @@ pub(super) fn noise(c: &Context) -> String {
 }
 
 /// The evidence for `tilt`.
-pub(super) fn tilt(c: &Context, pitch: f64, roll: f64, x0: f64, range: f64) -> String {
+pub(crate) fn tilt(c: &Context, pitch: f64, roll: f64, x0: f64, range: f64) -> String {
     let real = c.real;
     let before = c.before;
     let spread = c.spread();
@@ -78,7 +78,7 @@ pub(super) fn tilt(c: &Context, pitch: f64, roll: f64, x0: f64, range: f64) -> S
 }
 
 /// The evidence for `shake`.
-pub(super) fn shake(c: &Context, sigma: f64, edge: f64) -> String {
+pub(crate) fn shake(c: &Context, sigma: f64, edge: f64) -> String {
     let real = c.real;
     let before = c.before;
     let spread = c.spread();
@@ -122,7 +122,7 @@ pub(super) fn shake(c: &Context, sigma: f64, edge: f64) -> String {
 }
 
 /// The evidence for `drift`.
-pub(super) fn drift(c: &Context, rate: f64, zrate: f64, x0: f64) -> String {
+pub(crate) fn drift(c: &Context, rate: f64, zrate: f64, x0: f64) -> String {
     let real = c.real;
     let before = c.before;
     let spread = c.spread();
@@ -187,7 +187,7 @@ pub(super) fn drift(c: &Context, rate: f64, zrate: f64, x0: f64) -> String {
 }
 
 /// The evidence for `lag`.
-pub(super) fn lag(c: &Context, s: f64) -> String {
+pub(crate) fn lag(c: &Context, s: f64) -> String {
     let real = c.real;
     let before = c.before;
     let body = {
@@ -226,7 +226,7 @@ pub(super) fn lag(c: &Context, s: f64) -> String {
 }
 
 /// The evidence for `bias`.
-pub(super) fn bias(c: &Context) -> String {
+pub(crate) fn bias(c: &Context) -> String {
     let real = c.real;
     let before = c.before;
     let body = {
@@ -255,7 +255,7 @@ pub(super) fn bias(c: &Context) -> String {
 }
 
 /// The evidence for `quantization`.
-pub(super) fn quantization(c: &Context, q: f64) -> String {
+pub(crate) fn quantization(c: &Context, q: f64) -> String {
     let real = c.real;
     let before = c.before;
     let body = format!(

@@ -3,7 +3,7 @@
 use super::*;
 
 /// The evidence for `mixed-cells`.
-pub(super) fn mixed_cells(c: &Context) -> String {
+pub(crate) fn mixed_cells(c: &Context) -> String {
     let real = c.real;
     let before = c.before;
     let body = {
@@ -25,7 +25,7 @@ pub(super) fn mixed_cells(c: &Context) -> String {
 }
 
 /// The evidence for `drop-blend`.
-pub(super) fn drop_blend(c: &Context) -> String {
+pub(crate) fn drop_blend(c: &Context) -> String {
     let real = c.real;
     let before = c.before;
     let body = {
@@ -52,7 +52,7 @@ pub(super) fn drop_blend(c: &Context) -> String {
 }
 
 /// The evidence for `floor-lift`.
-pub(super) fn floor_lift(c: &Context, x: f64) -> String {
+pub(crate) fn floor_lift(c: &Context, x: f64) -> String {
     let real = c.real;
     let before = c.before;
     let body = {
@@ -80,7 +80,7 @@ pub(super) fn floor_lift(c: &Context, x: f64) -> String {
 }
 
 /// The evidence for `riser-blend`.
-pub(super) fn riser_blend(c: &Context, foot: f64, top: f64) -> String {
+pub(crate) fn riser_blend(c: &Context, foot: f64, top: f64) -> String {
     let real = c.real;
     let before = c.before;
     let body = {
@@ -116,7 +116,7 @@ pub(super) fn riser_blend(c: &Context, foot: f64, top: f64) -> String {
 }
 
 /// The evidence for `step-jitter`.
-pub(super) fn step_jitter(c: &Context, sigma: f64, edge: f64) -> String {
+pub(crate) fn step_jitter(c: &Context, sigma: f64, edge: f64) -> String {
     let real = c.real;
     let before = c.before;
     let body = {
@@ -150,7 +150,7 @@ pub(super) fn step_jitter(c: &Context, sigma: f64, edge: f64) -> String {
 }
 
 /// The evidence for `smoothing`.
-pub(super) fn smoothing(c: &Context) -> String {
+pub(crate) fn smoothing(c: &Context) -> String {
     let real = c.real;
     let before = c.before;
     let body = {
