@@ -17,6 +17,7 @@ mod tests {
     use super::*;
     use dem_core::distribution::stats;
     use dem_core::format::{empty_dem, DemCells, COLS, GRID_ROWS};
+    use dem_sensor::effects::{Bias, Drift, Lag, RiserBlend, Shake, StepJitter, Tilt};
 
     /// Every effect of the vocabulary has its evidence, paired and
     /// unpaired: a sentence that names the fitted effect and ends with what
@@ -59,7 +60,7 @@ mod tests {
         (0..COLS).for_each(|c| real.set_valid(9, c, -0.04));
         let (sims, reals) = (vec![sim; 10], vec![real; 10]);
         let (model, measured) = (stats(&sims, Some(&sims)), stats(&reals, Some(&sims)));
-        let e = Effect::RiserBlend { foot: 0.3, top: 0.0 };
+        let e = Effect::RiserBlend(RiserBlend { foot: 0.3, top: 0.0 });
         let s = evidence(&e, &model, &model, &measured, 2.0, 1.0);
         assert!(
             s.contains("at the foot real 100.0% vs model 0.0%") && s.contains("read part of the way across the step: the foot up"),
@@ -86,11 +87,11 @@ mod tests {
         let mut flat = empty_dem();
         (0..GRID_ROWS * COLS).for_each(|i| flat.set_valid(i / COLS, i % COLS, -0.07));
         let cases = [
-            (Effect::Tilt { pitch: 0.02, roll: 0.0, x0: 0.45, range: 0.0 }, flat, "farther ahead of x0"),
-            (Effect::Shake { sigma: 0.01, edge: 0.0 }, flat, "rocks about its centre"),
-            (Effect::Lag { s: 0.08, spread: 0.5 }, stairs, "steps read 8.0 cm ahead"),
-            (Effect::StepJitter { sigma: 0.04, edge: 0.0 }, stairs, "both toward and away"),
-            (Effect::Drift { rate: 0.05, zrate: 0.02, x0: 0.45 }, flat, "grows going back from x0"),
+            (Effect::Tilt(Tilt { pitch: 0.02, roll: 0.0, x0: 0.45, range: 0.0 }), flat, "farther ahead of x0"),
+            (Effect::Shake(Shake { sigma: 0.01, edge: 0.0 }), flat, "rocks about its centre"),
+            (Effect::Lag(Lag { s: 0.08, spread: 0.5 }), stairs, "steps read 8.0 cm ahead"),
+            (Effect::StepJitter(StepJitter { sigma: 0.04, edge: 0.0 }), stairs, "both toward and away"),
+            (Effect::Drift(Drift { rate: 0.05, zrate: 0.02, x0: 0.45 }), flat, "grows going back from x0"),
         ];
         for (e, terrain, says) in cases {
             let sim = vec![terrain; 400];
@@ -106,9 +107,9 @@ mod tests {
         // neighbours; drift's rows behind x0 step against each other.
         let sim = vec![flat; 400];
         for (e, says) in [
-            (Effect::Tilt { pitch: 0.02, roll: 0.02, x0: 0.45, range: 1.0 }, "level ground reads tilted"),
-            (Effect::Shake { sigma: 0.02, edge: 0.0 }, "level ground reads tilted"),
-            (Effect::Drift { rate: 0.05, zrate: 0.1, x0: 0.45 }, "rows behind x0 step against each other"),
+            (Effect::Tilt(Tilt { pitch: 0.02, roll: 0.02, x0: 0.45, range: 1.0 }), "level ground reads tilted"),
+            (Effect::Shake(Shake { sigma: 0.02, edge: 0.0 }), "level ground reads tilted"),
+            (Effect::Drift(Drift { rate: 0.05, zrate: 0.1, x0: 0.45 }), "rows behind x0 step against each other"),
         ] {
             let mut real = sim.clone();
             SensorModel { effects: vec![e] }.apply_all(&mut real, 5, 0);
@@ -134,7 +135,7 @@ mod tests {
             stats(&vec![d; 10], None)
         };
         let model = set(0.0, 0.0);
-        let e = Effect::Bias { b: 0.02, t: 0.0 };
+        let e = Effect::Bias(Bias { b: 0.02, t: 0.0 });
         let s = evidence(&e, &model, &model, &set(0.02, 0.02), 2.0, 1.0);
         assert!(s.contains("an offset and a tilt") && !s.contains("terrain"), "{s}");
         let s = evidence(&e, &model, &model, &set(-0.02, 0.09), 2.0, 1.0);

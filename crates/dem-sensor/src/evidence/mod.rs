@@ -2,13 +2,7 @@
 //! points at it, before (model) against real, and what the fit achieved.
 //! The sentence helpers here name no effect; dem-gap prints the sentences.
 
-use dem_core::distribution::{Stats, STEP_SIDES};
-use dem_core::format::{row_center_x, GRID_ROWS};
-
-pub(crate) mod heights;
-pub(crate) mod holes;
-pub(crate) mod steps;
-pub(crate) mod view;
+use dem_core::distribution::Stats;
 
 /// Share of the gap `before` that `after` removes (0 when there was none).
 pub fn share_removed(before: f64, after: f64) -> f64 {

@@ -15,26 +15,16 @@
 //! threshold. Comparisons of a uniform with a probability are exact in both
 //! (24-bit uniforms, [`crate::draws`]).
 
-use dem_core::format::{col_center_y, row_center_x, COLS, GRID_ROWS};
+use dem_core::format::{COLS, GRID_ROWS};
 use dem_graph::{Builder, Input};
 
-use crate::effects::{
-    Effect, MAX_CLIMB_PITCH, MAX_SHIFT, MIXED_JUMP, NOISE_ORIGIN, NOISE_RANGE_HEIGHT, OCCLUSION_TOLERANCE, PATCH_SLOTS, SHAKE_MAX_STEP,
-    TRACK_ROWS,
-};
 use crate::SensorModel;
 
-mod heights;
-mod holes;
 pub mod ops;
-mod steps;
-mod view;
 
-pub use ops::Cells;
 use ops::*;
+pub use ops::{Cells, INPUT};
 
-/// Name of a sensor graph's DEM input (`(N, 21, 5, 2)`, the file layout).
-pub const INPUT: &str = "dem";
 /// Name of the uniforms input: `(N, K)`, float32 in [0, 1), K =
 /// [`SensorModel::draws`], each effect's slice in the model's order.
 pub const UNIFORM: &str = "uniform";
@@ -87,44 +77,11 @@ pub fn apply(b: &mut Builder, model: &SensorModel, cells: Cells, uniform: Option
         b.set_prefix(&if base.is_empty() { scope } else { format!("{base}.{scope}") });
         let n = e.draws();
         let u = (n > 0).then(|| uniforms(b, uniform.expect("a model with draws has a uniform input"), at, n, &[-1, n as i64]));
-        c = effect(b, e, &c, u.as_deref(), time);
+        c = e.graph(b, &c, u.as_deref().unwrap_or(""), time);
         at += n;
     }
     b.set_prefix(&base);
     c
-}
-
-/// One effect on `c`; `u` its uniforms `(N, draws)`, each effect's
-/// operators in the module of its family.
-fn effect(b: &mut Builder, e: &Effect, c: &Cells, u: Option<&str>, time: Option<&str>) -> Cells {
-    let u = || u.expect("an effect with draws gets its uniforms").to_string();
-    match *e {
-        Effect::Noise { sigma0, k } => heights::noise(b, c, &u(), sigma0, k),
-        Effect::Dropout { p } => holes::dropout(b, c, &u(), p),
-        Effect::RowDropout { p } => holes::row_dropout(b, c, &u(), p),
-        Effect::Occlusion { h, x0 } => view::occlusion(b, c, h, x0),
-        Effect::Fov { x_min, x_max } => view::fov(b, c, x_min, x_max),
-        Effect::ViewTop { h, t } => view::view_top(b, c, h, t),
-        Effect::Smoothing { w } => steps::smoothing(b, c, w),
-        Effect::Bias { b: off, t } => heights::bias(b, c, off, t),
-        Effect::Quantization { q } => heights::quantization(b, c, q),
-        Effect::Startup { x0, v, p } => view::startup(b, c, &u(), time, x0, v, p),
-        Effect::PatchDropout { n, r, a } => holes::patches(b, c, &u(), n, r, a),
-        Effect::EdgeHoles { g, p } => holes::jump_holes(b, c, &u(), g, p, 1.0),
-        Effect::RimHoles { g, p } => holes::jump_holes(b, c, &u(), g, p, -1.0),
-        Effect::DropHoles { p } => holes::drop_holes(b, c, &u(), p),
-        Effect::HoleGrowth { p } => holes::hole_growth(b, c, &u(), p),
-        Effect::PitFill { g, p } => holes::pit_fill(b, c, &u(), g, p),
-        Effect::DropBlend { p, a } => steps::drop_blend(b, c, &u(), p, a),
-        Effect::FloorLift { x, p, a } => steps::floor_lift(b, c, &u(), x, p, a),
-        Effect::RiserBlend { foot, top } => steps::riser_blend(b, c, &u(), foot, top),
-        Effect::MixedCells { up, down } => steps::mixed_cells(b, c, &u(), up, down),
-        Effect::Tilt { pitch, roll, x0, range } => heights::tilt(b, c, &u(), pitch, roll, x0, range),
-        Effect::Shake { sigma, edge } => heights::shake(b, c, &u(), sigma, edge),
-        Effect::StepJitter { sigma, edge } => steps::step_jitter(b, c, &u(), sigma, edge),
-        Effect::Lag { s, spread } => heights::lag(b, c, &u(), s, spread),
-        Effect::Drift { rate, zrate, x0 } => heights::drift(b, c, &u(), rate, zrate, x0),
-    }
 }
 
 /// The ONNX model of `model` alone: a virtual sensor without a network.

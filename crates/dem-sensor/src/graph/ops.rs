@@ -5,6 +5,8 @@
 use dem_core::format::{COLS, GRID_ROWS};
 use dem_graph::Builder;
 
+/// Name of a sensor graph's DEM input (`(N, 21, 5, 2)`, the file layout).
+pub const INPUT: &str = "dem";
 /// Half a cell's edge (m).
 pub const HALF: f64 = 0.05;
 /// Stands in for "no value" in maxima and minima (heights are never near it).
