@@ -129,3 +129,24 @@ fn the_graph_says_what_its_inputs_are() {
     let names: Vec<String> = graph::sensor_model(&det, "s", &[]).graph.unwrap().input.iter().map(|i| i.name.clone()).collect();
     assert_eq!(names, ["dem"], "a model without draws or time takes the DEM alone");
 }
+
+/// `testdata/effects.json`'s `every_effect` (which the onnxruntime test and
+/// the PyTorch check read) is every effect's first example, in the
+/// vocabulary's order: on a mismatch the message is the list to paste
+/// there. (The later examples are extreme cases, such as a drift of 2 m per
+/// sqrt(m), that the graph tests' tolerance allows and `dem-sensor export`'s
+/// own check does not.)
+#[test]
+fn the_effects_json_lists_every_example() {
+    let text = std::fs::read_to_string(dem_testkit::testdata("effects.json")).unwrap();
+    let file: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let listed: Vec<Effect> = serde_json::from_value(file["every_effect"].clone()).unwrap();
+    let line = |e: &Effect| {
+        let params: Vec<String> = e.params().iter().map(|(n, v)| format!("\"{n}\": {v:?}")).collect();
+        format!("  {{\"effect\": \"{}\", \"params\": {{{}}}}}", e.name(), params.join(", "))
+    };
+    let mut first = every_effect();
+    first.dedup_by_key(|e| e.name());
+    let want: Vec<String> = first.iter().map(line).collect();
+    assert!(listed == first, "testdata/effects.json's every_effect should read:\n[\n{}\n]", want.join(",\n"));
+}

@@ -321,13 +321,15 @@ pub const fn doc_line(doc: &'static str) -> &'static str {
     }
 }
 
-/// An effect's parameter struct from its doc and fields: each field's doc
+/// An effect's parameter struct from its doc, the wording of serde's
+/// error for `params` of the wrong type, and its fields: each field's doc
 /// comment, then `name: fit RANGE, limit LIMIT;`. The struct's JSON form
 /// is the effect's `params`; its `PARAMS` are the [`ParamSpec`]s, whose
 /// `doc` is the field's doc comment on one line.
 macro_rules! params {
     (
         $(#[doc = $sdoc:literal])*
+        #[serde(expecting = $expecting:literal)]
         $name:ident {
             $(
                 $(#[doc = $doc:literal])+
@@ -338,7 +340,7 @@ macro_rules! params {
     ) => {
         $(#[doc = $sdoc])*
         #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
-        #[serde(deny_unknown_fields)]
+        #[serde(deny_unknown_fields, expecting = $expecting)]
         pub struct $name {
             $(
                 $(#[doc = $doc])+

@@ -9,6 +9,7 @@ use dem_graph::Builder;
 
 params! {
     /// Calibration offset and tilt: h += b + t x.
+    #[serde(expecting = "struct variant Effect::Bias")]
     Bias {
         /// Offset (m).
         b: fit Range::lin(-0.1, 0.1), limit Limit::new(-0.5, 0.5);

@@ -12,6 +12,7 @@ use dem_graph::Builder;
 params! {
     /// Pose drift: rows behind x0 (older frames) displaced along x and in
     /// height by a random walk per 10 cm travelled.
+    #[serde(expecting = "struct variant Effect::Drift")]
     Drift {
         // Walks up to 0.1 m per sqrt(m) along x, 0.05 in height; x0 as tilt's.
         /// Sd of the x walk (m per sqrt(m) travelled).

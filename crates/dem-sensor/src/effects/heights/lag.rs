@@ -11,6 +11,7 @@ use dem_graph::Builder;
 
 params! {
     /// Latency: the DEM is an older frame's map, cut at that older pose.
+    #[serde(expecting = "struct variant Effect::Lag")]
     Lag {
         // Speed times latency: up to 0.15 m, spread from none to all of it. No
         // shift is a natural end, and a backward one is allowed (a robot

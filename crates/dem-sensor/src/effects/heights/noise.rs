@@ -10,6 +10,7 @@ use dem_graph::Builder;
 
 params! {
     /// Height noise growing with range: sigma = sigma0 + k d^2 (m).
+    #[serde(expecting = "struct variant Effect::Noise")]
     Noise {
         /// Noise at the sensor (m).
         sigma0: fit Range::lin(0.0, 0.03), limit Limit::new(0.0, 0.1).natural_lo();

@@ -10,6 +10,7 @@ use dem_graph::Builder;
 
 params! {
     /// Heights rounded to multiples of q.
+    #[serde(expecting = "struct variant Effect::Quantization")]
     Quantization {
         /// Step (m).
         q: fit Range::log(0.002, 0.05), limit Limit::new(0.0005, 0.2);

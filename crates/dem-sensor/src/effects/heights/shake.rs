@@ -11,6 +11,7 @@ use dem_graph::Builder;
 
 params! {
     /// Vibration: the body's pitch and roll noise, larger on edges.
+    #[serde(expecting = "struct variant Effect::Shake")]
     Shake {
         // On even ground up to 1 degree; per metre of step under the tracks up
         // to 0.3 rad (a 0.2 m stair edge: 3.4 degrees more).

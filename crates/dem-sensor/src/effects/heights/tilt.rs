@@ -12,6 +12,7 @@ use dem_graph::Builder;
 params! {
     /// The camera's pitch and roll off their calibration (extrinsic error):
     /// heights tilted by distance times angle, a new angle per record.
+    #[serde(expecting = "struct variant Effect::Tilt")]
     Tilt {
         // Sds of the camera's pitch and roll errors up to 3 degrees (0.05
         // rad); x0 from behind the grid (every row tilts) to 1 m ahead; the

@@ -13,6 +13,7 @@ params! {
     /// from the lip and from the floor below it as the view moves, the
     /// later ones outliers of the older, and each adds variance until the
     /// cell passes the map's threshold and becomes a hole.
+    #[serde(expecting = "struct variant Effect::DropHoles")]
     DropHoles {
         // No drop edge lost, or every one: natural ends.
         /// Probability that the cell holding a drop's edge is lost.

@@ -10,6 +10,7 @@ use dem_graph::Builder;
 
 params! {
     /// Single valid cells missing at random.
+    #[serde(expecting = "struct variant Effect::Dropout")]
     Dropout {
         /// Probability per valid cell.
         p: fit RATE.0, limit RATE.1;

@@ -11,6 +11,7 @@ use dem_graph::Builder;
 params! {
     /// Holes at the foot of height jumps (stereo consistency check, mixed
     /// heights in one map cell).
+    #[serde(expecting = "struct variant Effect::EdgeHoles")]
     EdgeHoles {
         /// Jump (m) above which the lower cell may be lost.
         g: fit JUMP.0, limit JUMP.1;

@@ -12,6 +12,7 @@ params! {
     /// Holes grow by thin cells at their edges: a 10 cm DEM cell needs two
     /// of its four 5 cm map cells seen, and beside a hole (a shadow, the
     /// blind band of the first frames, a dark patch) some of them were not.
+    #[serde(expecting = "struct variant Effect::HoleGrowth")]
     HoleGrowth {
         /// Probability per missing 4-neighbour that the cell is lost.
         p: fit RATE.0, limit RATE.1;

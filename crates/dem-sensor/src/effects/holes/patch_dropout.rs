@@ -11,6 +11,7 @@ use dem_graph::Builder;
 params! {
     /// Missing blobs (dark or reflective patches); a cell the blob only
     /// partly covers loses the points that lifted it beside a step.
+    #[serde(expecting = "struct variant Effect::PatchDropout")]
     PatchDropout {
         // A blob loses a cell when it covers three of its quarter-cell
         // centres: r from 4 cm (up to four cells around a corner, by the

@@ -12,6 +12,7 @@ params! {
     /// Narrow pits read as their rims: a gap narrower than a map cell (between
     /// pallet boards, say) is never seen to its bottom, and a map cell over it
     /// keeps the tops around it.
+    #[serde(expecting = "struct variant Effect::PitFill")]
     PitFill {
         /// Depth (m) below both neighbours above which a cell is a pit.
         g: fit JUMP.0, limit JUMP.1;

@@ -12,6 +12,7 @@ params! {
     /// Holes at the rim of height jumps (the stereo matcher's consistency
     /// check rejects pixels whose window straddles the jump on the near side
     /// too).
+    #[serde(expecting = "struct variant Effect::RimHoles")]
     RimHoles {
         /// Jump (m) above which the higher cell may be lost.
         g: fit JUMP.0, limit JUMP.1;

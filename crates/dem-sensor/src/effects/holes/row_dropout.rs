@@ -10,6 +10,7 @@ use dem_graph::Builder;
 
 params! {
     /// Whole grid rows missing at random.
+    #[serde(expecting = "struct variant Effect::RowDropout")]
     RowDropout {
         /// Probability per row.
         p: fit RATE.0, limit RATE.1;

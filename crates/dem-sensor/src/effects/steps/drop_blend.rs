@@ -13,6 +13,7 @@ params! {
     /// Cells on both sides of a drop edge read part of the way to the other
     /// side, in some records: the stereo matcher's window straddles the
     /// jump in range there and averages across it.
+    #[serde(expecting = "struct variant Effect::DropBlend")]
     DropBlend {
         // Every cell beside a drop blended, or moved all the way: natural ends.
         /// Probability that a cell beside a drop is blended.

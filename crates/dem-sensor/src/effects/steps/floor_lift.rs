@@ -16,6 +16,7 @@ params! {
     /// acts; in the rows the camera's lowest ray no longer reaches, the map
     /// keeps that grazing view where a closer, steeper look would see the
     /// floor (the field of view).
+    #[serde(expecting = "struct variant Effect::FloorLift")]
     FloorLift {
         // x from the rows behind the robot (where a camera whose lowest ray
         // meets the ground ahead keeps its grazing view) to past the grid

@@ -12,6 +12,7 @@ params! {
     /// cell is the mean of finer map cells, and a map cell holding a step
     /// keeps the higher surface (lower points hide under tops; the ground
     /// just beyond a drop edge is hidden by the edge).
+    #[serde(expecting = "struct variant Effect::MixedCells")]
     MixedCells {
         // Reaches from none (the halves' mean alone) to a whole cell. Past
         // 0.2 m the surface reaches past the far half of the lower cell

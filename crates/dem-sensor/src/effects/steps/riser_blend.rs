@@ -13,6 +13,7 @@ params! {
     /// Cells beside a riser read part of the way up or down the step: the
     /// stereo window over the riser's corners moves their points along the
     /// rays, by a share and in a direction that depend on the view angle.
+    #[serde(expecting = "struct variant Effect::RiserBlend")]
     RiserBlend {
         // Either way across the step; 0 (no move) on the grid. Moved all the
         // way to the other surface: a natural end; the other end (away from

@@ -9,6 +9,7 @@ use dem_graph::Builder;
 
 params! {
     /// Fusion blurs edges: 3x3 kernel with centre weight w.
+    #[serde(expecting = "struct variant Effect::Smoothing")]
     Smoothing {
         /// Centre weight in (0, 1]; 1 is no smoothing.
         w: fit Range::lin(0.05, 1.0), limit Limit::new(0.01, 1.0).natural_hi();

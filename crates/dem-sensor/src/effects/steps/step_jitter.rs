@@ -17,6 +17,7 @@ params! {
     /// different one in each cell; on even ground many frames average out.
     /// Each cell reads at a random distance off along x: h += clamp(s z,
     /// +-0.1 m) times the local slope along x, s = sigma + edge J.
+    #[serde(expecting = "struct variant Effect::StepJitter")]
     StepJitter {
         // A frame misregistered by up to 3 cm sd on even ground, 0.3 m per
         // metre of step under the tracks (a 0.2 m stair edge: 6 cm more). A

@@ -10,6 +10,7 @@ use dem_graph::Builder;
 
 params! {
     /// Cells outside the field of view along x never observed.
+    #[serde(expecting = "struct variant Effect::Fov")]
     Fov {
         /// Nearest x observed (m).
         x_min: fit Range::lin(-0.65, 0.55), limit Limit::new(-0.65, 0.55).natural_lo();

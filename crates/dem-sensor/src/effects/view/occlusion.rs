@@ -10,6 +10,7 @@ use dem_graph::Builder;
 
 params! {
     /// Cells hidden from the sensor by taller terrain.
+    #[serde(expecting = "struct variant Effect::Occlusion")]
     Occlusion {
         // A sensor mounted on the robot: above C by 0.2 to 1.2 m, along x
         // within the tracks and flippers.

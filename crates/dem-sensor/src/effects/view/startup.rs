@@ -12,6 +12,7 @@ use dem_graph::Builder;
 params! {
     /// The first frames of a run: the map has not yet seen the ground
     /// behind the nearest ray, and that blind edge recedes as the robot drives.
+    #[serde(expecting = "struct variant Effect::Startup")]
     Startup {
         // v is fitted when the records' times are known, p when not (dem-gap's fit).
         /// Blind edge at the start of a run (m along x).

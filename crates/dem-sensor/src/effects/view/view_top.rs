@@ -11,6 +11,7 @@ use dem_graph::Builder;
 params! {
     /// The upper edge of the vertical field of view: terrain above the top
     /// ray is never seen (far treads of stairs going up, tall obstacles).
+    #[serde(expecting = "struct variant Effect::ViewTop")]
     ViewTop {
         // A camera 0.2-1.2 m above C whose top ray falls 0-60 degrees. High
         // enough or flat enough, the ray clears everything: natural ends.
