@@ -1,16 +1,19 @@
-//! The measurement effects of `docs/format.md`: one registry, one module
-//! per family of physics, each effect defined once.
+//! The measurement effects of `docs/format.md`: one registry, one file
+//! per effect, each effect defined once.
 //!
-//! An effect is an [`Effect`] variant (its JSON form) plus an
-//! [`EffectSpec`] in its family's module: name, parameters with their doc
-//! line, fit box and physical limits, formula, stage in the physical chain,
-//! draw count and the emulator stages it models (`dem-sensor effects`
-//! prints them); beside the spec, the family module holds the effect's
-//! validity check and the function that applies it. [`SPECS`] lists every
-//! spec in the vocabulary's order, and [`Effect::spec`], [`Effect::params`]
-//! and [`Effect::from_values`] come from one table (`registry!` below), so
-//! a variant without a spec, a check or an apply function does not compile,
-//! and `tests/registry.rs` fails for a spec that disagrees with its variant.
+//! An effect is one file, `effects/<family>/<effect>.rs`: its parameter
+//! struct (made by `params!`: each field's `///` line is also its
+//! [`ParamSpec::doc`]) and the struct's [`EffectKind`] impl: its
+//! [`EffectSpec`] (name, formula, stage in the physical chain, draw count,
+//! the emulator stages it models, parameters with fit box and physical
+//! limits; `dem-sensor effects` prints them), its validity check, the
+//! function that applies it to one DEM, its ONNX operators
+//! ([`crate::graph`]), its sentence of evidence ([`crate::evidence`]) and
+//! example parameters where it acts. One line per effect in `registry!`
+//! below makes [`Effect`] (a newtype variant per effect), [`SPECS`] in the
+//! vocabulary's order and every dispatch from an [`Effect`] to its file,
+//! so an effect without a part does not compile, and `tests/registry.rs`
+//! fails for parts that disagree.
 //!
 //! - [`holes`]: cells lost or filled where the map is thin.
 //! - [`view`]: what the sensor can see.
@@ -249,7 +252,8 @@ impl Limit {
 pub struct ParamSpec {
     /// Its name in JSON and in [`Effect::params`].
     pub name: &'static str,
-    /// What it is, with its unit.
+    /// What it is, with its unit: the doc comment of the parameter's
+    /// field, on one line.
     pub doc: &'static str,
     /// The box dem-gap searches.
     pub fit: Range,
@@ -257,7 +261,7 @@ pub struct ParamSpec {
     pub limit: Limit,
 }
 
-/// Everything about one effect but its variant and its code.
+/// Everything about one effect but its parameter struct and its code.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct EffectSpec {
     /// The vocabulary name (`noise`, `row-dropout`, ...).

@@ -7,7 +7,9 @@
 //! reads the cells as they come in (a snapshot, as the native code reads
 //! [`heights`](crate::effects) before it writes) and returns new ones.
 //! Neighbours are the grid shifted by one row or column, padded with
-//! missing cells ([`dem_graph::Builder::shift`]).
+//! missing cells ([`dem_graph::Builder::shift`]). Each effect's operators
+//! are in its file ([`crate::effects`], [`crate::effects::EffectKind::graph`]),
+//! built from [`ops`].
 //!
 //! The graph computes in float32 where the native code computes in float64
 //! from float32 heights: heights agree within ~1e-6 m, and a cell's validity

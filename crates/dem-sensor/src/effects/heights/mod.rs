@@ -1,5 +1,10 @@
 //! Heights moved everywhere, by the range, the calibration or the pose:
 //! `noise`, `bias`, `quantization`, `tilt`, `shake`, `lag`, `drift`.
+//!
+//! One file per effect (its parameters, spec, check, apply, ONNX
+//! operators, evidence sentence and examples); this module holds what
+//! several of them share, and `ops` the operators they share in
+//! the graph.
 
 use crate::effects::cell_heights;
 use dem_core::format::{col_center_y, row_center_x, Dem, DemCells, COLS, GRID_ROWS};

@@ -1,6 +1,11 @@
 //! Cells lost or filled where the map is thin: `dropout`, `row-dropout`,
 //! `patch-dropout`, `edge-holes`, `rim-holes`, `pit-fill`, `drop-holes`,
 //! `hole-growth`.
+//!
+//! One file per effect (its parameters, spec, check, apply, ONNX
+//! operators, evidence sentence and examples); this module holds what
+//! several of them share, and `ops` the operators they share in
+//! the graph.
 
 use crate::draws::Draws;
 use crate::effects::{cell_heights, neighbours4, probability, Limit, Range};

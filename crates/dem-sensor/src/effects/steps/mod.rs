@@ -1,6 +1,11 @@
 //! Heights moved at steps, where a cell holds points of two surfaces:
 //! `riser-blend`, `drop-blend`, `mixed-cells`, `floor-lift`,
 //! `step-jitter`, `smoothing`.
+//!
+//! One file per effect (its parameters, spec, check, apply, ONNX
+//! operators, evidence sentence and examples); this module holds what
+//! several of them share, and `ops` the operators they share in
+//! the graph.
 
 use crate::effects::{cell_heights, Limit, Range};
 use dem_core::format::{Dem, DemCells, COLS, GRID_ROWS};

@@ -1,5 +1,9 @@
 //! What the sensor can see: `occlusion`, `fov`, `view-top`, `startup`.
 //! Each removes cells the camera never observed; none moves a height.
+//!
+//! One file per effect (its parameters, spec, check, apply, ONNX
+//! operators, evidence sentence and examples); this module holds what
+//! several of them share.
 
 use crate::graph::ops::HALF;
 use dem_core::format::{row_center_x, COLS, GRID_ROWS};

@@ -1,6 +1,7 @@
 //! Evidence in words and numbers for a named effect: what in the data
 //! points at it, before (model) against real, and what the fit achieved.
-//! The sentence helpers here name no effect; dem-gap prints the sentences.
+//! Each effect's sentence is in its file ([`crate::effects::EffectKind::evidence`]);
+//! the helpers here name no effect. dem-gap prints the sentences.
 
 use dem_core::distribution::Stats;
 
