@@ -35,7 +35,7 @@ pub fn mid(s: &Stats) -> f64 {
     s.mean_over("edge-2cm", 0..19) - s.mean_over("edge-10cm", 0..19)
 }
 
-/// Mean over the step `sides` ([`STEP_SIDES`] names) of component `k` of
+/// Mean over the step `sides` ([`STEP_SIDES`](dem_core::distribution::STEP_SIDES) names) of component `k` of
 /// their residuals toward the other surface (2: the share moved more than
 /// 2 cm toward it, 3: away from it).
 pub fn side_share(s: &Stats, sides: &[&str], k: usize) -> f64 {

@@ -21,7 +21,7 @@ pub const OCCLUSION_TOLERANCE: f64 = 0.01;
 const X_BACK: f64 = -0.6;
 
 /// True when cell `(t, c)` of the original heights `z` (None = missing) is
-/// hidden from a sensor at `(x0, h)`: see [`OCCLUSION`]'s formula.
+/// hidden from a sensor at `(x0, h)`: see [`occlusion`]'s formula.
 pub fn hidden(z: &[[Option<f64>; COLS]; GRID_ROWS], t: usize, c: usize, h: f64, x0: f64) -> bool {
     let Some(zt) = z[t][c] else { return false };
     let xt = row_center_x(t);
