@@ -79,6 +79,7 @@ pub fn apply(b: &mut Builder, model: &SensorModel, cells: Cells, uniform: Option
         b.set_prefix(&if base.is_empty() { scope } else { format!("{base}.{scope}") });
         let n = e.draws();
         let u = (n > 0).then(|| uniforms(b, uniform.expect("a model with draws has a uniform input"), at, n, &[-1, n as i64]));
+        // An effect that draws nothing never reads its uniforms.
         c = e.graph(b, &c, u.as_deref().unwrap_or(""), time);
         at += n;
     }

@@ -24,6 +24,7 @@ params! {
         r: fit Range::lin(0.04, 0.25), limit Limit::new(0.02, 0.5).natural_lo();
         /// Share of the way a partly covered cell moves down toward its lower neighbour along x (0: it keeps
         /// its height).
+        // Optional in JSON (0), so that models without it still load.
         #[serde(default)]
         a: fit Range::lin(0.0, 1.0), limit Limit::new(0.0, 1.0).natural_lo().natural_hi();
     }
