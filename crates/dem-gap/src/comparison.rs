@@ -157,6 +157,7 @@ mod tests {
     use crate::measurement::measure;
     use dem_core::format::{empty_dem, DemCells};
     use dem_core::metric;
+    use dem_sensor::effects::Noise;
     use dem_sensor::Effect;
 
     /// The point: the gap compares distributions, so sim with the
@@ -175,7 +176,7 @@ mod tests {
                 d
             })
             .collect();
-        let noise = SensorModel { effects: vec![Effect::Noise { sigma0: 0.004, k: 0.01 }] };
+        let noise = SensorModel { effects: vec![Effect::Noise(Noise { sigma0: 0.004, k: 0.01 })] };
         let (real, _) = measure(&noise, &sim, true, 1);
         for paired in [true, false] {
             let rs = distribution::stats(&real, paired.then_some(&sim[..]));

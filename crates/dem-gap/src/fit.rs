@@ -10,7 +10,7 @@
 use rayon::prelude::*;
 
 use dem_core::format::{row_center_x, Dem, GRID_ROWS};
-use dem_sensor::effects::{EffectSpec, Limit, Range};
+use dem_sensor::effects::{EffectSpec, Fov, Limit, Range, Startup};
 use dem_sensor::{Effect, SensorModel};
 
 use dem_core::distribution::{gap, hides_too_much, stats, Stats};
@@ -124,12 +124,12 @@ pub fn fit(spec: &EffectSpec, base: &SensorModel, target: &Target) -> Option<Fit
         .filter(|&i| (u[i] <= EDGE && !lim[i].natural_lo) || (u[i] >= 1.0 - EDGE && !lim[i].natural_hi))
         .map(|i| spec.params[i].name)
         .collect();
-    if let (Effect::Startup { x0, v, .. }, Some(times)) = (effect, target.times) {
+    if let (Effect::Startup(Startup { x0, v, .. }), Some(times)) = (effect, target.times) {
         // The share of records that are startup frames, from the times: the
         // model then also works on records without times.
         let blind = times.iter().filter(|&&t| t.is_finite() && x0 - v * t > -0.55).count();
         let p = blind as f64 / times.len().max(1) as f64;
-        effect = Effect::Startup { x0, v, p: (p * 1e4).round() / 1e4 };
+        effect = Effect::Startup(Startup { x0, v, p: (p * 1e4).round() / 1e4 });
     }
     Some(Fitted { effect, gap: g, at_edge, widened })
 }
@@ -256,11 +256,11 @@ fn apart_starts(sorted: Vec<(Vec<f64>, f64)>, starts: usize, spacing: f64) -> Op
 /// same output: report the row boundary between them (the midpoint).
 fn snap(e: Effect) -> Effect {
     match e {
-        Effect::Fov { x_min, x_max } => {
+        Effect::Fov(Fov { x_min, x_max }) => {
             let below = (0..GRID_ROWS).filter(|&r| row_center_x(r) < x_min).count();
             let upto = (0..GRID_ROWS).filter(|&r| row_center_x(r) <= x_max).count();
             let b = |k: usize| ((-0.6 + 0.1 * k as f64) * 1000.0).round() / 1000.0;
-            Effect::Fov { x_min: b(below), x_max: b(upto).max(b(below) + 0.1) }
+            Effect::Fov(Fov { x_min: b(below), x_max: b(upto).max(b(below) + 0.1) })
         }
         other => other,
     }

@@ -38,14 +38,7 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
     finish(c, start, found, refits, log)
 }
 
-/// Share of the gap `before` that `after` removes (0 when there was none).
-pub fn share_removed(before: f64, after: f64) -> f64 {
-    if before > 0.0 {
-        1.0 - after / before
-    } else {
-        0.0
-    }
-}
+pub use dem_sensor::evidence::share_removed;
 
 /// What confirming a step's best candidates gave.
 struct Confirmation {
@@ -294,12 +287,13 @@ fn polish(c: &Comparison, found: &mut Found, log: &dyn Fn(String)) -> Vec<Refit>
 #[cfg(test)]
 mod tests {
     use super::*;
+    use dem_sensor::effects::Occlusion;
 
     /// The stop names the gain a candidate needed, also when every one
     /// tried was refused, and says which were refused.
     #[test]
     fn the_stop_names_the_gain_needed_and_the_refused() {
-        let occlusion = Effect::Occlusion { h: 0.3, x0: 0.0 };
+        let occlusion = Effect::Occlusion(Occlusion { h: 0.3, x0: 0.0 });
         let ranking = [Candidate { fit: fit::Fitted { effect: occlusion, gap: 1.5, at_edge: vec![], widened: vec![] }, share: 0.25 }];
         let refused = [(occlusion, "it hides too much".to_string())];
         let stop = nothing_holds(0.05, true, &ranking, 2.0, &refused);

@@ -15,6 +15,7 @@
 
 pub mod draws;
 pub mod effects;
+pub mod evidence;
 pub mod export;
 pub mod graph;
 
@@ -208,7 +209,7 @@ impl SensorModel {
     /// True when an effect reads each record's time (`startup`): without
     /// times it falls back to a per-record rate.
     pub fn uses_time(&self) -> bool {
-        self.effects.iter().any(|e| matches!(e, Effect::Startup { .. }))
+        self.effects.iter().any(|e| matches!(e, Effect::Startup(_)))
     }
 
     /// Names of the effects, comma-separated (`none` when empty).
@@ -345,6 +346,7 @@ pub fn apply_shard_emit(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::effects::{Dropout, Noise, Occlusion, RowDropout};
 
     #[test]
     fn only_keeps_the_named_effects_and_their_draws() {
@@ -372,7 +374,11 @@ mod tests {
     #[test]
     fn json_round_trip_and_check() {
         let m = SensorModel {
-            effects: vec![Effect::Occlusion { h: 0.45, x0: 0.15 }, Effect::Noise { sigma0: 0.003, k: 0.01 }, Effect::Dropout { p: 0.1 }],
+            effects: vec![
+                Effect::Occlusion(Occlusion { h: 0.45, x0: 0.15 }),
+                Effect::Noise(Noise { sigma0: 0.003, k: 0.01 }),
+                Effect::Dropout(Dropout { p: 0.1 }),
+            ],
         };
         let back = SensorModel::from_json(&m.to_json()).unwrap();
         assert_eq!(back, m);
@@ -384,9 +390,9 @@ mod tests {
 
     #[test]
     fn insertion_follows_the_physical_order() {
-        let m = SensorModel::default().with(Effect::Dropout { p: 0.1 }).with(Effect::Occlusion { h: 0.5, x0: 0.1 });
+        let m = SensorModel::default().with(Effect::Dropout(Dropout { p: 0.1 })).with(Effect::Occlusion(Occlusion { h: 0.5, x0: 0.1 }));
         assert_eq!(m.effects[0].name(), "occlusion");
-        let m = m.with(Effect::Noise { sigma0: 0.01, k: 0.0 });
+        let m = m.with(Effect::Noise(Noise { sigma0: 0.01, k: 0.0 }));
         assert_eq!(m.effects.iter().map(|e| e.name()).collect::<Vec<_>>(), ["occlusion", "noise", "dropout"]);
     }
 
@@ -402,7 +408,11 @@ mod tests {
             d
         };
         let m = SensorModel {
-            effects: vec![Effect::Noise { sigma0: 0.01, k: 0.01 }, Effect::Dropout { p: 0.3 }, Effect::RowDropout { p: 0.2 }],
+            effects: vec![
+                Effect::Noise(Noise { sigma0: 0.01, k: 0.01 }),
+                Effect::Dropout(Dropout { p: 0.3 }),
+                Effect::RowDropout(RowDropout { p: 0.2 }),
+            ],
         };
         let mut all = vec![flat; 50];
         m.apply_all(&mut all, 7, 0);

@@ -4,6 +4,7 @@
 //! tract. (onnxruntime and PyTorch run the same check in dem-apply's tests.)
 
 use dem_core::format::{Dem, DemCells, COLS, GRID_ROWS};
+use dem_sensor::effects::{Bias, Noise, Startup};
 use dem_sensor::{graph, Effect, SensorModel};
 
 fn records() -> Vec<Dem> {
@@ -67,37 +68,7 @@ fn check(model: &SensorModel) {
 
 /// Each effect at parameters where it acts on the bundled data.
 fn every_effect() -> Vec<Effect> {
-    vec![
-        Effect::Noise { sigma0: 0.01, k: 0.02 },
-        Effect::Dropout { p: 0.3 },
-        Effect::RowDropout { p: 0.2 },
-        Effect::Occlusion { h: 0.45, x0: 0.15 },
-        Effect::Occlusion { h: 0.3, x0: -0.2 },
-        Effect::Fov { x_min: -0.33, x_max: 0.97 },
-        Effect::ViewTop { h: 0.3, t: 0.3 },
-        Effect::Smoothing { w: 0.4 },
-        Effect::Bias { b: 0.02, t: -0.03 },
-        Effect::Quantization { q: 0.02 },
-        Effect::Startup { x0: 0.4, v: 0.3, p: 0.4 },
-        Effect::Startup { x0: 0.4, v: 0.0, p: 0.4 },
-        Effect::PatchDropout { n: 3.0, r: 0.12, a: 0.5 },
-        Effect::EdgeHoles { g: 0.05, p: 0.6 },
-        Effect::RimHoles { g: 0.05, p: 0.6 },
-        Effect::DropHoles { p: 0.7 },
-        Effect::HoleGrowth { p: 0.3 },
-        Effect::PitFill { g: 0.02, p: 0.8 },
-        Effect::DropBlend { p: 0.6, a: 0.8 },
-        Effect::FloorLift { x: 0.6, p: 0.7, a: 1.5 },
-        Effect::RiserBlend { foot: 0.4, top: -0.3 },
-        Effect::MixedCells { up: 0.04, down: 0.06 },
-        Effect::Tilt { pitch: 0.02, roll: 0.015, x0: 0.45, range: 1.5 },
-        Effect::Shake { sigma: 0.003, edge: 0.1 },
-        Effect::StepJitter { sigma: 0.02, edge: 0.2 },
-        Effect::Lag { s: 0.08, spread: 0.6 },
-        Effect::Lag { s: -0.3, spread: 1.0 },
-        Effect::Drift { rate: 0.08, zrate: 0.03, x0: 0.4 },
-        Effect::Drift { rate: 2.0, zrate: 0.0, x0: 2.0 },
-    ]
+    Effect::examples()
 }
 
 #[test]
@@ -145,7 +116,8 @@ fn a_model_of_several_effects_computes_the_same_in_the_graph() {
 
 #[test]
 fn the_graph_says_what_its_inputs_are() {
-    let model = SensorModel { effects: vec![Effect::Noise { sigma0: 0.01, k: 0.0 }, Effect::Startup { x0: 0.3, v: 0.2, p: 0.1 }] };
+    let model =
+        SensorModel { effects: vec![Effect::Noise(Noise { sigma0: 0.01, k: 0.0 }), Effect::Startup(Startup { x0: 0.3, v: 0.2, p: 0.1 })] };
     let proto = graph::sensor_model(&model, "s", &[]);
     let names: Vec<&str> = proto.graph.as_ref().unwrap().input.iter().map(|i| i.name.as_str()).collect();
     assert_eq!(names, ["dem", "uniform", "time"]);
@@ -153,7 +125,28 @@ fn the_graph_says_what_its_inputs_are() {
     assert!(meta.contains(&("dem.uniform_count", "102")), "{meta:?}");
     assert!(meta.contains(&("dem.inputs", "dem,uniform,time")), "{meta:?}");
     assert!(proto.doc_string.contains("uniform float32 (N,102)") && proto.doc_string.contains("NaN where unknown"), "{}", proto.doc_string);
-    let det = SensorModel { effects: vec![Effect::Bias { b: 0.01, t: 0.0 }] };
+    let det = SensorModel { effects: vec![Effect::Bias(Bias { b: 0.01, t: 0.0 })] };
     let names: Vec<String> = graph::sensor_model(&det, "s", &[]).graph.unwrap().input.iter().map(|i| i.name.clone()).collect();
     assert_eq!(names, ["dem"], "a model without draws or time takes the DEM alone");
+}
+
+/// `testdata/effects.json`'s `every_effect` (which the onnxruntime test and
+/// the PyTorch check read) is every effect's first example, in the
+/// vocabulary's order: on a mismatch the message is the list to paste
+/// there. (The later examples are extreme cases, such as a drift of 2 m per
+/// sqrt(m), that the graph tests' tolerance allows and `dem-sensor export`'s
+/// own check does not.)
+#[test]
+fn the_effects_json_lists_every_example() {
+    let text = std::fs::read_to_string(dem_testkit::testdata("effects.json")).unwrap();
+    let file: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let listed: Vec<Effect> = serde_json::from_value(file["every_effect"].clone()).unwrap();
+    let line = |e: &Effect| {
+        let params: Vec<String> = e.params().iter().map(|(n, v)| format!("\"{n}\": {v:?}")).collect();
+        format!("  {{\"effect\": \"{}\", \"params\": {{{}}}}}", e.name(), params.join(", "))
+    };
+    let mut first = every_effect();
+    first.dedup_by_key(|e| e.name());
+    let want: Vec<String> = first.iter().map(line).collect();
+    assert!(listed == first, "testdata/effects.json's every_effect should read:\n[\n{}\n]", want.join(",\n"));
 }

@@ -196,3 +196,16 @@ fn the_emulator_stages_are_the_specs_and_the_docs_table() {
     assert_eq!(csv.lines().count(), SPECS.len() + 1);
     assert!(csv.contains("\nstep-jitter,steps,registration,100,sigma edge,vibration\n"), "{csv}");
 }
+
+/// `params` of the wrong type gets serde's wording for a struct variant,
+/// naming the effect's own variant (the `expecting` of its `params!`).
+#[test]
+fn a_mistyped_params_names_the_effect_s_variant() {
+    for spec in SPECS {
+        let variant = format!("{:?}", middle(spec));
+        let variant = &variant[..variant.find('(').unwrap()];
+        let json = format!(r#"{{"effect": "{}", "params": 3}}"#, spec.name);
+        let err = serde_json::from_str::<Effect>(&json).unwrap_err().to_string();
+        assert!(err.contains(&format!("expected struct variant Effect::{variant} ")), "{}: {err}", spec.name);
+    }
+}

@@ -71,6 +71,7 @@ impl<'a> Prepared<'a> {
 mod tests {
     use super::*;
     use dem_core::format::{col_center_y, empty_dem, row_center_x, DemCells, COLS, GRID_ROWS};
+    use dem_sensor::effects::{Bias, Dropout, EdgeHoles, Fov, Noise, Occlusion, RowDropout, Smoothing};
 
     /// Stairs with a missing cell, a few records apart in height.
     fn records(n: usize) -> Vec<Dem> {
@@ -93,25 +94,29 @@ mod tests {
     fn the_split_model_gives_the_whole_model_s_gap_bit_for_bit() {
         let sim = records(40);
         let mut real_recs = sim.clone();
-        SensorModel { effects: vec![Effect::Noise { sigma0: 0.004, k: 0.01 }, Effect::Dropout { p: 0.1 }] }.apply_all(&mut real_recs, 9, 0);
+        SensorModel { effects: vec![Effect::Noise(Noise { sigma0: 0.004, k: 0.01 }), Effect::Dropout(Dropout { p: 0.1 })] }.apply_all(
+            &mut real_recs,
+            9,
+            0,
+        );
         for paired in [true, false] {
             let real = stats(&real_recs, paired.then_some(sim.as_slice()));
             let target = Target { sim: &sim, times: None, paired, real: &real, seed: 3 };
             let base = SensorModel {
                 effects: vec![
-                    Effect::Occlusion { h: 0.5, x0: 0.1 },
-                    Effect::Smoothing { w: 0.6 },
-                    Effect::Noise { sigma0: 0.002, k: 0.0 },
-                    Effect::RowDropout { p: 0.05 },
+                    Effect::Occlusion(Occlusion { h: 0.5, x0: 0.1 }),
+                    Effect::Smoothing(Smoothing { w: 0.6 }),
+                    Effect::Noise(Noise { sigma0: 0.002, k: 0.0 }),
+                    Effect::RowDropout(RowDropout { p: 0.05 }),
                 ],
             };
             for e in [
-                Effect::Dropout { p: 0.07 },
-                Effect::Bias { b: 0.01, t: 0.0 },
-                Effect::EdgeHoles { g: 0.1, p: 0.5 },
-                Effect::Fov { x_min: -0.3, x_max: 1.2 },
+                Effect::Dropout(Dropout { p: 0.07 }),
+                Effect::Bias(Bias { b: 0.01, t: 0.0 }),
+                Effect::EdgeHoles(EdgeHoles { g: 0.1, p: 0.5 }),
+                Effect::Fov(Fov { x_min: -0.3, x_max: 1.2 }),
                 // A second noise: the model cannot be split after the first.
-                Effect::Noise { sigma0: 0.001, k: 0.002 },
+                Effect::Noise(Noise { sigma0: 0.001, k: 0.002 }),
             ] {
                 let prepared = Prepared::new(&target, &base, &e);
                 let (split, whole) = (prepared.gap(e), target.gap(&base.with(e)));

@@ -1,16 +1,19 @@
-//! The measurement effects of `docs/format.md`: one registry, one module
-//! per family of physics, each effect defined once.
+//! The measurement effects of `docs/format.md`: one registry, one file
+//! per effect, each effect defined once.
 //!
-//! An effect is an [`Effect`] variant (its JSON form) plus an
-//! [`EffectSpec`] in its family's module: name, parameters with their doc
-//! line, fit box and physical limits, formula, stage in the physical chain,
-//! draw count and the emulator stages it models (`dem-sensor effects`
-//! prints them); beside the spec, the family module holds the effect's
-//! validity check and the function that applies it. [`SPECS`] lists every
-//! spec in the vocabulary's order, and [`Effect::spec`], [`Effect::params`]
-//! and [`Effect::from_values`] come from one table (`registry!` below), so
-//! a variant without a spec, a check or an apply function does not compile,
-//! and `tests/registry.rs` fails for a spec that disagrees with its variant.
+//! An effect is one file, `effects/<family>/<effect>.rs`: its parameter
+//! struct (made by `params!`: each field's `///` line is also its
+//! [`ParamSpec::doc`]) and the struct's [`EffectKind`] impl: its
+//! [`EffectSpec`] (name, formula, stage in the physical chain, draw count,
+//! the emulator stages it models, parameters with fit box and physical
+//! limits; `dem-sensor effects` prints them), its validity check, the
+//! function that applies it to one DEM, its ONNX operators
+//! ([`crate::graph`]), its sentence of evidence ([`crate::evidence`]) and
+//! example parameters where it acts. One line per effect in `registry!`
+//! below makes [`Effect`] (a newtype variant per effect), [`SPECS`] in the
+//! vocabulary's order and every dispatch from an [`Effect`] to its file,
+//! so an effect without a part does not compile, and `tests/registry.rs`
+//! fails for parts that disagree.
 //!
 //! - [`holes`]: cells lost or filled where the map is thin.
 //! - [`view`]: what the sensor can see.
@@ -27,7 +30,11 @@ use rand::RngCore;
 use serde::{Deserialize, Serialize};
 
 use crate::draws::Draws;
+use crate::evidence::Context;
+use crate::graph::ops::Cells;
+use dem_core::distribution::Stats;
 use dem_core::format::{Dem, DemCells, COLS, GRID_ROWS};
+use dem_graph::Builder;
 
 pub mod heights;
 pub mod holes;
@@ -54,8 +61,6 @@ pub const MAX_PARAM: f64 = 10.0;
 /// statistic sees this effect's steps and no others. Below it the terrain
 /// is a slope, whose cell mean is the centre's height.
 pub const MIXED_JUMP: f64 = dem_core::distribution::JUMP;
-/// Half the edge of a grid cell (m).
-const HALF: f64 = 0.05;
 
 /// The family of physics an effect belongs to: the module that defines it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -247,7 +252,8 @@ impl Limit {
 pub struct ParamSpec {
     /// Its name in JSON and in [`Effect::params`].
     pub name: &'static str,
-    /// What it is, with its unit.
+    /// What it is, with its unit: the doc comment of the parameter's
+    /// field, on one line.
     pub doc: &'static str,
     /// The box dem-gap searches.
     pub fit: Range,
@@ -255,7 +261,7 @@ pub struct ParamSpec {
     pub limit: Limit,
 }
 
-/// Everything about one effect but its variant and its code.
+/// Everything about one effect but its parameter struct and its code.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct EffectSpec {
     /// The vocabulary name (`noise`, `row-dropout`, ...).
@@ -278,250 +284,142 @@ pub struct EffectSpec {
     pub draws: usize,
 }
 
-/// One effect with its parameters. JSON: `{"effect": NAME, "params": {...}}`.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "effect", content = "params", rename_all = "kebab-case", deny_unknown_fields)]
-pub enum Effect {
-    /// Height noise growing with range: sigma = sigma0 + k d^2 (m).
-    Noise {
-        /// Noise at the sensor (m).
-        sigma0: f64,
-        /// Growth with squared range (1/m).
-        k: f64,
-    },
-    /// Single valid cells missing at random.
-    Dropout {
-        /// Probability per valid cell.
-        p: f64,
-    },
-    /// Whole grid rows missing at random.
-    RowDropout {
-        /// Probability per row.
-        p: f64,
-    },
-    /// Cells hidden from the sensor by taller terrain.
-    Occlusion {
-        /// Sensor height above C (m).
-        h: f64,
-        /// Sensor position along x (m).
-        x0: f64,
-    },
-    /// Cells outside the field of view along x never observed.
-    Fov {
-        /// Nearest x observed (m).
-        x_min: f64,
-        /// Farthest x observed (m).
-        x_max: f64,
-    },
-    /// The upper edge of the vertical field of view: terrain above the top
-    /// ray is never seen (far treads of stairs going up, tall obstacles).
-    ViewTop {
-        /// Height (m) of the top ray above C at x = 0.
-        h: f64,
-        /// Its fall per metre along x (the tangent of its depression angle).
-        t: f64,
-    },
-    /// Fusion blurs edges: 3x3 kernel with centre weight w.
-    Smoothing {
-        /// Centre weight in (0, 1]; 1 is no smoothing.
-        w: f64,
-    },
-    /// Calibration offset and tilt: h += b + t x.
-    Bias {
-        /// Offset (m).
-        b: f64,
-        /// Tilt (m per m along x).
-        t: f64,
-    },
-    /// Heights rounded to multiples of q.
-    Quantization {
-        /// Step (m).
-        q: f64,
-    },
-    /// The first frames of a run: the map has not yet seen the ground
-    /// behind the nearest ray, and that blind edge recedes as the robot drives.
-    Startup {
-        /// Blind edge at the start of a run (m along x).
-        x0: f64,
-        /// Speed at which the blind edge recedes (m/s); 0: unknown.
-        v: f64,
-        /// Share of records that are startup frames (used without times).
-        p: f64,
-    },
-    /// Missing blobs (dark or reflective patches); a cell the blob only
-    /// partly covers loses the points that lifted it beside a step.
-    PatchDropout {
-        /// Expected blobs per record (0..PATCH_SLOTS).
-        n: f64,
-        /// Blob radius (m).
-        r: f64,
-        /// Share of the way a partly covered cell moves down toward its
-        /// lower neighbour along x (0: it keeps its height). Absent in
-        /// models written before it existed: 0.
-        #[serde(default)]
-        a: f64,
-    },
-    /// Holes at the foot of height jumps (stereo consistency check, mixed
-    /// heights in one map cell).
-    EdgeHoles {
-        /// Jump (m) above which the lower cell may be lost.
-        g: f64,
-        /// Probability that such a cell is lost.
-        p: f64,
-    },
-    /// Holes at the rim of height jumps (the stereo matcher's consistency
-    /// check rejects pixels whose window straddles the jump on the near side
-    /// too).
-    RimHoles {
-        /// Jump (m) above which the higher cell may be lost.
-        g: f64,
-        /// Probability that such a cell is lost.
-        p: f64,
-    },
-    /// Holes at drop edges: the map cells that hold a drop edge get points
-    /// from the lip and from the floor below it as the view moves, the
-    /// later ones outliers of the older, and each adds variance until the
-    /// cell passes the map's threshold and becomes a hole.
-    DropHoles {
-        /// Probability that the cell holding a drop's edge is lost.
-        p: f64,
-    },
-    /// Holes grow by thin cells at their edges: a 10 cm DEM cell needs two
-    /// of its four 5 cm map cells seen, and beside a hole (a shadow, the
-    /// blind band of the first frames, a dark patch) some of them were not.
-    HoleGrowth {
-        /// Probability per missing 4-neighbour that the cell is lost.
-        p: f64,
-    },
-    /// Narrow pits read as their rims: a gap narrower than a map cell (between
-    /// pallet boards, say) is never seen to its bottom, and a map cell over it
-    /// keeps the tops around it.
-    PitFill {
-        /// Depth (m) below both neighbours above which a cell is a pit.
-        g: f64,
-        /// Probability that a pit is filled.
-        p: f64,
-    },
-    /// Cells on both sides of a drop edge read part of the way to the other
-    /// side, in some records: the stereo matcher's window straddles the
-    /// jump in range there and averages across it.
-    DropBlend {
-        /// Probability that a cell beside a drop is blended.
-        p: f64,
-        /// Largest share of the drop it moves across.
-        a: f64,
-    },
-    /// The ground just beyond a drop edge reads part of the way up to it:
-    /// the edge hides the floor nearest it from the camera, and the cell
-    /// keeps the points it got near the edge. Everywhere where occlusion
-    /// acts; in the rows the camera's lowest ray no longer reaches, the map
-    /// keeps that grazing view where a closer, steeper look would see the
-    /// floor (the field of view).
-    FloorLift {
-        /// Only rows whose centre lies behind this x (m) (past the grid: all).
-        x: f64,
-        /// Probability that a cell beyond a drop there reads higher.
-        p: f64,
-        /// Reach: the share moved is min(1, u a), u uniform (a > 1: some
-        /// cells read the edge's height).
-        a: f64,
-    },
-    /// Cells beside a riser read part of the way up or down the step: the
-    /// stereo window over the riser's corners moves their points along the
-    /// rays, by a share and in a direction that depend on the view angle.
-    RiserBlend {
-        /// Largest share of the step the cell at the riser's foot moves
-        /// toward the top (negative: down, away from it).
-        foot: f64,
-        /// Largest share of the step the cell on the riser's top moves
-        /// toward the foot (negative: up, away from it).
-        top: f64,
-    },
-    /// Cells that straddle a step read part of the way up or down: a DEM
-    /// cell is the mean of finer map cells, and a map cell holding a step
-    /// keeps the higher surface (lower points hide under tops; the ground
-    /// just beyond a drop edge is hidden by the edge).
-    MixedCells {
-        /// How far (m, at most) a riser's top reaches back into the lower
-        /// cell in front of it.
-        up: f64,
-        /// How far (m, at most) a drop edge's top reaches on into the lower
-        /// cell beyond it.
-        down: f64,
-    },
-    /// The camera's pitch and roll off their calibration (extrinsic error):
-    /// heights tilted by distance times angle, a new angle per record.
-    Tilt {
-        /// Sd (rad) of the pitch error.
-        pitch: f64,
-        /// Sd (rad) of the roll error.
-        roll: f64,
-        /// Cells behind this x (m) keep the error of x0.
-        x0: f64,
-        /// Mean horizontal range (m) from which the map's cells at x0 were
-        /// seen: the lever of the angle there.
-        range: f64,
-    },
-    /// Vibration: the body's pitch and roll noise, larger on edges.
-    Shake {
-        /// Sd (rad) on even ground.
-        sigma: f64,
-        /// Extra sd per metre of step under the tracks (rad per m).
-        edge: f64,
-    },
-    /// Vibration seen at steps: a map cell beside a step holds the points
-    /// of the few frames whose heights agree (fusion replaces where they do
-    /// not), so one frame's horizontal misregistration stays there, a
-    /// different one in each cell; on even ground many frames average out.
-    /// Each cell reads at a random distance off along x: h += clamp(s z,
-    /// +-0.1 m) times the local slope along x, s = sigma + edge J.
-    StepJitter {
-        /// Sd (m) of the misregistration on even ground.
-        sigma: f64,
-        /// Extra sd per metre of step under the tracks (m per m).
-        edge: f64,
-    },
-    /// Latency: the DEM is an older frame's map, cut at that older pose.
-    Lag {
-        /// Mean shift ahead (m): speed times latency.
-        s: f64,
-        /// Spread of the shift around s, as a share of s (0..1).
-        spread: f64,
-    },
-    /// Pose drift: rows behind x0 (older frames) displaced along x and in
-    /// height by a random walk per 10 cm travelled.
-    Drift {
-        /// Sd of the x walk (m per sqrt(m) travelled).
-        rate: f64,
-        /// Sd of the height walk (m per sqrt(m) travelled).
-        zrate: f64,
-        /// Rows whose centre lies behind this x (m) are displaced.
-        x0: f64,
-    },
+/// What every effect's file provides, beside its parameter struct (made by
+/// `params!`, which also gives the struct's `PARAMS`, `params()` and
+/// `from_values()`): a missing part does not compile.
+pub trait EffectKind: Sized {
+    /// Everything about the effect but its code.
+    const SPEC: EffectSpec;
+
+    /// The effect's own rule for its parameters (the checks every
+    /// parameter gets are [`Effect::check`]'s).
+    fn check(&self) -> Result<(), String>;
+
+    /// Apply to one DEM with the record's uniforms (`rng`, [`EffectSpec::draws`]
+    /// of them) and its time in its run, when known.
+    fn apply(&self, d: &mut Dem, rng: &mut Draws, time: Option<f64>);
+
+    /// The effect as ONNX operators on `c` ([`crate::graph`]); `u` its
+    /// uniforms `(N, draws)` (empty when it draws none), `time` the
+    /// records' times `(N,)`.
+    fn graph(&self, b: &mut Builder, c: &Cells, u: &str, time: Option<&str>) -> Cells;
+
+    /// One sentence of evidence for the effect as fitted ([`crate::evidence`]).
+    fn evidence(&self, c: &Context) -> String;
+
+    /// Parameters where the effect acts on the test records: the graph
+    /// tests run each, and `testdata/effects.json` lists them.
+    fn examples() -> Vec<Self>;
 }
 
-/// The one table from variants to specs: [`SPECS`], [`Effect::spec`],
-/// [`Effect::params`] and [`Effect::from_values`] all come from it. Each
-/// line is a variant with its fields in [`Effect::params`] order and the
-/// spec that defines it; the lines are in the vocabulary's order.
+/// One line of doc from a field's doc comment (`///` lines arrive as
+/// `" text"` and are joined without a separator): without the leading
+/// space.
+pub const fn doc_line(doc: &'static str) -> &'static str {
+    match doc.as_bytes() {
+        [b' ', rest @ ..] => match std::str::from_utf8(rest) {
+            Ok(s) => s,
+            Err(_) => panic!("a doc comment is UTF-8"),
+        },
+        _ => doc,
+    }
+}
+
+/// An effect's parameter struct from its doc, the wording of serde's
+/// error for `params` of the wrong type, and its fields: each field's doc
+/// comment, then `name: fit RANGE, limit LIMIT;`. The struct's JSON form
+/// is the effect's `params`; its `PARAMS` are the [`ParamSpec`]s, whose
+/// `doc` is the field's doc comment on one line.
+macro_rules! params {
+    (
+        $(#[doc = $sdoc:literal])*
+        #[serde(expecting = $expecting:literal)]
+        $name:ident {
+            $(
+                $(#[doc = $doc:literal])+
+                $(#[serde($serde:meta)])?
+                $field:ident: fit $fit:expr, limit $limit:expr;
+            )+
+        }
+    ) => {
+        $(#[doc = $sdoc])*
+        #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+        #[serde(deny_unknown_fields, expecting = $expecting)]
+        pub struct $name {
+            $(
+                $(#[doc = $doc])+
+                $(#[serde($serde)])?
+                pub $field: f64,
+            )+
+        }
+
+        impl $name {
+            /// Its parameters, in declaration order.
+            pub const PARAMS: &'static [$crate::effects::ParamSpec] = &[$(
+                $crate::effects::ParamSpec {
+                    name: stringify!($field),
+                    doc: $crate::effects::doc_line(concat!($($doc),+)),
+                    fit: $fit,
+                    limit: $limit,
+                },
+            )+];
+
+            /// Parameter names and values, in declaration order.
+            pub fn params(&self) -> Vec<(&'static str, f64)> {
+                vec![$((stringify!($field), self.$field)),+]
+            }
+
+            /// The effect from values in declaration order (None when short).
+            pub fn from_values(v: &mut impl Iterator<Item = f64>) -> Option<Self> {
+                Some($name { $($field: v.next()?),+ })
+            }
+        }
+    };
+}
+pub(crate) use params;
+
+/// The one table of effects: each line a variant and the module that
+/// defines it, in the vocabulary's order. It makes [`Effect`] (one newtype
+/// variant per effect, named as its parameter struct), [`SPECS`] and every
+/// dispatch from an [`Effect`] to its module.
 macro_rules! registry {
-    ($($variant:ident { $($field:ident),+ } => $spec:path,)+) => {
+    ($($variant:ident => $family:ident::$module:ident,)+) => {
+        /// One effect with its parameters. JSON: `{"effect": NAME, "params": {...}}`.
+        #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+        #[serde(tag = "effect", content = "params", rename_all = "kebab-case", deny_unknown_fields)]
+        pub enum Effect {
+            $(
+                #[doc = concat!("[`", stringify!($family), "::", stringify!($module), "`].")]
+                $variant($family::$module::$variant),
+            )+
+        }
+
+        $(
+            pub use $family::$module::$variant;
+
+            impl From<$variant> for Effect {
+                fn from(e: $variant) -> Effect {
+                    Effect::$variant(e)
+                }
+            }
+        )+
+
         /// Every effect's spec, in the vocabulary's order: dem-gap tries
         /// candidates in this order, so it decides its ties and its output.
-        pub const SPECS: [&EffectSpec; [$(registry!(@one $variant)),+].len()] = [$(&$spec),+];
+        pub const SPECS: [&EffectSpec; [$(stringify!($variant)),+].len()] = [$(&<$variant as EffectKind>::SPEC),+];
 
         impl Effect {
             /// The effect's definition.
             pub fn spec(&self) -> &'static EffectSpec {
                 match self {
-                    $(Effect::$variant { .. } => &$spec,)+
+                    $(Effect::$variant(_) => &<$variant as EffectKind>::SPEC,)+
                 }
             }
 
             /// Parameter names and values, in declaration order.
             pub fn params(&self) -> Vec<(&'static str, f64)> {
-                match *self {
-                    $(Effect::$variant { $($field),+ } => vec![$((stringify!($field), $field)),+],)+
+                match self {
+                    $(Effect::$variant(e) => e.params(),)+
                 }
             }
 
@@ -529,45 +427,78 @@ macro_rules! registry {
             pub fn from_values(name: &str, v: &[f64]) -> Option<Effect> {
                 let mut v = v.iter().copied();
                 $(
-                    if name == $spec.name {
-                        return Some(Effect::$variant { $($field: v.next()?),+ });
+                    if name == <$variant as EffectKind>::SPEC.name {
+                        return $variant::from_values(&mut v).map(Effect::$variant);
                     }
                 )+
                 None
             }
+
+            /// Every effect's examples ([`EffectKind::examples`]), in the
+            /// vocabulary's order.
+            pub fn examples() -> Vec<Effect> {
+                let mut all = Vec::new();
+                $(all.extend($variant::examples().into_iter().map(Effect::$variant));)+
+                all
+            }
+
+            /// The effect's own check ([`EffectKind::check`]).
+            fn check_own(&self) -> Result<(), String> {
+                match self {
+                    $(Effect::$variant(e) => e.check(),)+
+                }
+            }
+
+            /// [`EffectKind::apply`].
+            fn apply_own(&self, d: &mut Dem, rng: &mut Draws, time: Option<f64>) {
+                match self {
+                    $(Effect::$variant(e) => e.apply(d, rng, time),)+
+                }
+            }
+
+            /// The effect as ONNX operators on `c` ([`EffectKind::graph`]).
+            pub fn graph(&self, b: &mut Builder, c: &Cells, u: &str, time: Option<&str>) -> Cells {
+                match self {
+                    $(Effect::$variant(e) => e.graph(b, c, u, time),)+
+                }
+            }
+
+            /// [`EffectKind::evidence`].
+            fn sentence(&self, c: &Context) -> String {
+                match self {
+                    $(Effect::$variant(e) => e.evidence(c),)+
+                }
+            }
         }
-    };
-    (@one $variant:ident) => {
-        ()
     };
 }
 
 registry! {
-    Noise { sigma0, k } => heights::NOISE,
-    Dropout { p } => holes::DROPOUT,
-    RowDropout { p } => holes::ROW_DROPOUT,
-    Occlusion { h, x0 } => view::OCCLUSION,
-    Fov { x_min, x_max } => view::FOV,
-    Smoothing { w } => steps::SMOOTHING,
-    Bias { b, t } => heights::BIAS,
-    Quantization { q } => heights::QUANTIZATION,
-    Startup { x0, v, p } => view::STARTUP,
-    PatchDropout { n, r, a } => holes::PATCH_DROPOUT,
-    EdgeHoles { g, p } => holes::EDGE_HOLES,
-    MixedCells { up, down } => steps::MIXED_CELLS,
-    RimHoles { g, p } => holes::RIM_HOLES,
-    PitFill { g, p } => holes::PIT_FILL,
-    ViewTop { h, t } => view::VIEW_TOP,
-    HoleGrowth { p } => holes::HOLE_GROWTH,
-    DropBlend { p, a } => steps::DROP_BLEND,
-    RiserBlend { foot, top } => steps::RISER_BLEND,
-    FloorLift { x, p, a } => steps::FLOOR_LIFT,
-    DropHoles { p } => holes::DROP_HOLES,
-    Tilt { pitch, roll, x0, range } => heights::TILT,
-    Shake { sigma, edge } => heights::SHAKE,
-    Lag { s, spread } => heights::LAG,
-    Drift { rate, zrate, x0 } => heights::DRIFT,
-    StepJitter { sigma, edge } => steps::STEP_JITTER,
+    Noise => heights::noise,
+    Dropout => holes::dropout,
+    RowDropout => holes::row_dropout,
+    Occlusion => view::occlusion,
+    Fov => view::fov,
+    Smoothing => steps::smoothing,
+    Bias => heights::bias,
+    Quantization => heights::quantization,
+    Startup => view::startup,
+    PatchDropout => holes::patch_dropout,
+    EdgeHoles => holes::edge_holes,
+    MixedCells => steps::mixed_cells,
+    RimHoles => holes::rim_holes,
+    PitFill => holes::pit_fill,
+    ViewTop => view::view_top,
+    HoleGrowth => holes::hole_growth,
+    DropBlend => steps::drop_blend,
+    RiserBlend => steps::riser_blend,
+    FloorLift => steps::floor_lift,
+    DropHoles => holes::drop_holes,
+    Tilt => heights::tilt,
+    Shake => heights::shake,
+    Lag => heights::lag,
+    Drift => heights::drift,
+    StepJitter => steps::step_jitter,
 }
 
 /// Every effect name, in the vocabulary's order ([`SPECS`]' names).
@@ -612,27 +543,7 @@ impl Effect {
         if let Some((n, v)) = self.params().into_iter().find(|(_, v)| v.abs() > MAX_PARAM) {
             return Err(format!("{n} = {v:e} is outside -{MAX_PARAM}..={MAX_PARAM} (the grid spans 2 m; no sensor effect is that large)"));
         }
-        match *self {
-            Effect::Noise { sigma0, k } => heights::check_noise(sigma0, k),
-            Effect::Dropout { p } | Effect::RowDropout { p } | Effect::HoleGrowth { p } | Effect::DropHoles { p } => probability(p),
-            Effect::Occlusion { h, .. } => view::check_occlusion(h),
-            Effect::Fov { x_min, x_max } => view::check_fov(x_min, x_max),
-            Effect::ViewTop { .. } | Effect::Bias { .. } => Ok(()),
-            Effect::Smoothing { w } => steps::check_smoothing(w),
-            Effect::Quantization { q } => heights::check_quantization(q),
-            Effect::Startup { v, p, .. } => view::check_startup(v, p),
-            Effect::PatchDropout { n, r, a } => holes::check_patch_dropout(n, r, a),
-            Effect::EdgeHoles { g, p } | Effect::RimHoles { g, p } | Effect::PitFill { g, p } => holes::check_jump(g, p),
-            Effect::MixedCells { up, down } => steps::check_mixed_cells(up, down),
-            Effect::DropBlend { p, a } => steps::check_drop_blend(p, a),
-            Effect::RiserBlend { foot, top } => steps::check_riser_blend(foot, top),
-            Effect::FloorLift { p, a, .. } => steps::check_floor_lift(p, a),
-            Effect::Tilt { pitch, roll, range, .. } => heights::check_tilt(pitch, roll, range),
-            Effect::Shake { sigma, edge } => heights::check_shake(sigma, edge),
-            Effect::StepJitter { sigma, edge } => steps::check_step_jitter(sigma, edge),
-            Effect::Lag { s, spread } => heights::check_lag(s, spread),
-            Effect::Drift { rate, zrate, .. } => heights::check_drift(rate, zrate),
-        }
+        self.check_own()
     }
 
     /// Apply to one DEM, drawing this effect's uniforms from `rng`
@@ -648,34 +559,13 @@ impl Effect {
     /// known (only `startup` uses it).
     pub fn apply_drawn(&self, d: &mut Dem, u: &[f32], time: Option<f64>) {
         assert_eq!(u.len(), self.draws(), "{}: wrong number of uniforms", self.name());
-        let rng = &mut Draws::new(u);
-        match *self {
-            Effect::Noise { sigma0, k } => heights::add_noise(d, rng, sigma0, k),
-            Effect::Dropout { p } => holes::drop_cells(d, rng, p),
-            Effect::RowDropout { p } => holes::drop_rows(d, rng, p),
-            Effect::Occlusion { h, x0 } => view::occlude(d, h, x0),
-            Effect::Fov { x_min, x_max } => view::cut_to_fov(d, x_min, x_max),
-            Effect::ViewTop { h, t } => view::cut_above_top_ray(d, h, t),
-            Effect::Smoothing { w } => steps::smooth(d, w),
-            Effect::Bias { b, t } => heights::offset(d, b, t),
-            Effect::Quantization { q } => heights::quantize(d, q),
-            Effect::Startup { x0, v, p } => view::blind_startup_rows(d, rng, time, x0, v, p),
-            Effect::PatchDropout { n, r, a } => holes::drop_patches(d, rng, n, r, a),
-            Effect::EdgeHoles { g, p } => holes::jump_holes(d, rng, g, p, 1.0),
-            Effect::RimHoles { g, p } => holes::jump_holes(d, rng, g, p, -1.0),
-            Effect::PitFill { g, p } => holes::fill_pits(d, rng, g, p),
-            Effect::DropHoles { p } => holes::drop_holes(d, rng, p),
-            Effect::HoleGrowth { p } => holes::grow_holes(d, rng, p),
-            Effect::MixedCells { up, down } => steps::mix_cells(d, rng, up, down),
-            Effect::DropBlend { p, a } => steps::blend_drops(d, rng, p, a),
-            Effect::FloorLift { x, p, a } => steps::lift_floors(d, rng, x, p, a),
-            Effect::RiserBlend { foot, top } => steps::blend_risers(d, rng, foot, top),
-            Effect::StepJitter { sigma, edge } => steps::jitter(d, rng, sigma, edge),
-            Effect::Tilt { pitch, roll, x0, range } => heights::tilt(d, rng, pitch, roll, x0, range),
-            Effect::Shake { sigma, edge } => heights::shake(d, rng, sigma, edge),
-            Effect::Lag { s, spread } => heights::lag(d, rng, s, spread),
-            Effect::Drift { rate, zrate, x0 } => heights::drift(d, rng, rate, zrate, x0),
-        }
+        self.apply_own(d, &mut Draws::new(u), time)
+    }
+    /// One sentence of evidence for the effect as fitted, from the
+    /// statistics of the model before it was added and of real, and the
+    /// gap before and after ([`crate::evidence`]).
+    pub fn evidence(&self, before: &Stats, real: &Stats, gap_before: f64, gap_after: f64) -> String {
+        self.sentence(&Context { effect: self, before, real, gap_before, gap_after })
     }
 }
 

@@ -20,14 +20,14 @@ fn rng() -> ChaCha8Rng {
 #[test]
 fn flat_ground_is_never_occluded_and_a_box_casts_a_shadow() {
     let mut d = flat();
-    Effect::Occlusion { h: 0.45, x0: 0.15 }.apply(&mut d, &mut rng());
+    Effect::Occlusion(Occlusion { h: 0.45, x0: 0.15 }).apply(&mut d, &mut rng());
     assert_eq!(d.valid_cells(), 100);
     // A 0.2 m box on rows 10..12 (x 0.45..0.65): shadow behind it.
     let mut d = flat();
     for r in 10..12 {
         (0..COLS).for_each(|c| d.set_valid(r, c, 0.13));
     }
-    Effect::Occlusion { h: 0.45, x0: 0.15 }.apply(&mut d, &mut rng());
+    Effect::Occlusion(Occlusion { h: 0.45, x0: 0.15 }).apply(&mut d, &mut rng());
     assert!(d.is_valid(11, 0) && d.is_valid(9, 0), "the box and what is before it are seen");
     // The box (x 0.4..0.6) is 0.2 m tall, the sensor 0.52 m above the
     // ground: the shadow reaches (0.6 - 0.15) * 0.2 / 0.32 = 0.28 m past
@@ -39,16 +39,16 @@ fn flat_ground_is_never_occluded_and_a_box_casts_a_shadow() {
 #[test]
 fn fov_bias_quantization_smoothing_follow_their_formulas() {
     let mut d = flat();
-    Effect::Fov { x_min: -0.1, x_max: 1.0 }.apply(&mut d, &mut rng());
+    Effect::Fov(Fov { x_min: -0.1, x_max: 1.0 }).apply(&mut d, &mut rng());
     assert!(!d.is_valid(4, 0) && d.is_valid(5, 0) && d.is_valid(15, 0) && !d.is_valid(16, 0));
     let mut d = flat();
-    Effect::Bias { b: 0.01, t: 0.02 }.apply(&mut d, &mut rng());
+    Effect::Bias(Bias { b: 0.01, t: 0.02 }).apply(&mut d, &mut rng());
     assert!((d.height(0, 0) as f64 - (-0.07 + 0.01 - 0.02 * 0.55)).abs() < 1e-6);
-    Effect::Quantization { q: 0.025 }.apply(&mut d, &mut rng());
+    Effect::Quantization(Quantization { q: 0.025 }).apply(&mut d, &mut rng());
     assert!(((d.height(0, 0) as f64) / 0.025).fract().abs() < 1e-4 || ((d.height(0, 0) as f64) / 0.025).fract().abs() > 0.9999);
     let mut d = flat();
     d.set_valid(10, 2, 0.73);
-    Effect::Smoothing { w: 0.5 }.apply(&mut d, &mut rng());
+    Effect::Smoothing(Smoothing { w: 0.5 }).apply(&mut d, &mut rng());
     assert!((d.height(10, 2) - (0.5 * 0.73 + 0.5 * -0.07)).abs() < 1e-6);
     assert!((d.height(9, 1) - (-0.07 + 0.8 / 16.0 / (0.5 + 0.5))).abs() < 1e-6);
 }
@@ -69,7 +69,7 @@ fn riser_blend_moves_cells_beside_risers_only() {
             (0..COLS).for_each(|c| d.set_valid(row, c, 0.1));
         }
         let before = d;
-        Effect::RiserBlend { foot, top }.apply(&mut d, &mut r);
+        Effect::RiserBlend(RiserBlend { foot, top }).apply(&mut d, &mut r);
         for row in 0..GRID_ROWS {
             for c in 0..COLS {
                 let (h0, h1) = (before.height(row, c) as f64, d.height(row, c) as f64);
@@ -92,7 +92,7 @@ fn riser_blend_moves_cells_beside_risers_only() {
     let cells = (n * COLS) as f64;
     assert!((share[0] / cells - foot / 2.0).abs() < 0.01, "{share:?}");
     assert!((share[1] / cells - top / 2.0).abs() < 0.01, "{share:?}");
-    assert!(Effect::RiserBlend { foot: 1.2, top: 0.0 }.check().is_err());
+    assert!(Effect::RiserBlend(RiserBlend { foot: 1.2, top: 0.0 }).check().is_err());
 }
 
 /// floor-lift on the same terrain: only the floor beyond the drop (row
@@ -114,7 +114,7 @@ fn floor_lift_raises_the_floor_beyond_a_drop_in_the_rows_behind_x_only() {
     for _ in 0..n {
         let before = terrain();
         let mut d = before;
-        Effect::FloorLift { x: 0.5, p, a }.apply(&mut d, &mut r);
+        Effect::FloorLift(FloorLift { x: 0.5, p, a }).apply(&mut d, &mut r);
         for row in 0..GRID_ROWS {
             for c in 0..COLS {
                 let (h0, h1) = (before.height(row, c) as f64, d.height(row, c) as f64);
@@ -130,14 +130,14 @@ fn floor_lift_raises_the_floor_beyond_a_drop_in_the_rows_behind_x_only() {
         }
         // Row 10's centre (0.45 m) is not behind x = 0.4: nothing moves.
         let mut d = before;
-        Effect::FloorLift { x: 0.4, p: 1.0, a }.apply(&mut d, &mut r);
+        Effect::FloorLift(FloorLift { x: 0.4, p: 1.0, a }).apply(&mut d, &mut r);
         assert_eq!(d, before);
     }
     let cells = (n * COLS) as f64;
     assert!((share / cells - p * 0.75).abs() < 0.01, "{share}");
     assert!((whole as f64 / cells - p * 0.5).abs() < 0.015, "{whole}");
-    assert!(Effect::FloorLift { x: 0.5, p: 1.2, a }.check().is_err());
-    assert!(Effect::FloorLift { x: 0.5, p, a: -1.0 }.check().is_err());
+    assert!(Effect::FloorLift(FloorLift { x: 0.5, p: 1.2, a }).check().is_err());
+    assert!(Effect::FloorLift(FloorLift { x: 0.5, p, a: -1.0 }).check().is_err());
 }
 
 #[test]
@@ -197,7 +197,7 @@ fn drop_blend_moves_cells_beside_drops_only() {
             (0..COLS).for_each(|c| d.set_valid(row, c, 0.1));
         }
         let before = d;
-        Effect::DropBlend { p, a }.apply(&mut d, &mut r);
+        Effect::DropBlend(DropBlend { p, a }).apply(&mut d, &mut r);
         for row in 0..GRID_ROWS {
             for c in 0..COLS {
                 let (h0, h1) = (before.height(row, c) as f64, d.height(row, c) as f64);
@@ -236,7 +236,7 @@ fn drop_holes_lose_one_cell_at_a_drop_and_none_at_a_riser() {
             (0..COLS).for_each(|c| d.set_valid(row, c, 0.1));
         }
         let before = d;
-        Effect::DropHoles { p }.apply(&mut d, &mut r);
+        Effect::DropHoles(DropHoles { p }).apply(&mut d, &mut r);
         for c in 0..COLS {
             assert!(d.is_valid(9, c) || d.is_valid(10, c), "both cells of the drop lost");
             for row in 0..GRID_ROWS {
@@ -252,7 +252,7 @@ fn drop_holes_lose_one_cell_at_a_drop_and_none_at_a_riser() {
     let cells = (n * COLS) as f64;
     assert!(((lost[0] + lost[1]) as f64 / cells - p).abs() < 0.02, "{lost:?}");
     assert!((lost[0] as f64 / cells - p / 2.0).abs() < 0.02, "{lost:?}");
-    assert!(Effect::DropHoles { p: 1.5 }.check().is_err());
+    assert!(Effect::DropHoles(DropHoles { p: 1.5 }).check().is_err());
 }
 
 /// Without reach, mixed-cells is the mean of two half cells with the
@@ -271,7 +271,7 @@ fn mixed_cells_without_reach_is_the_mean_of_half_cells() {
             (0..COLS).for_each(|c| d.set_valid(r, c, 0.13));
         }
         d.set_valid(5, 2, -0.03); // a 4 cm bump: a slope, not a step
-        Effect::MixedCells { up: 0.0, down: 0.0 }.apply(&mut d, &mut r1);
+        Effect::MixedCells(MixedCells { up: 0.0, down: 0.0 }).apply(&mut d, &mut r1);
         let (lo, hi) = (d.height(9, 0) as f64, d.height(10, 0) as f64);
         assert!([-0.07, 0.03].iter().any(|v| (lo - v).abs() < 1e-6), "lower cell reads {lo}");
         assert!([0.13, 0.03].iter().any(|v| (hi - v).abs() < 1e-6), "higher cell reads {hi}");
@@ -292,7 +292,7 @@ fn mixed_cells_without_reach_is_the_mean_of_half_cells() {
         for r in 0..10 {
             (0..COLS).for_each(|c| d.set_valid(r, c, 0.13));
         }
-        Effect::MixedCells { up: 0.0, down: 1.0 }.apply(&mut d, &mut r1);
+        Effect::MixedCells(MixedCells { up: 0.0, down: 1.0 }).apply(&mut d, &mut r1);
         full += usize::from((d.height(10, 0) - 0.13).abs() < 1e-6);
         assert_eq!(d.height(11, 0), FLAT_GROUND);
     }
@@ -304,14 +304,14 @@ fn pit_fill_rim_holes_and_view_top_follow_their_formulas() {
     let mut d = flat();
     d.set_valid(8, 1, -0.2); // a pallet gap: a pit along x and y
     d.set_valid(12, 2, 0.2); // a post: its rim cell is lost
-    Effect::PitFill { g: 0.05, p: 1.0 }.apply(&mut d, &mut rng());
+    Effect::PitFill(PitFill { g: 0.05, p: 1.0 }).apply(&mut d, &mut rng());
     assert_eq!(d.height(8, 1), FLAT_GROUND);
-    Effect::RimHoles { g: 0.05, p: 1.0 }.apply(&mut d, &mut rng());
+    Effect::RimHoles(RimHoles { g: 0.05, p: 1.0 }).apply(&mut d, &mut rng());
     assert!(!d.is_valid(12, 2) && d.is_valid(11, 2) && d.is_valid(12, 1));
     let mut d = flat();
     d.set_valid(15, 0, 0.2); // x = 0.95: above 0.4 - 0.3 x = 0.115
     d.set_valid(5, 0, 0.2); // x = -0.05: below 0.415
-    Effect::ViewTop { h: 0.4, t: 0.3 }.apply(&mut d, &mut rng());
+    Effect::ViewTop(ViewTop { h: 0.4, t: 0.3 }).apply(&mut d, &mut rng());
     assert!(!d.is_valid(15, 0) && d.is_valid(5, 0) && d.valid_cells() == 99);
 }
 
@@ -386,7 +386,7 @@ fn tilt_on_flat_ground_is_the_plane() {
         let (z1, z2) = crate::draws::box_muller(u[0], u[1]);
         let mut d = flat();
         d.set_missing(3, 3);
-        Effect::Tilt { pitch, roll, x0, range }.apply_drawn(&mut d, &u, None);
+        Effect::Tilt(Tilt { pitch, roll, x0, range }).apply_drawn(&mut d, &u, None);
         let mut want = grid(&flat());
         want[3][3] = None;
         for (r, row) in want.iter_mut().enumerate() {
@@ -401,9 +401,9 @@ fn tilt_on_flat_ground_is_the_plane() {
             assert_eq!(d.height(0, 0), d.height(1, 0));
         }
     }
-    assert!(Effect::Tilt { pitch: 0.6, roll: 0.0, x0: 0.0, range: 0.0 }.check().is_err());
-    assert!(Effect::Tilt { pitch: 0.01, roll: -0.01, x0: 0.0, range: 0.0 }.check().is_err());
-    assert!(Effect::Tilt { pitch: 0.01, roll: 0.01, x0: 0.0, range: -0.1 }.check().is_err());
+    assert!(Effect::Tilt(Tilt { pitch: 0.6, roll: 0.0, x0: 0.0, range: 0.0 }).check().is_err());
+    assert!(Effect::Tilt(Tilt { pitch: 0.01, roll: -0.01, x0: 0.0, range: 0.0 }).check().is_err());
+    assert!(Effect::Tilt(Tilt { pitch: 0.01, roll: 0.01, x0: 0.0, range: -0.1 }).check().is_err());
 }
 
 /// shake: the same plane about C (x from C, every row) with sd sigma +
@@ -421,14 +421,14 @@ fn shake_rocks_about_c_with_the_step_under_the_tracks() {
         }
         let before = grid(&d);
         assert!((step_under_tracks(&d) - j).abs() < 1e-6, "step at {step_row}: {}", step_under_tracks(&d));
-        Effect::Shake { sigma, edge }.apply_drawn(&mut d, &u, None);
+        Effect::Shake(Shake { sigma, edge }).apply_drawn(&mut d, &u, None);
         let s = sigma + edge * j;
         let want: Vec<Vec<Option<f64>>> = (0..GRID_ROWS)
             .map(|r| (0..COLS).map(|c| before[r][c].map(|h| h + s * z1 * row_center_x(r) + s * z2 * col_center_y(c))).collect())
             .collect();
         assert_close(&d, &want, 1e-6, "shake");
     }
-    assert!(Effect::Shake { sigma: 0.01, edge: -0.1 }.check().is_err());
+    assert!(Effect::Shake(Shake { sigma: 0.01, edge: -0.1 }).check().is_err());
 }
 
 /// step-jitter on a 0.12 m riser between rows 8 and 9 (under the
@@ -448,7 +448,7 @@ fn step_jitter_moves_only_cells_beside_steps() {
     d.set_missing(8, 4);
     d.set_valid(19, 0, FLAT_GROUND + 0.2);
     let before = grid(&d);
-    Effect::StepJitter { sigma, edge }.apply_drawn(&mut d, &u, None);
+    Effect::StepJitter(StepJitter { sigma, edge }).apply_drawn(&mut d, &u, None);
     let s = sigma + edge * 0.12;
     let dx = |r: usize, c: usize| (s * z[r * COLS + c]).clamp(-0.1, 0.1);
     let mut want = before.clone();
@@ -465,7 +465,7 @@ fn step_jitter_moves_only_cells_beside_steps() {
     assert_close(&d, &want, 1e-6, "step-jitter");
     assert!(!d.is_valid(8, 4), "a missing cell stays missing");
     assert!((0..COLS).any(|c| (d.height(8, c) as f64 - before[8][c].unwrap_or(0.0)).abs() > 1e-3), "the foot moves");
-    assert!(Effect::StepJitter { sigma: 0.01, edge: -0.1 }.check().is_err());
+    assert!(Effect::StepJitter(StepJitter { sigma: 0.01, edge: -0.1 }).check().is_err());
 }
 
 /// lag of a step moves it by s: at s = 0.1 m the row beyond the riser
@@ -482,11 +482,11 @@ fn lag_moves_a_step_by_s_and_adds_the_climb() {
         d
     };
     let mut d = step();
-    Effect::Lag { s: 0.1, spread: 0.0 }.apply_drawn(&mut d, &[0.77], None);
+    Effect::Lag(Lag { s: 0.1, spread: 0.0 }).apply_drawn(&mut d, &[0.77], None);
     assert!((d.height(10, 0) - FLAT_GROUND).abs() < 1e-6 && (d.height(11, 0) - 0.1).abs() < 1e-6);
     assert!((d.height(0, 0) - FLAT_GROUND).abs() < 1e-6, "row 0 keeps its value");
     let mut d = step();
-    Effect::Lag { s: 0.05, spread: 0.0 }.apply_drawn(&mut d, &[0.3], None);
+    Effect::Lag(Lag { s: 0.05, spread: 0.0 }).apply_drawn(&mut d, &[0.3], None);
     assert!((d.height(10, 2) as f64 - (0.1 + -0.07) / 2.0).abs() < 1e-6 && (d.height(11, 2) - 0.1).abs() < 1e-6);
     // The climb: pitch 0.3 rad, u = 0.75 with spread 0.4: s_r = 0.06 (1 + 0.2).
     let mut d = step();
@@ -494,7 +494,7 @@ fn lag_moves_a_step_by_s_and_adds_the_climb() {
     att[0] = 0.3;
     d.set_attitude(att);
     d.set_missing(4, 1);
-    Effect::Lag { s: 0.06, spread: 0.4 }.apply_drawn(&mut d, &[0.75], None);
+    Effect::Lag(Lag { s: 0.06, spread: 0.4 }).apply_drawn(&mut d, &[0.75], None);
     let sr = 0.06 * 1.2;
     let mut z = grid(&step());
     z[4][1] = None;
@@ -504,7 +504,7 @@ fn lag_moves_a_step_by_s_and_adds_the_climb() {
     // A missing cell behind a valid one: the valid one reads its own
     // height in its place (row 5, column 1: row 4 is missing).
     assert!((d.height(5, 1) as f64 - (FLAT_GROUND as f64 + sr * 0.3f64.tan())).abs() < 1e-6);
-    assert!(Effect::Lag { s: 0.6, spread: 0.0 }.check().is_err() && Effect::Lag { s: 0.1, spread: 1.5 }.check().is_err());
+    assert!(Effect::Lag(Lag { s: 0.6, spread: 0.0 }).check().is_err() && Effect::Lag(Lag { s: 0.1, spread: 1.5 }).check().is_err());
 }
 
 /// lag against the slow reference on a rough DEM, shifts either way
@@ -519,7 +519,7 @@ fn lag_equals_the_reference() {
             let mut att = d.attitude();
             att[0] = -0.4;
             d.set_attitude(att);
-            Effect::Lag { s, spread }.apply_drawn(&mut d, &u, None);
+            Effect::Lag(Lag { s, spread }).apply_drawn(&mut d, &u, None);
             let sr = s * (1.0 + spread * (2.0 * f64::from(u[0]) - 1.0));
             let want = reference_shift(&grid(&rough()), &[sr; GRID_ROWS], &[sr * (-0.4f64).tan(); GRID_ROWS]);
             assert_close(&d, &want, 1e-6, &format!("lag s {s} spread {spread} u {}", u[0]));
@@ -537,14 +537,14 @@ fn drift_is_a_walk_back_from_x0() {
     for x0 in [-1.0, 0.3, 0.45, 2.0] {
         crate::draws::fill_uniform(&mut r, &mut u);
         let mut d = rough();
-        Effect::Drift { rate: 0.0, zrate: 0.0, x0 }.apply_drawn(&mut d, &u, None);
+        Effect::Drift(Drift { rate: 0.0, zrate: 0.0, x0 }).apply_drawn(&mut d, &u, None);
         assert_eq!(d, rough(), "rates 0: the identity");
     }
     for (rate, zrate, x0) in [(0.05, 0.02, 0.3), (0.2, 0.0, 1.5), (3.0, 0.1, 0.0), (0.1, 0.05, -0.7)] {
         for _ in 0..50 {
             crate::draws::fill_uniform(&mut r, &mut u);
             let mut d = rough();
-            Effect::Drift { rate, zrate, x0 }.apply_drawn(&mut d, &u, None);
+            Effect::Drift(Drift { rate, zrate, x0 }).apply_drawn(&mut d, &u, None);
             let normals: Vec<(f64, f64)> = u.chunks(2).map(|p| crate::draws::box_muller(p[0], p[1])).collect();
             let (mut dx, mut dz) = (vec![0.0; GRID_ROWS], vec![0.0; GRID_ROWS]);
             for row in 0..GRID_ROWS {
@@ -571,7 +571,7 @@ fn drift_is_a_walk_back_from_x0() {
     for _ in 0..n {
         crate::draws::fill_uniform(&mut r, &mut u);
         let mut d = flat();
-        Effect::Drift { rate: 0.05, zrate, x0: 0.3 }.apply_drawn(&mut d, &u, None);
+        Effect::Drift(Drift { rate: 0.05, zrate, x0: 0.3 }).apply_drawn(&mut d, &u, None);
         (0..GRID_ROWS).for_each(|row| sq[row] += (d.height(row, 0) as f64 - FLAT_GROUND as f64).powi(2));
     }
     for (row, &s2) in sq.iter().enumerate() {
@@ -588,13 +588,13 @@ fn random_effects_have_their_rates_and_spread() {
     let mut r1 = rng();
     for _ in 0..200 {
         let mut d = flat();
-        Effect::Dropout { p: 0.2 }.apply(&mut d, &mut r1);
+        Effect::Dropout(Dropout { p: 0.2 }).apply(&mut d, &mut r1);
         miss += 100 - d.valid_cells();
         let mut d = flat();
-        Effect::RowDropout { p: 0.3 }.apply(&mut d, &mut r1);
+        Effect::RowDropout(RowDropout { p: 0.3 }).apply(&mut d, &mut r1);
         rows += (100 - d.valid_cells()) / 5;
         let mut d = flat();
-        Effect::Noise { sigma0: 0.01, k: 0.0 }.apply(&mut d, &mut r1);
+        Effect::Noise(Noise { sigma0: 0.01, k: 0.0 }).apply(&mut d, &mut r1);
         sq += (0..100).map(|i| (d[2 * i] as f64 + 0.07).powi(2)).sum::<f64>();
     }
     assert!((miss as f64 / 20000.0 - 0.2).abs() < 0.02);

@@ -7,7 +7,9 @@
 //! reads the cells as they come in (a snapshot, as the native code reads
 //! [`heights`](crate::effects) before it writes) and returns new ones.
 //! Neighbours are the grid shifted by one row or column, padded with
-//! missing cells ([`dem_graph::Builder::shift`]).
+//! missing cells ([`dem_graph::Builder::shift`]). Each effect's operators
+//! are in its file ([`crate::effects`], [`crate::effects::EffectKind::graph`]),
+//! built from [`ops`].
 //!
 //! The graph computes in float32 where the native code computes in float64
 //! from float32 heights: heights agree within ~1e-6 m, and a cell's validity
@@ -15,22 +17,16 @@
 //! threshold. Comparisons of a uniform with a probability are exact in both
 //! (24-bit uniforms, [`crate::draws`]).
 
-use dem_core::format::{col_center_y, row_center_x, COLS, GRID_ROWS};
+use dem_core::format::{COLS, GRID_ROWS};
 use dem_graph::{Builder, Input};
 
-use crate::effects::{
-    Effect, MAX_CLIMB_PITCH, MAX_SHIFT, MIXED_JUMP, NOISE_ORIGIN, NOISE_RANGE_HEIGHT, OCCLUSION_TOLERANCE, PATCH_SLOTS, SHAKE_MAX_STEP,
-    TRACK_ROWS,
-};
 use crate::SensorModel;
 
-mod heights;
-mod holes;
-mod steps;
-mod view;
+pub mod ops;
 
-/// Name of a sensor graph's DEM input (`(N, 21, 5, 2)`, the file layout).
-pub const INPUT: &str = "dem";
+use ops::*;
+pub use ops::{Cells, INPUT};
+
 /// Name of the uniforms input: `(N, K)`, float32 in [0, 1), K =
 /// [`SensorModel::draws`], each effect's slice in the model's order.
 pub const UNIFORM: &str = "uniform";
@@ -39,101 +35,6 @@ pub const UNIFORM: &str = "uniform";
 pub const TIME: &str = "time";
 /// Name of the output DEM (`(N, 21, 5, 2)`).
 pub const OUTPUT: &str = "dem_out";
-
-/// Half a cell's edge (m).
-const HALF: f64 = 0.05;
-/// Stands in for "no value" in maxima and minima (heights are never near it).
-const FAR: f32 = 1e9;
-
-/// The grid of a batch inside a graph: `h` heights and `v` validity (1/0),
-/// both float32 `(N, 20, 5)`.
-#[derive(Clone, Debug)]
-pub struct Cells {
-    /// Heights, 0 where missing.
-    pub h: String,
-    /// 1 where valid, 0 where missing.
-    pub v: String,
-}
-
-/// Neighbour directions on the grid.
-#[derive(Clone, Copy)]
-enum Side {
-    /// Row r + 1 (farther along x).
-    Ahead,
-    /// Row r - 1.
-    Behind,
-    /// Column c - 1.
-    Left,
-    /// Column c + 1.
-    Right,
-}
-
-/// `x` at each cell's neighbour on `side`; `fill` outside the grid.
-fn nb(b: &mut Builder, x: &str, side: Side, fill: f32) -> String {
-    let (rows, cols) = (GRID_ROWS as i64, COLS as i64);
-    match side {
-        Side::Ahead => b.shift(x, 1, 3, rows, 1, fill),
-        Side::Behind => b.shift(x, 1, 3, rows, -1, fill),
-        Side::Left => b.shift(x, 2, 3, cols, -1, fill),
-        Side::Right => b.shift(x, 2, 3, cols, 1, fill),
-    }
-}
-
-/// A per-row constant `(1, 20, 1)`.
-fn per_row(b: &mut Builder, f: impl Fn(usize) -> f64) -> String {
-    let data: Vec<f32> = (0..GRID_ROWS).map(|r| f(r) as f32).collect();
-    b.constant(&[1, GRID_ROWS, 1], &data)
-}
-
-/// A per-cell constant `(1, 20, 5)`.
-fn per_cell(b: &mut Builder, f: impl Fn(usize, usize) -> f64) -> String {
-    let data: Vec<f32> = (0..GRID_ROWS * COLS).map(|i| f(i / COLS, i % COLS) as f32).collect();
-    b.constant(&[1, GRID_ROWS, COLS], &data)
-}
-
-/// A boolean tensor: where `v` (1/0) is valid.
-fn is_valid(b: &mut Builder, v: &str) -> String {
-    b.gt_const(v, 0.5)
-}
-
-/// The cells with `miss` (boolean, broadcast to the grid) made missing.
-fn drop_cells(b: &mut Builder, c: &Cells, miss: &str) -> Cells {
-    let zero = b.scalar(0.0);
-    Cells { v: b.select(miss, &zero, &c.v), h: b.select(miss, &zero, &c.h) }
-}
-
-/// The cells with height `new` where `cond` (boolean) holds.
-fn set_heights(b: &mut Builder, c: &Cells, cond: &str, new: &str) -> Cells {
-    Cells { v: c.v.clone(), h: b.select(cond, new, &c.h) }
-}
-
-/// `u < p`, the uniform against a probability.
-fn below(b: &mut Builder, u: &str, p: f64) -> String {
-    b.lt_const(u, p as f32)
-}
-
-/// A valid neighbour on `side` and its height: `(valid (bool), height)`.
-fn neighbour(b: &mut Builder, c: &Cells, side: Side) -> (String, String) {
-    let v = nb(b, &c.v, side, 0.0);
-    let h = nb(b, &c.h, side, 0.0);
-    (is_valid(b, &v), h)
-}
-
-/// The uniforms of one effect: `u[:, at..at + n]` reshaped to `shape`
-/// (batch axis first, as `-1`).
-fn uniforms(b: &mut Builder, u: &str, at: usize, n: usize, shape: &[i64]) -> String {
-    let s = b.take(u, 1, at as i64, (at + n) as i64);
-    b.reshape(&s, shape)
-}
-
-/// The per-cell uniform pairs `(u, v)` of a 200-draw effect: two `(N, 20, 5)`.
-fn cell_pairs(b: &mut Builder, u: &str) -> (String, String) {
-    let pairs = b.reshape(u, &[-1, GRID_ROWS as i64, COLS as i64, 2]);
-    let first = b.take(&pairs, 3, 0, 1);
-    let second = b.take(&pairs, 3, 1, 2);
-    let grid = [-1, GRID_ROWS as i64, COLS as i64];
-    (b.reshape(&first, &grid), b.reshape(&second, &grid))
-}
 
 /// The input DEM `(N, 21, 5, 2)` split into [`Cells`] (a cell is valid
 /// where its mask is > 0) and row 20 `(N, 1, 5, 2)`.
@@ -178,44 +79,12 @@ pub fn apply(b: &mut Builder, model: &SensorModel, cells: Cells, uniform: Option
         b.set_prefix(&if base.is_empty() { scope } else { format!("{base}.{scope}") });
         let n = e.draws();
         let u = (n > 0).then(|| uniforms(b, uniform.expect("a model with draws has a uniform input"), at, n, &[-1, n as i64]));
-        c = effect(b, e, &c, u.as_deref(), time);
+        // An effect that draws nothing never reads its uniforms.
+        c = e.graph(b, &c, u.as_deref().unwrap_or(""), time);
         at += n;
     }
     b.set_prefix(&base);
     c
-}
-
-/// One effect on `c`; `u` its uniforms `(N, draws)`, each effect's
-/// operators in the module of its family.
-fn effect(b: &mut Builder, e: &Effect, c: &Cells, u: Option<&str>, time: Option<&str>) -> Cells {
-    let u = || u.expect("an effect with draws gets its uniforms").to_string();
-    match *e {
-        Effect::Noise { sigma0, k } => heights::noise(b, c, &u(), sigma0, k),
-        Effect::Dropout { p } => holes::dropout(b, c, &u(), p),
-        Effect::RowDropout { p } => holes::row_dropout(b, c, &u(), p),
-        Effect::Occlusion { h, x0 } => view::occlusion(b, c, h, x0),
-        Effect::Fov { x_min, x_max } => view::fov(b, c, x_min, x_max),
-        Effect::ViewTop { h, t } => view::view_top(b, c, h, t),
-        Effect::Smoothing { w } => steps::smoothing(b, c, w),
-        Effect::Bias { b: off, t } => heights::bias(b, c, off, t),
-        Effect::Quantization { q } => heights::quantization(b, c, q),
-        Effect::Startup { x0, v, p } => view::startup(b, c, &u(), time, x0, v, p),
-        Effect::PatchDropout { n, r, a } => holes::patches(b, c, &u(), n, r, a),
-        Effect::EdgeHoles { g, p } => holes::jump_holes(b, c, &u(), g, p, 1.0),
-        Effect::RimHoles { g, p } => holes::jump_holes(b, c, &u(), g, p, -1.0),
-        Effect::DropHoles { p } => holes::drop_holes(b, c, &u(), p),
-        Effect::HoleGrowth { p } => holes::hole_growth(b, c, &u(), p),
-        Effect::PitFill { g, p } => holes::pit_fill(b, c, &u(), g, p),
-        Effect::DropBlend { p, a } => steps::drop_blend(b, c, &u(), p, a),
-        Effect::FloorLift { x, p, a } => steps::floor_lift(b, c, &u(), x, p, a),
-        Effect::RiserBlend { foot, top } => steps::riser_blend(b, c, &u(), foot, top),
-        Effect::MixedCells { up, down } => steps::mixed_cells(b, c, &u(), up, down),
-        Effect::Tilt { pitch, roll, x0, range } => heights::tilt(b, c, &u(), pitch, roll, x0, range),
-        Effect::Shake { sigma, edge } => heights::shake(b, c, &u(), sigma, edge),
-        Effect::StepJitter { sigma, edge } => steps::step_jitter(b, c, &u(), sigma, edge),
-        Effect::Lag { s, spread } => heights::lag(b, c, &u(), s, spread),
-        Effect::Drift { rate, zrate, x0 } => heights::drift(b, c, &u(), rate, zrate, x0),
-    }
 }
 
 /// The ONNX model of `model` alone: a virtual sensor without a network.

@@ -1,0 +1,96 @@
+//! `view-top`: the upper edge of the vertical field of view.
+
+use crate::draws::Draws;
+use crate::effects::{params, EffectKind, EffectSpec, Family, Limit, Range, Stage};
+use crate::evidence::{mm, pct, Context};
+use crate::graph::ops::{drop_cells, is_valid, per_row, Cells};
+use dem_core::distribution::Stats;
+use dem_core::format::{row_center_x, Dem, DemCells, COLS, GRID_ROWS};
+use dem_graph::Builder;
+
+params! {
+    /// The upper edge of the vertical field of view: terrain above the top
+    /// ray is never seen (far treads of stairs going up, tall obstacles).
+    #[serde(expecting = "struct variant Effect::ViewTop")]
+    ViewTop {
+        // A camera 0.2-1.2 m above C whose top ray falls 0-60 degrees. High
+        // enough or flat enough, the ray clears everything: natural ends.
+        /// Height (m) of the top ray above C at x = 0.
+        h: fit Range::lin(0.1, 1.5), limit Limit::new(0.0, 3.0).natural_hi();
+        /// Its fall per metre along x (the tangent of its depression angle).
+        t: fit Range::lin(0.0, 1.7), limit Limit::new(-1.0, 3.0).natural_lo();
+    }
+}
+
+impl EffectKind for ViewTop {
+    const SPEC: EffectSpec = EffectSpec {
+        name: "view-top",
+        family: Family::View,
+        emulator: &["fov"],
+        formula: "cells whose height lies above the line z = h - t x (the upper edge of the camera's vertical field of view) missing",
+        params: Self::PARAMS,
+        stage: Stage::FieldOfView,
+        draws: 0,
+    };
+
+    fn check(&self) -> Result<(), String> {
+        Ok(())
+    }
+
+    fn apply(&self, d: &mut Dem, _rng: &mut Draws, _time: Option<f64>) {
+        let Self { h, t } = *self;
+        cut_above_top_ray(d, h, t)
+    }
+
+    fn graph(&self, b: &mut Builder, c: &Cells, _u: &str, _time: Option<&str>) -> Cells {
+        let Self { h, t } = *self;
+        operators(b, c, h, t)
+    }
+
+    fn evidence(&self, c: &Context) -> String {
+        let Self { h, t } = *self;
+        sentence(c, h, t)
+    }
+
+    fn examples() -> Vec<Self> {
+        vec![ViewTop { h: 0.3, t: 0.3 }]
+    }
+}
+
+/// `view-top` (formula in its spec).
+fn cut_above_top_ray(d: &mut Dem, h: f64, t: f64) {
+    for r in 0..GRID_ROWS {
+        let top = h - t * row_center_x(r);
+        for c in 0..COLS {
+            if d.is_valid(r, c) && d.height(r, c) as f64 > top {
+                d.set_missing(r, c);
+            }
+        }
+    }
+}
+
+/// `view-top`.
+fn operators(b: &mut Builder, c: &Cells, h: f64, t: f64) -> Cells {
+    let top = per_row(b, |r| h - t * row_center_x(r));
+    let above = b.bin("Greater", &c.h, &top);
+    let valid = is_valid(b, &c.v);
+    let miss = b.all(&[&valid, &above]);
+    drop_cells(b, c, &miss)
+}
+
+/// The evidence for `view-top`.
+fn sentence(c: &Context, h: f64, t: f64) -> String {
+    let real = c.real;
+    let before = c.before;
+    let body = {
+        let far = |s: &Stats| s.mean_over("missing", 15..20);
+        format!(
+            "cells far ahead (rows 15-19) missing: real {} vs model {}: terrain above a line {} above C falling {} per metre is out of view",
+            pct(far(real)),
+            pct(far(before)),
+            mm(h),
+            mm(t),
+        )
+    };
+    c.fitted(body)
+}
