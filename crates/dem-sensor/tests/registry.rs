@@ -209,3 +209,18 @@ fn a_mistyped_params_names_the_effect_s_variant() {
         assert!(err.contains(&format!("expected struct variant Effect::{variant} ")), "{}: {err}", spec.name);
     }
 }
+
+/// Every effect has its independent numpy formula in the test peer
+/// (`tests/peers/hidden_effects.py`, whose `EFFECTS` table dem-sensor's and
+/// dem-gap's tests run), and the peer has no effect the vocabulary lacks.
+#[test]
+fn every_effect_has_its_numpy_peer() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/peers/hidden_effects.py");
+    let text = std::fs::read_to_string(path).unwrap();
+    let table = text.split("\nEFFECTS = {").nth(1).and_then(|t| t.split('}').next()).expect("the peer's EFFECTS table");
+    let mut peer: Vec<&str> = table.split(',').filter_map(|entry| entry.split('"').nth(1)).collect();
+    peer.sort_unstable();
+    let mut names = NAMES.to_vec();
+    names.sort_unstable();
+    assert_eq!(peer, names, "hidden_effects.py's EFFECTS against the vocabulary");
+}
