@@ -596,6 +596,9 @@ fn probability(p: f64) -> Result<(), String> {
 
 /// The heights of `d`'s grid, None where missing: a snapshot of the DEM as
 /// it comes in, which the effects that look at neighbours read.
+// Kept out of line: inlined into each effect that reads it, `dem-sensor
+// apply` of a 25-effect model ran 11 % slower (user time, one thread).
+#[inline(never)]
 fn cell_heights(d: &Dem) -> [[Option<f64>; COLS]; GRID_ROWS] {
     std::array::from_fn(|r| std::array::from_fn(|c| d.is_valid(r, c).then(|| d.height(r, c) as f64)))
 }
