@@ -48,6 +48,7 @@ pub mod unexplained;
 // The public items stay at the crate root, where the binary, the tests and
 // the other tools name them.
 pub use dem_core::distribution::{gap, gap_terms, Stats};
+pub use dem_sensor::evidence::share_removed;
 pub use load::{load, terrain_mix, GapConfig, Sets};
 pub use measurement::{measure, measure_at};
 pub use outcome::Tie;
@@ -55,7 +56,7 @@ pub use outcome::{Outcome, Refit, Step, TerrainRow};
 pub use sampling::{
     below_floor, draw_floor, halves, halves_of_runs, real_halves, sampling_floor, sim_halves, two_draws, MIN_RUNS_FOR_HALVES,
 };
-pub use search::{run, share_removed, NEGLIGIBLE_GAP};
+pub use search::{run, NEGLIGIBLE_GAP};
 pub use ties::{named_ahead, tie_sentence, MAX_RIVALS, RIVAL_SHARE, SAME_PART};
 
 // The subset floors of `unexplained` take the second draws as the run does.

@@ -10,6 +10,7 @@
 
 use dem_core::distribution::{self, gap};
 use dem_sensor::effects::{EffectSpec, SPECS};
+use dem_sensor::evidence::share_removed;
 use dem_sensor::Effect;
 
 use crate::comparison::Comparison;
@@ -37,8 +38,6 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
     let refits = polish(&c, &mut found, log);
     finish(c, start, found, refits, log)
 }
-
-pub use dem_sensor::evidence::share_removed;
 
 /// What confirming a step's best candidates gave.
 struct Confirmation {

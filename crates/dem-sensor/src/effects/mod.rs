@@ -561,6 +561,7 @@ impl Effect {
         assert_eq!(u.len(), self.draws(), "{}: wrong number of uniforms", self.name());
         self.apply_own(d, &mut Draws::new(u), time)
     }
+
     /// One sentence of evidence for the effect as fitted, from the
     /// statistics of the model before it was added and of real, and the
     /// gap before and after ([`crate::evidence`]).

@@ -20,34 +20,47 @@ pub const OCCLUSION_TOLERANCE: f64 = 0.01;
 /// Back edge of the grid (m): where a startup frame's blind edge ends.
 const X_BACK: f64 = -0.6;
 
+/// Where a sensor at `x0` looks at row `t`: the far edge of `t`'s top (its
+/// edge away from the sensor), where the line of sight ends, and the rows
+/// between the sensor and `t`; None for the sensor's own row, which
+/// nothing hides.
+pub(super) fn sight(t: usize, x0: f64) -> Option<(f64, std::ops::Range<usize>)> {
+    let xt = row_center_x(t);
+    if (xt - x0).abs() <= HALF {
+        return None;
+    }
+    let dir = if xt > x0 { 1.0 } else { -1.0 };
+    let between = if dir > 0.0 { 0..t } else { t + 1..GRID_ROWS };
+    Some((xt + dir * HALF, between))
+}
+
+/// The stretch `(lo, hi)` of row `b`'s top that lies between the sensor at
+/// `x0` and the far edge `xf` of a target's top: where `b` can block the
+/// line of sight; None when they do not overlap.
+pub(super) fn blocking_stretch(b: usize, x0: f64, xf: f64) -> Option<(f64, f64)> {
+    let xb = row_center_x(b);
+    let (lo, hi) = ((xb - HALF).max(x0.min(xf)), (xb + HALF).min(x0.max(xf)));
+    (lo < hi).then_some((lo, hi))
+}
+
 /// True when cell `(t, c)` of the original heights `z` (None = missing) is
 /// hidden from a sensor at `(x0, h)`: see [`occlusion`]'s formula.
 pub fn hidden(z: &[[Option<f64>; COLS]; GRID_ROWS], t: usize, c: usize, h: f64, x0: f64) -> bool {
     let Some(zt) = z[t][c] else { return false };
-    let xt = row_center_x(t);
-    if (xt - x0).abs() <= HALF {
-        return false;
-    }
-    let dir = if xt > x0 { 1.0 } else { -1.0 };
+    let Some((xf, between)) = sight(t, x0) else { return false };
     // A top above the sensor faces away from it: only the cell that holds
     // the face toward the sensor (its near neighbour lower) is seen.
     if zt > h + OCCLUSION_TOLERANCE {
-        let near = if dir > 0.0 { t.checked_sub(1) } else { Some(t + 1).filter(|&n| n < GRID_ROWS) };
+        let near = if xf > x0 { t.checked_sub(1) } else { Some(t + 1).filter(|&n| n < GRID_ROWS) };
         if near.and_then(|n| z[n][c]).is_some_and(|zn| zn > zt - OCCLUSION_TOLERANCE) {
             return true;
         }
     }
-    let xf = xt + dir * HALF;
     let line = |x: f64| h + (zt - h) * (x - x0) / (xf - x0);
-    let rows: Box<dyn Iterator<Item = usize>> = if dir > 0.0 { Box::new(0..t) } else { Box::new(t + 1..GRID_ROWS) };
-    for b in rows {
+    for b in between {
         let Some(zb) = z[b][c] else { continue };
-        let xb = row_center_x(b);
         // The blocker's top, clipped to the stretch between sensor and target.
-        let (lo, hi) = ((xb - HALF).max(x0.min(xf)), (xb + HALF).min(x0.max(xf)));
-        if lo >= hi {
-            continue;
-        }
+        let Some((lo, hi)) = blocking_stretch(b, x0, xf) else { continue };
         if zb > line(lo).min(line(hi)) + OCCLUSION_TOLERANCE {
             return true;
         }

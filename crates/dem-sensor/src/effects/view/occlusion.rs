@@ -1,6 +1,6 @@
 //! `occlusion`: cells hidden from the sensor by taller terrain.
 
-use super::{hidden, OCCLUSION_TOLERANCE};
+use super::{blocking_stretch, hidden, sight, OCCLUSION_TOLERANCE};
 use crate::draws::Draws;
 use crate::effects::{cell_heights, params, EffectKind, EffectSpec, Family, Limit, Range, Stage};
 use crate::evidence::{pct, per_rec, Context};
@@ -89,19 +89,9 @@ fn operators(b: &mut Builder, c: &Cells, h: f64, x0: f64) -> Cells {
     let mut pair = vec![0.0f32; rows * rows];
     let (mut a_lo, mut a_hi) = (vec![0.0f32; rows * rows], vec![0.0f32; rows * rows]);
     for t in 0..rows {
-        let xt = row_center_x(t);
-        if (xt - x0).abs() <= HALF {
-            continue;
-        }
-        let dir = if xt > x0 { 1.0 } else { -1.0 };
-        let xf = xt + dir * HALF;
-        let between: Vec<usize> = if dir > 0.0 { (0..t).collect() } else { (t + 1..rows).collect() };
+        let Some((xf, between)) = sight(t, x0) else { continue };
         for bl in between {
-            let xb = row_center_x(bl);
-            let (lo, hi) = ((xb - HALF).max(x0.min(xf)), (xb + HALF).min(x0.max(xf)));
-            if lo >= hi {
-                continue;
-            }
+            let Some((lo, hi)) = blocking_stretch(bl, x0, xf) else { continue };
             pair[t * rows + bl] = 1.0;
             a_lo[t * rows + bl] = ((lo - x0) / (xf - x0)) as f32;
             a_hi[t * rows + bl] = ((hi - x0) / (xf - x0)) as f32;
