@@ -72,9 +72,13 @@ readme-check: venv
 # fuzz/ (nightly toolchain; cargo-fuzz is installed if missing); the
 # container readers' corpora are seeded from maps_to_bag.py recordings.
 FUZZ_SECONDS ?= 60
+# The property tests' seed: new each run unless given (make fuzz FUZZ_SEED=N
+# repeats one); `make test` always uses a fixed one.
+FUZZ_SEED ?= $(shell date +%s)
 FUZZ_TARGETS := npy_reader csv_tables sensor_json mcap_reader ros1_reader
 fuzz: venv
-	PROPTEST_CASES=20000 $(CARGO) test --release -p dem-core -p dem-sensor -p dem-import --test properties
+	@echo "property tests with PROPTEST_RNG_SEED=$(FUZZ_SEED)"
+	PROPTEST_CASES=20000 PROPTEST_RNG_SEED=$(FUZZ_SEED) $(CARGO) test --release -p dem-core -p dem-sensor -p dem-import --test properties
 	$(CARGO) build --release -p dem-synth && bash fuzz/seed_corpus.sh $(abspath $(PY)) $(abspath target/release)
 	command -v cargo-fuzz >/dev/null || $(CARGO) install cargo-fuzz --locked
 	for t in $(FUZZ_TARGETS); do $(CARGO) +nightly fuzz run $$t -- -max_total_time=$(FUZZ_SECONDS) -malloc_limit_mb=64 || exit 1; done
