@@ -6,8 +6,9 @@ different steps), at step cells (a jump of more than 5 cm to the row ahead
 or behind in the reference) and on even ground.
 
 A cause that moves whole rows or the whole record (a pose error) gives
-correlations near 1; one that moves each cell on its own gives 0. dem-gap's
-statistics compare cells one by one and cannot tell the two apart.
+correlations near 1; one that moves each cell on its own gives 0. The
+neighbours' correlation at step cells is dem-gap's paired `step-coherence`
+term (dem_core::distribution).
 
     python step_coherence.py REFERENCE.npy OTHER.npy LABEL [LABEL ...]
 

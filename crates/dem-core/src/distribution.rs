@@ -21,6 +21,7 @@
 //! | `level-pairs` | fraction of across-robot neighbours with equal heights (within 0.1 mm) | 0.02 |
 //! | `edge-2cm`, `edge-steep`, `edge-10cm` | fraction of steps `abs(h[r+1,c] - h[r,c])` (row pairs 0..18) above 0.02, 0.05, 0.1 m: sharp edges against ramps | 0.01 |
 //! | `steps` | fraction of all neighbour pairs whose difference falls in each bin of [`STEP_BINS`] (0.1-1-3-10-30-100 mm; 5 numbers) | 0.01 |
+//! | `step-coherence` (paired only) | one number: the correlation (Pearson, pooled over records) of the residuals D of across-robot neighbours (columns c and c + 1 of a row) that both lie beside a step of more than [`JUMP`] along x in the sim record. A pose error (drift, a tilted mount) moves a step's cells together (near 1); a misregistration per cell moves each on its own (near 0). The cell-by-cell terms cannot tell the two apart | [`COHERENCE_SCALE`] |
 //! | `riser-foot`, `riser-top`, `drop-lip`, `drop-floor` (paired only) | over the whole grid, on the cells beside a step of more than [`JUMP`] along x in the sim record (the foot, row r + 1 higher, and top, row r - 1 lower, of a riser; the lip, row r + 1 lower, and floor, row r - 1 higher, of a drop), with T = D sign(h_sim[n] - h_sim) the residual toward the other surface: mean T / 4, mean abs(T) / 4 (so 0.005 m is one scale), and the fractions of cells with T > 2 cm and T < -2 cm | 0.02 |
 //!
 //! The gap between sets A (model(sim)) and B (real) is the sum over terms
@@ -62,6 +63,11 @@ pub const STEP_SIDES: [&str; 4] = ["riser-foot", "riser-top", "drop-lip", "drop-
 /// Residual (m) toward or away from the other surface beyond which a cell
 /// beside a step counts as moved (the step-side rates).
 const SIDE_MOVE: f32 = 0.02;
+
+/// The difference of `step-coherence` (a correlation) that counts as one
+/// scale: a tenth of the way from cells that move on their own (0) to
+/// cells that move as one (1).
+pub const COHERENCE_SCALE: f64 = 0.1;
 
 /// Edges (m) of the bins of non-zero neighbour differences (`steps`).
 pub const STEP_BINS: [f64; 6] = [1e-4, 0.001, 0.003, 0.01, 0.03, 0.1];
@@ -109,6 +115,52 @@ struct Acc {
     steps: Vec<f32>,
     /// Paired: residuals toward the other surface, per [`STEP_SIDES`].
     side: [Vec<f32>; 4],
+    /// Paired: residuals of across-robot neighbours beside a step.
+    coherence: Correlation,
+}
+
+/// Running sums for a Pearson correlation of pairs (x, y), in f64.
+#[derive(Debug, Default, Clone, Copy, PartialEq)]
+struct Correlation {
+    n: usize,
+    x: f64,
+    y: f64,
+    xy: f64,
+    xx: f64,
+    yy: f64,
+}
+
+impl Correlation {
+    fn add(&mut self, x: f64, y: f64) {
+        self.n += 1;
+        self.x += x;
+        self.y += y;
+        self.xy += x * y;
+        self.xx += x * x;
+        self.yy += y * y;
+    }
+
+    fn merge(&mut self, o: &Correlation) {
+        self.n += o.n;
+        self.x += o.x;
+        self.y += o.y;
+        self.xy += o.xy;
+        self.xx += o.xx;
+        self.yy += o.yy;
+    }
+
+    /// The correlation; 0 when either side does not vary (no pairs, or
+    /// residuals all equal: nothing moves, so nothing moves together).
+    fn value(&self) -> f64 {
+        let n = self.n as f64;
+        let cov = self.xy - self.x * self.y / n.max(1.0);
+        let (vx, vy) = (self.xx - self.x * self.x / n.max(1.0), self.yy - self.y * self.y / n.max(1.0));
+        if vx > 1e-12 * n && vy > 1e-12 * n {
+            (cov / (vx * vy).sqrt()).clamp(-1.0, 1.0)
+        } else {
+            0.0
+        }
+    }
 }
 
 impl Acc {
@@ -145,6 +197,9 @@ impl Acc {
                         self.spread[r].push(res.abs());
                         for (side, toward) in step_sides(s, r, c) {
                             self.side[side].push(res * toward);
+                        }
+                        if let Some(next) = beside_step_neighbour(d, s, r, c) {
+                            self.coherence.add(res as f64, next as f64);
                         }
                     }
                     Some(_) => {}
@@ -197,6 +252,7 @@ impl Acc {
         for (a, b) in self.side.iter_mut().zip(o.side) {
             a.extend(b);
         }
+        self.coherence.merge(&o.coherence);
         self
     }
 }
@@ -245,6 +301,16 @@ fn step_sides(s: &Dem, r: usize, c: usize) -> impl Iterator<Item = (usize, f32)>
     ]
     .into_iter()
     .flatten()
+}
+
+/// The residual of the across-robot neighbour `(r, c + 1)` of real `d`
+/// against sim `s`, when both it and `(r, c)` lie beside a step in `s` and
+/// are valid in both.
+fn beside_step_neighbour(d: &Dem, s: &Dem, r: usize, c: usize) -> Option<f32> {
+    let next = c + 1;
+    let usable = next < COLS && d.is_valid(r, next) && s.is_valid(r, next) && s.is_valid(r, c);
+    let both_at_steps = usable && step_sides(s, r, c).next().is_some() && step_sides(s, r, next).next().is_some();
+    both_at_steps.then(|| d.height(r, next) - s.height(r, next))
 }
 
 /// Quantile `q` (0..1, nearest rank) of `v`, reordering it; None when empty.
@@ -375,6 +441,8 @@ fn summarise(mut a: Acc, paired: bool) -> Stats {
             ];
             terms.push(Term { name, values, support: vec![v.len(); 4], scale: 0.02 });
         }
+        let values = vec![a.coherence.value()];
+        terms.push(Term { name: "step-coherence", values, support: vec![a.coherence.n], scale: COHERENCE_SCALE });
     }
     Stats { records: n, paired, terms }
 }
@@ -587,5 +655,66 @@ mod tests {
         assert_eq!(q("drop-floor"), [0.0; 4]);
         assert_eq!(s.term("riser-foot").unwrap().support, [50; 4]);
         assert!(stats(&vec![real; 10], None).term("riser-foot").is_none(), "unpaired has no residuals");
+    }
+
+    /// A riser at rows 9/10 in every sim record. Real moves the step's
+    /// cells either as one (the same offset across the row, a pose error)
+    /// or each on its own (+-1 cm by a hash of record and column):
+    /// `step-coherence` reads 1 and about 0, the
+    /// same sets score no gap, and the two differ by about ten scales. Even
+    /// ground moved on its own does not count.
+    #[test]
+    fn step_coherence_tells_rows_that_move_together_from_cells_that_do_not() {
+        let mut sim = empty_dem();
+        for r in 0..GRID_ROWS {
+            for c in 0..COLS {
+                sim.set_valid(r, c, if r >= 10 { 0.17 } else { 0.0 });
+            }
+        }
+        let moved = |offset: &dyn Fn(usize, usize) -> f32| {
+            (0..200)
+                .map(|k| {
+                    let mut d = sim;
+                    for r in 0..GRID_ROWS {
+                        for c in 0..COLS {
+                            d.set_valid(
+                                r,
+                                c,
+                                sim.height(r, c) + offset(k, c) + if (9..=10).contains(&r) { 0.0 } else { 0.01 * (c % 2) as f32 },
+                            );
+                        }
+                    }
+                    d
+                })
+                .collect::<Vec<_>>()
+        };
+        let sims = vec![sim; 200];
+        let together = moved(&|k, _| 0.01 * ((k % 7) as f32 - 3.0));
+        let coin = |k: usize, c: usize| {
+            // splitmix64 of the cell's index: independent signs.
+            let mut z = ((k * COLS + c) as u64).wrapping_add(0x9E37_79B9_7F4A_7C15);
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            if (z ^ (z >> 31)) & 1 == 0 {
+                1.0
+            } else {
+                -1.0
+            }
+        };
+        let apart = moved(&|k, c| 0.01 * coin(k, c));
+        let coherence = |set: &[Dem]| {
+            let s = stats(set, Some(&sims));
+            let t = s.term("step-coherence").unwrap().clone();
+            (t.values[0], t.support[0], s)
+        };
+        let (c_together, n, s_together) = coherence(&together);
+        let (c_apart, _, s_apart) = coherence(&apart);
+        assert_eq!(n, 200 * 2 * (COLS - 1), "two rows beside the riser, four neighbour pairs each");
+        assert!((c_together - 1.0).abs() < 1e-9, "{c_together}");
+        assert!(c_apart.abs() < 0.1, "{c_apart}");
+        let term_gap = |a: &Stats, b: &Stats| gap_terms(a, b).into_iter().find(|(n, _)| *n == "step-coherence").unwrap().1;
+        assert_eq!(term_gap(&s_together, &s_together), 0.0);
+        assert!(term_gap(&s_together, &s_apart) > 4.0, "{}", term_gap(&s_together, &s_apart));
+        assert!(stats(&together, None).term("step-coherence").is_none(), "unpaired has no residuals");
     }
 }
