@@ -11,6 +11,7 @@
 #   SYNTH_ARGS="--camera-height 0.7 --camera-tilt 25" SEED=2 OUT=out-cam bash scripts/gap_demo.sh
 #   STAGES="occlusion noise" bash scripts/gap_demo.sh   # a subset
 #   MODES=paired bash scripts/gap_demo.sh                 # paired cases only
+#   REUSE_DATA=1 ...    # keep OUT's data-* of an earlier run (same SEED, RUNS, SYNTH_ARGS)
 set -euo pipefail
 BIN=${BIN:-target/release}
 OUT=${OUT:-out}
@@ -29,6 +30,7 @@ dir="$OUT/gap"
 mkdir -p "$dir"
 synth() { # out-dir runs [flags]
   local d=$1 runs=$2; shift 2
+  [[ -n ${REUSE_DATA:-} && -f $d/real.npy && -f $d/sim.npy ]] && return
   # shellcheck disable=SC2086
   "$BIN/dem-synth" --out "$d" --runs "$runs" --real-runs "$RUNS" --seed "$SEED" $SYNTH_ARGS "$@" 2>/dev/null
 }

@@ -21,7 +21,7 @@
 //! | `level-pairs` | fraction of across-robot neighbours with equal heights (within 0.1 mm) | 0.02 |
 //! | `edge-2cm`, `edge-steep`, `edge-10cm` | fraction of steps `abs(h[r+1,c] - h[r,c])` (row pairs 0..18) above 0.02, 0.05, 0.1 m: sharp edges against ramps | 0.01 |
 //! | `steps` | fraction of all neighbour pairs whose difference falls in each bin of [`STEP_BINS`] (0.1-1-3-10-30-100 mm; 5 numbers) | 0.01 |
-//! | `step-coherence` (paired only) | one number: the correlation (Pearson, pooled over records) of the residuals D of across-robot neighbours (columns c and c + 1 of a row) that both lie beside a step of more than [`JUMP`] along x in the sim record. A pose error (drift, a tilted mount) moves a step's cells together (near 1); a misregistration per cell moves each on its own (near 0). The cell-by-cell terms cannot tell the two apart | [`COHERENCE_SCALE`] |
+//! | `step-coherence` (paired only) | one number: the correlation (pooled over records) of the residuals D of across-robot neighbours (columns c and c + 1 of a row) that both lie beside a step of more than [`JUMP`] along x in the sim record, cov / (sd sd' + [`COHERENCE_FLOOR`]^2): Pearson's for moves of centimetres, near 0 for moves of a millimetre. A pose error (drift, a tilted mount) moves a step's cells together (near 1); a misregistration per cell moves each on its own (near 0). The cell-by-cell terms cannot tell the two apart | [`COHERENCE_SCALE`] |
 //! | `riser-foot`, `riser-top`, `drop-lip`, `drop-floor` (paired only) | over the whole grid, on the cells beside a step of more than [`JUMP`] along x in the sim record (the foot, row r + 1 higher, and top, row r - 1 lower, of a riser; the lip, row r + 1 lower, and floor, row r - 1 higher, of a drop), with T = D sign(h_sim[n] - h_sim) the residual toward the other surface: mean T / 4, mean abs(T) / 4 (so 0.005 m is one scale), and the fractions of cells with T > 2 cm and T < -2 cm | 0.02 |
 //!
 //! The gap between sets A (model(sim)) and B (real) is the sum over terms
@@ -68,6 +68,10 @@ const SIDE_MOVE: f32 = 0.02;
 /// scale: a tenth of the way from cells that move on their own (0) to
 /// cells that move as one (1).
 pub const COHERENCE_SCALE: f64 = 0.1;
+
+/// Residual sd (m) below which `step-coherence` shrinks toward 0: the
+/// `height` term's scale, a move no step statistic resolves.
+pub const COHERENCE_FLOOR: f64 = 0.005;
 
 /// Edges (m) of the bins of non-zero neighbour differences (`steps`).
 pub const STEP_BINS: [f64; 6] = [1e-4, 0.001, 0.003, 0.01, 0.03, 0.1];
@@ -149,17 +153,20 @@ impl Correlation {
         self.yy += o.yy;
     }
 
-    /// The correlation; 0 when either side does not vary (no pairs, or
-    /// residuals all equal: nothing moves, so nothing moves together).
+    /// The correlation shrunk by the size of the moves: cov / (sd_x sd_y +
+    /// [`COHERENCE_FLOOR`]^2). Moves well above the floor give Pearson's
+    /// correlation; moves of a millimetre (noise, or none at all, real
+    /// equal to sim) give near 0 whatever their pattern, so a correlation of
+    /// nothing cannot open a gap.
     fn value(&self) -> f64 {
-        let n = self.n as f64;
-        let cov = self.xy - self.x * self.y / n.max(1.0);
-        let (vx, vy) = (self.xx - self.x * self.x / n.max(1.0), self.yy - self.y * self.y / n.max(1.0));
-        if vx > 1e-12 * n && vy > 1e-12 * n {
-            (cov / (vx * vy).sqrt()).clamp(-1.0, 1.0)
-        } else {
-            0.0
+        if self.n == 0 {
+            return 0.0;
         }
+        let n = self.n as f64;
+        let (mx, my) = (self.x / n, self.y / n);
+        let cov = self.xy / n - mx * my;
+        let (vx, vy) = ((self.xx / n - mx * mx).max(0.0), (self.yy / n - my * my).max(0.0));
+        (cov / ((vx * vy).sqrt() + COHERENCE_FLOOR * COHERENCE_FLOOR)).clamp(-1.0, 1.0)
     }
 }
 
@@ -658,11 +665,12 @@ mod tests {
     }
 
     /// A riser at rows 9/10 in every sim record. Real moves the step's
-    /// cells either as one (the same offset across the row, a pose error)
-    /// or each on its own (+-1 cm by a hash of record and column):
-    /// `step-coherence` reads 1 and about 0, the
-    /// same sets score no gap, and the two differ by about ten scales. Even
-    /// ground moved on its own does not count.
+    /// cells either as one (the same offset across the row, sd 6 cm, a
+    /// pose error) or each on its own (+-6 cm by a hash of record and
+    /// column): `step-coherence` reads about 1 and about 0, the same sets
+    /// score no gap, and the two differ by about ten scales. Moved as one
+    /// by millimetres, or not at all, it reads near 0. Even ground moved
+    /// on its own does not count.
     #[test]
     fn step_coherence_tells_rows_that_move_together_from_cells_that_do_not() {
         let mut sim = empty_dem();
@@ -689,7 +697,7 @@ mod tests {
                 .collect::<Vec<_>>()
         };
         let sims = vec![sim; 200];
-        let together = moved(&|k, _| 0.01 * ((k % 7) as f32 - 3.0));
+        let together = moved(&|k, _| 0.03 * ((k % 7) as f32 - 3.0));
         let coin = |k: usize, c: usize| {
             // splitmix64 of the cell's index: independent signs.
             let mut z = ((k * COLS + c) as u64).wrapping_add(0x9E37_79B9_7F4A_7C15);
@@ -701,7 +709,8 @@ mod tests {
                 -1.0
             }
         };
-        let apart = moved(&|k, c| 0.01 * coin(k, c));
+        let apart = moved(&|k, c| 0.06 * coin(k, c));
+        let by_millimetres = moved(&|k, _| 0.0005 * ((k % 7) as f32 - 3.0));
         let coherence = |set: &[Dem]| {
             let s = stats(set, Some(&sims));
             let t = s.term("step-coherence").unwrap().clone();
@@ -710,8 +719,10 @@ mod tests {
         let (c_together, n, s_together) = coherence(&together);
         let (c_apart, _, s_apart) = coherence(&apart);
         assert_eq!(n, 200 * 2 * (COLS - 1), "two rows beside the riser, four neighbour pairs each");
-        assert!((c_together - 1.0).abs() < 1e-9, "{c_together}");
+        assert!(c_together > 0.99, "{c_together}");
         assert!(c_apart.abs() < 0.1, "{c_apart}");
+        assert!(coherence(&by_millimetres).0 < 0.1, "{}", coherence(&by_millimetres).0);
+        assert_eq!(coherence(&sims).0, 0.0, "real equal to sim");
         let term_gap = |a: &Stats, b: &Stats| gap_terms(a, b).into_iter().find(|(n, _)| *n == "step-coherence").unwrap().1;
         assert_eq!(term_gap(&s_together, &s_together), 0.0);
         assert!(term_gap(&s_together, &s_apart) > 4.0, "{}", term_gap(&s_together, &s_apart));
