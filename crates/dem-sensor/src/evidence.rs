@@ -54,6 +54,21 @@ pub fn part_way_steps(real: &Stats, before: &Stats, fitted: String, closest: &st
     format!("steps between neighbouring rows of 0.02-0.1 m: real {} vs model {}: {verdict}", pct(mid(real)), pct(mid(before)))
 }
 
+/// `body` and, paired, how together the cells beside a step move in real
+/// against the model (the gap's `step-coherence` term): what tells a pose
+/// error, which moves a step's cells as one, from a misregistration per
+/// cell.
+pub fn with_step_coherence(body: String, real: &Stats, before: &Stats) -> String {
+    let value = |s: &Stats| s.term("step-coherence").map(|t| t.values[0]);
+    let (Some(r), Some(b)) = (value(real), value(before)) else { return body };
+    let how = match r {
+        r if r >= 0.6 => "together",
+        r if r <= 0.2 => "each on its own",
+        _ => "partly together",
+    };
+    format!("{body}; across the robot, neighbouring cells beside a step move {how} (correlation of their residuals real {r:.2} vs model {b:.2})")
+}
+
 /// Share of neighbour pairs that differ by 0.1 to 10 mm.
 pub fn small_steps(s: &Stats) -> f64 {
     s.term("steps").map_or(0.0, |t| t.values.iter().take(3).sum())
@@ -138,4 +153,27 @@ impl Context<'_> {
 /// Total of term `name` per record.
 pub fn per_rec(s: &Stats, name: &str) -> f64 {
     total(s, name) / s.records.max(1) as f64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use dem_core::distribution::Term;
+
+    fn coherence(paired: bool, value: f64) -> Stats {
+        let terms =
+            if paired { vec![Term { name: "step-coherence", values: vec![value], support: vec![500], scale: 0.1 }] } else { vec![] };
+        Stats { records: 100, paired, terms }
+    }
+
+    /// Paired, the sentence says how together real's step cells move
+    /// against the model's; unpaired (no residuals) it is left alone.
+    #[test]
+    fn the_step_coherence_is_said_where_it_is_measured() {
+        let with = |r, b| with_step_coherence("body".into(), &coherence(true, r), &coherence(true, b));
+        assert_eq!(with(0.83, 0.0), "body; across the robot, neighbouring cells beside a step move together (correlation of their residuals real 0.83 vs model 0.00)");
+        assert!(with(0.33, 0.01).contains("move partly together (correlation of their residuals real 0.33 vs model 0.01)"));
+        assert!(with(0.05, 0.9).contains("move each on its own"));
+        assert_eq!(with_step_coherence("body".into(), &coherence(false, 0.0), &coherence(false, 0.0)), "body");
+    }
 }

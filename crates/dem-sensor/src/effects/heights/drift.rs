@@ -3,7 +3,7 @@
 use super::{drift_walk, ops, shift_rows};
 use crate::draws::Draws;
 use crate::effects::{params, EffectKind, EffectSpec, Family, Limit, Range, Stage};
-use crate::evidence::{mm, pct, Context};
+use crate::evidence::{mm, pct, with_step_coherence, Context};
 use crate::graph::ops::Cells;
 use dem_core::distribution::Stats;
 use dem_core::format::{row_center_x, Dem, GRID_ROWS};
@@ -168,5 +168,5 @@ fn sentence(c: &Context, rate: f64, zrate: f64, x0: f64) -> String {
             mm(sd(before, ahead.clone())),
         )
     };
-    c.fitted(body)
+    c.fitted(with_step_coherence(body, real, before))
 }

@@ -4,7 +4,7 @@ use super::jitter_steps;
 use crate::draws::Draws;
 use crate::effects::heights::step_under_tracks;
 use crate::effects::{heights, params, EffectKind, EffectSpec, Family, Limit, Range, Stage};
-use crate::evidence::{part_way_steps, pct, side_share, Context};
+use crate::evidence::{part_way_steps, pct, side_share, with_step_coherence, Context};
 use crate::graph::ops::{is_valid, neighbour, set_heights, Cells, Side};
 use dem_core::distribution::{Stats, STEP_SIDES};
 use dem_core::format::{Dem, COLS, GRID_ROWS};
@@ -127,13 +127,14 @@ fn sentence(c: &Context, sigma: f64, edge: f64) -> String {
             } else {
                 "real moves no more step cells both ways than the model: the jitter is the closest effect, not a clear one".to_string()
             };
-            format!(
+            let body = format!(
                 "cells beside steps moved more than 2 cm toward the other surface real {} vs model {}, away from it real {} vs model {}: {verdict}",
                 pct(rt),
                 pct(bt),
                 pct(ra),
                 pct(ba),
-            )
+            );
+            with_step_coherence(body, real, before)
         } else {
             part_way_steps(real, before, format!("steps read part of the way across: {fitted}"), "the jitter is")
         }
