@@ -7,8 +7,8 @@ or behind in the reference) and on even ground.
 
 A cause that moves whole rows or the whole record (a pose error) gives
 correlations near 1; one that moves each cell on its own gives 0. The
-neighbours' correlation at step cells is dem-gap's paired `step-coherence`
-term (dem_core::distribution).
+neighbours' correlation at step cells is what dem-gap's evidence for drift
+and step-jitter reports (`step_coherence` in dem_core::distribution).
 
     python step_coherence.py REFERENCE.npy OTHER.npy LABEL [LABEL ...]
 

@@ -55,18 +55,23 @@ pub fn part_way_steps(real: &Stats, before: &Stats, fitted: String, closest: &st
 }
 
 /// `body` and, paired, how together the cells beside a step move in real
-/// against the model (the gap's `step-coherence` term): what tells a pose
-/// error, which moves a step's cells as one, from a misregistration per
-/// cell.
-pub fn with_step_coherence(body: String, real: &Stats, before: &Stats) -> String {
-    let value = |s: &Stats| s.term("step-coherence").map(|t| t.values[0]);
-    let (Some(r), Some(b)) = (value(real), value(before)) else { return body };
-    let how = match r {
-        r if r >= 0.6 => "together",
-        r if r <= 0.2 => "each on its own",
-        _ => "partly together",
+/// against the model ([`Stats::step_coherence`]): what tells a pose error,
+/// which moves a step's cells as one, from a misregistration per cell,
+/// where the gap's terms cannot. `moves_together`: the effect moves a
+/// step's cells as one (a pose effect) rather than each on its own.
+pub fn with_step_coherence(body: String, real: &Stats, before: &Stats, moves_together: bool) -> String {
+    let (Some(r), Some(b)) = (real.step_coherence, before.step_coherence) else { return body };
+    let (how, agrees) = match r {
+        r if r >= 0.6 => ("together", Some(moves_together)),
+        r if r <= 0.2 => ("each on its own", Some(!moves_together)),
+        _ => ("partly together", None),
     };
-    format!("{body}; across the robot, neighbouring cells beside a step move {how} (correlation of their residuals real {r:.2} vs model {b:.2})")
+    let note = match agrees {
+        Some(true) => "as this effect moves them",
+        Some(false) => "unlike this effect: read its ties",
+        None => "between a pose error (1) and a misregistration per cell (0)",
+    };
+    format!("{body}; across the robot, neighbouring cells beside a step move {how} (correlation of their residuals real {r:.2} vs model {b:.2}), {note}")
 }
 
 /// Share of neighbour pairs that differ by 0.1 to 10 mm.
@@ -158,22 +163,25 @@ pub fn per_rec(s: &Stats, name: &str) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use dem_core::distribution::Term;
 
     fn coherence(paired: bool, value: f64) -> Stats {
-        let terms =
-            if paired { vec![Term { name: "step-coherence", values: vec![value], support: vec![500], scale: 0.1 }] } else { vec![] };
-        Stats { records: 100, paired, terms }
+        Stats { records: 100, paired, terms: vec![], step_coherence: paired.then_some(value) }
     }
 
     /// Paired, the sentence says how together real's step cells move
     /// against the model's; unpaired (no residuals) it is left alone.
     #[test]
     fn the_step_coherence_is_said_where_it_is_measured() {
-        let with = |r, b| with_step_coherence("body".into(), &coherence(true, r), &coherence(true, b));
-        assert_eq!(with(0.83, 0.0), "body; across the robot, neighbouring cells beside a step move together (correlation of their residuals real 0.83 vs model 0.00)");
-        assert!(with(0.33, 0.01).contains("move partly together (correlation of their residuals real 0.33 vs model 0.01)"));
-        assert!(with(0.05, 0.9).contains("move each on its own"));
-        assert_eq!(with_step_coherence("body".into(), &coherence(false, 0.0), &coherence(false, 0.0)), "body");
+        let with = |r, b, together| with_step_coherence("body".into(), &coherence(true, r), &coherence(true, b), together);
+        assert_eq!(
+            with(0.83, 0.0, true),
+            "body; across the robot, neighbouring cells beside a step move together (correlation of their residuals real 0.83 vs model 0.00), as this effect moves them"
+        );
+        assert!(with(0.83, 0.0, false)
+            .ends_with("move together (correlation of their residuals real 0.83 vs model 0.00), unlike this effect: read its ties"));
+        assert!(with(0.33, 0.01, false).contains("move partly together (correlation of their residuals real 0.33 vs model 0.01), between"));
+        assert!(with(0.05, 0.9, false)
+            .contains("move each on its own (correlation of their residuals real 0.05 vs model 0.90), as this effect"));
+        assert_eq!(with_step_coherence("body".into(), &coherence(false, 0.0), &coherence(false, 0.0), true), "body");
     }
 }

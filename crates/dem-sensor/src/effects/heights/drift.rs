@@ -168,5 +168,5 @@ fn sentence(c: &Context, rate: f64, zrate: f64, x0: f64) -> String {
             mm(sd(before, ahead.clone())),
         )
     };
-    c.fitted(with_step_coherence(body, real, before))
+    c.fitted(with_step_coherence(body, real, before, true))
 }

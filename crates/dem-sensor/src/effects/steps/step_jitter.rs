@@ -134,7 +134,7 @@ fn sentence(c: &Context, sigma: f64, edge: f64) -> String {
                 pct(ra),
                 pct(ba),
             );
-            with_step_coherence(body, real, before)
+            with_step_coherence(body, real, before, false)
         } else {
             part_way_steps(real, before, format!("steps read part of the way across: {fitted}"), "the jitter is")
         }
