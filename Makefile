@@ -74,7 +74,9 @@ readme-check: venv
 FUZZ_SECONDS ?= 60
 # The property tests' seed: new each run unless given (make fuzz FUZZ_SEED=N
 # repeats one); `make test` always uses a fixed one.
-FUZZ_SEED ?= $(shell date +%s)
+ifndef FUZZ_SEED
+FUZZ_SEED := $(shell date +%s)
+endif
 FUZZ_TARGETS := npy_reader csv_tables sensor_json mcap_reader ros1_reader
 fuzz: venv
 	@echo "property tests with PROPTEST_RNG_SEED=$(FUZZ_SEED)"
