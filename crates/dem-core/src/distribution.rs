@@ -47,10 +47,10 @@
 //! one by one, cannot tell the two apart; the evidence sentences of the
 //! effects that differ in it say it. It stays out of the gap because many
 //! map stages move a step's cells together too (in `dem-synth`'s emulator
-//! the field of view 0.74, occlusion 0.85, smoothing 0.68, drift 0.83,
-//! vibration 0.33; `scripts/experiments/step_coherence.sh`), so one number
-//! weighed like a whole term would favour a row-wide pose effect for any
-//! of them.
+//! on the default mount the field of view 0.74, occlusion 0.85, smoothing
+//! 0.68, drift 0.83, vibration 0.33; docs/results.md has the commands), so
+//! one number weighed like a whole term would favour a row-wide pose
+//! effect for any of them.
 
 use rayon::prelude::*;
 
