@@ -203,10 +203,14 @@ impl Acc {
                 self.partial[r] += 1;
                 self.pair_miss[r] += (0..COLS - 1).filter(|&c| !d.is_valid(r, c) && !d.is_valid(r, c + 1)).count();
             }
+            // Paired: the residual of the cell to the left, when it lies
+            // beside a step and is valid in both (the step-coherence pairs).
+            let mut left_at_step: Option<f32> = None;
             for c in 0..COLS {
                 if !d.is_valid(r, c) {
                     self.shadow[r] += usize::from(in_shadow(d, r, c));
                     self.jump[r] += usize::from(missing < COLS && at_jump(d, r, c));
+                    left_at_step = None;
                     continue;
                 }
                 let h = d.height(r, c);
@@ -215,14 +219,17 @@ impl Acc {
                         let res = h - s.height(r, c);
                         self.loc[r].push(res);
                         self.spread[r].push(res.abs());
+                        let mut at_step = false;
                         for (side, toward) in step_sides(s, r, c) {
                             self.side[side].push(res * toward);
+                            at_step = true;
                         }
-                        if let Some(next) = beside_step_neighbour(d, s, r, c) {
-                            self.coherence.add(res as f64, next as f64);
+                        if let (true, Some(left)) = (at_step, left_at_step) {
+                            self.coherence.add(left as f64, res as f64);
                         }
+                        left_at_step = at_step.then_some(res);
                     }
-                    Some(_) => {}
+                    Some(_) => left_at_step = None,
                     None => self.loc[r].push(h),
                 }
                 if c + 1 < COLS && d.is_valid(r, c + 1) {
@@ -321,16 +328,6 @@ fn step_sides(s: &Dem, r: usize, c: usize) -> impl Iterator<Item = (usize, f32)>
     ]
     .into_iter()
     .flatten()
-}
-
-/// The residual of the across-robot neighbour `(r, c + 1)` of real `d`
-/// against sim `s`, when both it and `(r, c)` lie beside a step in `s` and
-/// are valid in both.
-fn beside_step_neighbour(d: &Dem, s: &Dem, r: usize, c: usize) -> Option<f32> {
-    let next = c + 1;
-    let usable = next < COLS && d.is_valid(r, next) && s.is_valid(r, next) && s.is_valid(r, c);
-    let both_at_steps = usable && step_sides(s, r, c).next().is_some() && step_sides(s, r, next).next().is_some();
-    both_at_steps.then(|| d.height(r, next) - s.height(r, next))
 }
 
 /// Quantile `q` (0..1, nearest rank) of `v`, reordering it; None when empty.
@@ -730,7 +727,8 @@ mod tests {
         let (c_apart, s_apart) = coherence(&apart);
         assert!(c_together > 0.99, "{c_together}");
         assert!(c_apart.abs() < 0.1, "{c_apart}");
-        assert!(coherence(&by_millimetres).0 < 0.1, "{}", coherence(&by_millimetres).0);
+        let c_millimetres = coherence(&by_millimetres).0;
+        assert!(c_millimetres < 0.1, "{c_millimetres}");
         assert_eq!(coherence(&sims).0, 0.0, "real equal to sim");
         assert!(gap_terms(&s_together, &s_apart).iter().all(|(name, _)| !name.contains("coherence")));
         assert!(stats(&together, None).step_coherence.is_none(), "unpaired has no residuals");
