@@ -20,7 +20,11 @@
 //!    which records happen to be in the set does not pass
 //!    (`confirm_best`). A close rival the data does not tell from it is
 //!    named with it ([`ties`]). Re-measure on all data, repeat; at the end
-//!    each effect is re-fitted with the others in place (`polish`). The
+//!    each effect is re-fitted with the others in place (`polish`); with
+//!    `--joint-refit`, when the loop stopped because no candidate held up
+//!    alone, the best of them
+//!    are tried once more with the others re-fitted beside them
+//!    ([`joint`]). The
 //!    report also gives the unpaired sampling floor, two halves of real
 //!    scaled to the set sizes ([`sampling_floor`], in [`sampling`]), as
 //!    what to expect of a perfect model.
@@ -34,6 +38,7 @@
 pub mod comparison;
 pub mod evidence;
 pub mod fit;
+mod joint;
 pub mod load;
 pub mod measurement;
 pub mod mix;

@@ -48,6 +48,9 @@ pub struct GapConfig {
     /// per pair it is in), not per position: the gap over the pairs, as
     /// dem-eval's.
     pub over_pairs: bool,
+    /// When no candidate holds up alone, try the best ones again with the
+    /// named effects re-fitted beside them ([`crate::joint`]).
+    pub joint_refit: bool,
 }
 
 /// The compared sets: model side (sim) and real side, aligned when paired.

@@ -79,6 +79,9 @@ pub(crate) struct Found {
     pub model: SensorModel,
     pub gap: f64,
     pub stats: Stats,
+    /// When no candidate held up: the candidates of that step (best
+    /// first, the refused left out), for [`crate::joint`].
+    pub(crate) short: Vec<crate::state::Candidate>,
 }
 /// An effect re-fitted after the naming loop with all others in place.
 #[derive(Debug, Clone)]
@@ -170,7 +173,7 @@ pub struct Outcome {
 /// with the effects `refits` re-fitted.
 pub(crate) fn finish(c: Comparison, start: Start, found: Found, refits: Vec<Refit>, log: &dyn Fn(String)) -> Outcome {
     let (cfg, sets) = (c.cfg, c.sets);
-    let Found { steps, stop, model, gap: gap_final, stats: final_stats } = found;
+    let Found { steps, stop, model, gap: gap_final, stats: final_stats, .. } = found;
     // The parameters were searched with the seed's draws and each step
     // checked with `other_draws`: where the effects are random (holes,
     // blobs), the gap on those draws includes the luck the search found.

@@ -3,15 +3,17 @@
 //! in the model on the fitting subsample (`rank_candidates`), confirm the
 //! best on all records, with other draws and on the halves
 //! (`confirm_best`), check its close rivals ([`crate::ties`]) and add it;
-//! then re-fit each effect with the others in place (`polish`) and put
-//! the [`Outcome`] together ([`crate::outcome`]). What stays fixed over a
+//! then re-fit each effect with the others in place (`polish`), try the
+//! candidates that fell short once more with the others re-fitted beside
+//! them ([`crate::joint`]), and put the [`Outcome`] together
+//! ([`crate::outcome`]). What stays fixed over a
 //! run (real's statistics, halves, fitting subsample) is measured once,
 //! in [`crate::comparison`]; here is only what changes from step to step.
 
-use dem_core::distribution::{self, gap};
+use dem_core::distribution::{self, gap, Stats};
 use dem_sensor::effects::{EffectSpec, SPECS};
 use dem_sensor::evidence::share_removed;
-use dem_sensor::Effect;
+use dem_sensor::{Effect, SensorModel};
 
 use crate::comparison::Comparison;
 use crate::load::{GapConfig, Sets};
@@ -19,7 +21,7 @@ use crate::outcome::{finish, Found, Outcome, Refit, Start, Step, Tie};
 use crate::sampling::{below_floor, other_draws};
 use crate::state::{Added, Candidate, State, StepLog};
 use crate::ties;
-use crate::{evidence, fit};
+use crate::{evidence, fit, joint};
 
 /// A gap below this is left as it is: each statistic enters as
 /// ln(1 + z^2) averaged over rows, so a sum this small means no statistic
@@ -35,15 +37,16 @@ pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) 
     let (start, state) = measure_start(&c, log);
     let mut found = name_effects(&c, state, log, tick);
     ties::settle_ties(&mut found.steps, log);
-    let refits = polish(&c, &mut found, log);
+    let mut refits = polish(&c, &mut found.model, &mut found.gap, &mut found.stats, log);
+    joint::extend(&c, &mut found, &mut refits, log, tick);
     finish(c, start, found, refits, log)
 }
 
 /// What confirming a step's best candidates gave.
-struct Confirmation {
-    added: Option<Added>,
+pub(crate) struct Confirmation {
+    pub added: Option<Added>,
     /// Candidates whose model hides far more cells than real misses.
-    refused: Vec<(Effect, String)>,
+    pub refused: Vec<(Effect, String)>,
 }
 
 /// The start model as measured, said in the log's first line, and the
@@ -72,6 +75,7 @@ fn measure_start(c: &Comparison, log: &dyn Fn(String)) -> (Start, State) {
 fn name_effects(c: &Comparison, mut state: State, log: &dyn Fn(String), tick: &dyn Fn()) -> Found {
     let mut steps = Vec::new();
     let mut stop = format!("stopped after --max-steps {}", c.cfg.max_steps);
+    let mut short = Vec::new();
     for number in 1..=c.cfg.max_steps {
         let candidates: Vec<&EffectSpec> =
             SPECS.iter().copied().filter(|s| !state.model.effects.iter().any(|e| e.name() == s.name)).collect();
@@ -88,22 +92,24 @@ fn name_effects(c: &Comparison, mut state: State, log: &dyn Fn(String), tick: &d
         }
         let step_log = StepLog { number, log };
         let ranking = rank_candidates(c, &state, &candidates, &step_log, tick);
-        let Confirmation { added, refused } = confirm_best(c, &state, &ranking, &step_log);
+        let trials = ranking.iter().take(2).map(|r| (r.fit.effect, state.model.with(r.fit.effect)));
+        let Confirmation { added, refused } = confirm_best(c, &state, trials, &step_log);
         let Some(added) = added else {
             stop = nothing_holds(c.cfg.min_gain, c.paired, &ranking, state.gap, &refused);
             log(stop.clone());
+            short = ranking.into_iter().filter(|r| !refused.iter().any(|(e, _)| e.name() == r.fit.effect.name())).collect();
             break;
         };
         let tied_with = ties::check_rivals(c, &state, &added, &ranking, &step_log);
         steps.push(record_step(c, &state, &added, &ranking, refused, tied_with, &step_log));
         state = added.state;
     }
-    Found { steps, stop, model: state.model, gap: state.gap, stats: state.stats }
+    Found { steps, stop, model: state.model, gap: state.gap, stats: state.stats, short }
 }
 
 /// Fit each of `candidates` on top of the model on the fitting subsample;
 /// the fitted ones ranked by the gap they leave there, best first.
-fn rank_candidates(c: &Comparison, state: &State, candidates: &[&EffectSpec], log: &StepLog, tick: &dyn Fn()) -> Vec<Candidate> {
+pub(crate) fn rank_candidates(c: &Comparison, state: &State, candidates: &[&EffectSpec], log: &StepLog, tick: &dyn Fn()) -> Vec<Candidate> {
     let real = c.fitting_real(&state.model, &state.stats);
     let target = c.target(&real);
     let base_fit = target.gap(&state.model);
@@ -123,11 +129,17 @@ fn rank_candidates(c: &Comparison, state: &State, candidates: &[&EffectSpec], lo
     ranking
 }
 
-/// The best candidate on the subsample, confirmed on all data; the
-/// runner-up gets a chance when the best does not hold up. A gain must
-/// exceed `min_gain` of the gap with the model's draws and again with
-/// other draws, and, where the halves decide, hold on both halves.
-fn confirm_best(c: &Comparison, state: &State, ranking: &[Candidate], log: &StepLog) -> Confirmation {
+/// The first of `trials` (a candidate and the model with it, best first)
+/// that holds up on all data; the runner-up gets a chance when the best
+/// does not. A gain must exceed `min_gain` of the gap with the model's
+/// draws and again with other draws, and, where the halves decide, hold
+/// on both halves.
+pub(crate) fn confirm_best(
+    c: &Comparison,
+    state: &State,
+    trials: impl Iterator<Item = (Effect, SensorModel)>,
+    log: &StepLog,
+) -> Confirmation {
     let seed = c.cfg.seed;
     let mut refused = Vec::new();
     let threshold = c.cfg.min_gain * state.gap;
@@ -139,8 +151,7 @@ fn confirm_best(c: &Comparison, state: &State, ranking: &[Candidate], log: &Step
     // separates the sets may be the draws, and a gain that is an effect
     // holds on both halves of the records.
     let mut below_floor_now: Option<bool> = None;
-    for e in ranking.iter().take(2).map(|r| r.fit.effect) {
-        let trial = state.model.with(e);
+    for (e, trial) in trials.take(2) {
         let (out, s) = c.measure(&trial, seed);
         if let Some(why) = distribution::hides_too_much(&s, &c.real) {
             log.line(format!("{e} refused: {why}"));
@@ -208,7 +219,7 @@ fn nothing_holds(min_gain: f64, paired: bool, ranking: &[Candidate], gap_before:
 
 /// The step that adds `added` to `before`, with its evidence; a fit at
 /// the edge of its box is warned of in both.
-fn record_step(
+pub(crate) fn record_step(
     c: &Comparison,
     before: &State,
     added: &Added,
@@ -247,18 +258,19 @@ fn record_step(
 
 /// Polish: the greedy order can leave an early effect covering for one
 /// named later (an occlusion fitted before startup hides rows startup
-/// explains better). Re-fit each effect once with all others in place;
-/// keep the new parameters when they lower the gap on all data.
-fn polish(c: &Comparison, found: &mut Found, log: &dyn Fn(String)) -> Vec<Refit> {
+/// explains better). Re-fit each effect of `model` once with all others
+/// in place; keep the new parameters when they lower the gap on all data
+/// (`gap`, `stats`: the model's, updated with it).
+pub(crate) fn polish(c: &Comparison, model: &mut SensorModel, gap_now: &mut f64, stats: &mut Stats, log: &dyn Fn(String)) -> Vec<Refit> {
     let mut refits = Vec::new();
-    if found.model.effects.len() < 2 {
+    if model.effects.len() < 2 {
         return refits;
     }
-    let real = c.fitting_real(&found.model, &found.stats);
+    let real = c.fitting_real(model, stats);
     let target = c.target(&real);
-    for i in 0..found.model.effects.len() {
-        let old = found.model.effects[i];
-        let mut base = found.model.clone();
+    for i in 0..model.effects.len() {
+        let old = model.effects[i];
+        let mut base = model.clone();
         base.effects.remove(i);
         let Some(f) = fit::fit(old.spec(), &base, &target) else { continue };
         if f.effect == old {
@@ -267,17 +279,17 @@ fn polish(c: &Comparison, found: &mut Found, log: &dyn Fn(String)) -> Vec<Refit>
         let trial = base.with(f.effect);
         let (_, s) = c.measure(&trial, c.cfg.seed);
         let g = gap(&s, &c.real);
-        if distribution::hides_too_much(&s, &c.real).is_none() && g < found.gap {
+        if distribution::hides_too_much(&s, &c.real).is_none() && g < *gap_now {
             let edge = if f.at_edge.is_empty() {
                 String::new()
             } else {
                 format!(" (WARNING: at the edge of its box in {})", f.at_edge.join(", "))
             };
-            log(format!("re-fitted {old} with the others in place: {}{edge}; gap {:.3} -> {g:.3}", f.effect, found.gap));
-            refits.push(Refit { before: old, after: f.effect, gap_before: found.gap, gap_after: g, at_edge: f.at_edge });
-            found.model = trial;
-            found.gap = g;
-            found.stats = s;
+            log(format!("re-fitted {old} with the others in place: {}{edge}; gap {:.3} -> {g:.3}", f.effect, *gap_now));
+            refits.push(Refit { before: old, after: f.effect, gap_before: *gap_now, gap_after: g, at_edge: f.at_edge });
+            *model = trial;
+            *gap_now = g;
+            *stats = s;
         }
     }
     refits
