@@ -193,7 +193,7 @@ fn in_turn(c: &Comparison, model: &SensorModel, stats: &Stats, candidate: Effect
     let cand = fit::fit(candidate.spec(), &base, &target)?.effect;
     let with_cand = base.with(cand);
     let again = fit::fit(was.spec(), &with_cand, &target)?.effect;
-    log.line(format!("{candidate} came close to {first} where {first} was named: fitted in the other order, {cand} then {again}"));
+    log.line(format!("{candidate} was displaced by {first}: fitted in its place, {cand}, then {first} again beside it, {again}"));
     Some(with_cand.with(again))
 }
 
