@@ -88,11 +88,12 @@ struct Args {
     #[arg(long)]
     unpaired: bool,
     /// When no candidate removes enough of the gap alone, try the best three
-    /// again, each with the effects already named re-fitted beside it (one
-    /// named in its place first where the two came close): an early effect
-    /// can stand in for a later one, which then adds little alone. Slower
-    /// (about twice the time on exact sim against all of dem-synth's
-    /// stages); each effect so added passes the same checks as the others.
+    /// again, and two an earlier effect displaced, each with the effects
+    /// already named re-fitted beside it (a displaced one fitted in its
+    /// displacer's place first): an early effect can stand in for a later
+    /// one, which then adds little alone. Slower (two and a half times the
+    /// time on exact sim against all of dem-synth's stages); each effect so
+    /// added passes the same checks as the others.
     #[arg(long)]
     joint_refit: bool,
     /// Worker threads (default: all cores).
