@@ -76,14 +76,11 @@ pub(crate) fn extend(c: &Comparison, found: &mut Found, refits: &mut Vec<Refit>,
     let mut alone = found.stop.clone();
     while !short.is_empty() && found.steps.len() < c.cfg.max_steps && found.gap >= NEGLIGIBLE_GAP {
         let step_log = StepLog { number: found.steps.len() + 1, log };
-        let Some((base, base_refits, trials)) = trials(c, found, &short, &step_log, tick) else {
-            let names: Vec<&str> = tried(found, &short).iter().map(|(cand, _)| cand.fit.effect.name()).collect();
-            found.stop = none_holds(&alone, &names, found.gap);
-            log(found.stop.clone());
-            return;
-        };
-        let Confirmation { added, refused } = confirm_best(c, &base, trials.iter().map(|t| (t.effect, t.model.clone())), &step_log);
-        let Some(added) = added else {
+        let confirmed = trials(c, found, &short, &step_log, tick).and_then(|(base, base_refits, trials)| {
+            let Confirmation { added, refused } = confirm_best(c, &base, trials.iter().map(|t| (t.effect, t.model.clone())), &step_log);
+            added.map(|added| (base, base_refits, trials, added, refused))
+        });
+        let Some((base, base_refits, trials, added, refused)) = confirmed else {
             let names: Vec<&str> = tried(found, &short).iter().map(|(cand, _)| cand.fit.effect.name()).collect();
             found.stop = none_holds(&alone, &names, found.gap);
             log(found.stop.clone());
