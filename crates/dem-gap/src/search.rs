@@ -3,9 +3,9 @@
 //! in the model on the fitting subsample (`rank_candidates`), confirm the
 //! best on all records, with other draws and on the halves
 //! (`confirm_best`), check its close rivals ([`crate::ties`]) and add it;
-//! then re-fit each effect with the others in place (`polish`), try the
-//! candidates that fell short once more with the others re-fitted beside
-//! them ([`crate::joint`]), and put the [`Outcome`] together
+//! then re-fit each effect with the others in place (`polish`), with
+//! `--joint-refit` try the candidates that fell short once more with the
+//! others re-fitted beside them ([`crate::joint`]), and put the [`Outcome`] together
 //! ([`crate::outcome`]). What stays fixed over a
 //! run (real's statistics, halves, fitting subsample) is measured once,
 //! in [`crate::comparison`]; here is only what changes from step to step.
