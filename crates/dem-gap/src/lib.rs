@@ -24,7 +24,7 @@
 //!    `--joint-refit`, when the loop stopped because no candidate held up
 //!    alone, the best of them
 //!    are tried once more with the others re-fitted beside them
-//!    ([`joint`]). The
+//!    (`joint`). The
 //!    report also gives the unpaired sampling floor, two halves of real
 //!    scaled to the set sizes ([`sampling_floor`], in [`sampling`]), as
 //!    what to expect of a perfect model.
@@ -61,8 +61,20 @@ pub use outcome::{Outcome, Refit, Step, TerrainRow};
 pub use sampling::{
     below_floor, draw_floor, halves, halves_of_runs, real_halves, sampling_floor, sim_halves, two_draws, MIN_RUNS_FOR_HALVES,
 };
-pub use search::{run, NEGLIGIBLE_GAP};
+pub use search::NEGLIGIBLE_GAP;
 pub use ties::{named_ahead, tie_sentence, MAX_RIVALS, RIVAL_SHARE, SAME_PART};
 
 // The subset floors of `unexplained` take the second draws as the run does.
 pub(crate) use sampling::other_draws;
+
+/// Run the measure-name-add loop on loaded sets; `log` gets progress lines,
+/// `tick` is called after each candidate fit (for a progress bar).
+pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) -> Outcome {
+    let c = comparison::Comparison::new(cfg, sets);
+    let (start, state) = search::measure_start(&c, log);
+    let mut found = search::name_effects(&c, state, log, tick);
+    ties::settle_ties(&mut found.steps, log);
+    let mut refits = search::polish(&c, &mut found.model, &mut found.gap, &mut found.stats, log);
+    joint::extend(&c, &mut found, &mut refits, log, tick);
+    outcome::finish(c, start, found, refits, log)
+}

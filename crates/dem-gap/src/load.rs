@@ -49,7 +49,7 @@ pub struct GapConfig {
     /// dem-eval's.
     pub over_pairs: bool,
     /// When no candidate holds up alone, try the best ones again with the
-    /// named effects re-fitted beside them ([`crate::joint`]).
+    /// named effects re-fitted beside them (`joint`).
     pub joint_refit: bool,
 }
 

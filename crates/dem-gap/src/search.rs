@@ -1,12 +1,11 @@
-//! The measure-name-add loop ([`run`]), one function per step of it:
+//! The measure-name-add loop ([`crate::run`]), one function per step of it:
 //! measure the start model; per step, fit and rank every effect not yet
 //! in the model on the fitting subsample (`rank_candidates`), confirm the
 //! best on all records, with other draws and on the halves
 //! (`confirm_best`), check its close rivals ([`crate::ties`]) and add it;
-//! then re-fit each effect with the others in place (`polish`), with
-//! `--joint-refit` try the candidates that fell short once more with the
-//! others re-fitted beside them ([`crate::joint`]), and put the [`Outcome`] together
-//! ([`crate::outcome`]). What stays fixed over a
+//! then re-fit each effect with the others in place (`polish`). [`crate::run`]
+//! chains them, with `joint` after them under `--joint-refit`,
+//! and puts the [`crate::Outcome`] together ([`crate::outcome`]). What stays fixed over a
 //! run (real's statistics, halves, fitting subsample) is measured once,
 //! in [`crate::comparison`]; here is only what changes from step to step.
 
@@ -16,12 +15,11 @@ use dem_sensor::evidence::share_removed;
 use dem_sensor::{Effect, SensorModel};
 
 use crate::comparison::Comparison;
-use crate::load::{GapConfig, Sets};
-use crate::outcome::{finish, Found, Outcome, Refit, Start, Step, Tie};
+use crate::outcome::{Found, Refit, Start, Step, Tie};
 use crate::sampling::{below_floor, other_draws};
 use crate::state::{Added, Candidate, State, StepLog};
 use crate::ties;
-use crate::{evidence, fit, joint};
+use crate::{evidence, fit};
 
 /// A gap below this is left as it is: each statistic enters as
 /// ln(1 + z^2) averaged over rows, so a sum this small means no statistic
@@ -29,18 +27,6 @@ use crate::{evidence, fit, joint};
 /// 1 mm of height). An effect fitted to such a gap fits what is left of
 /// the others' fits, not a physical effect.
 pub const NEGLIGIBLE_GAP: f64 = 0.05;
-
-/// Run the measure-name-add loop on loaded sets; `log` gets progress lines,
-/// `tick` is called after each candidate fit (for a progress bar).
-pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) -> Outcome {
-    let c = Comparison::new(cfg, sets);
-    let (start, state) = measure_start(&c, log);
-    let mut found = name_effects(&c, state, log, tick);
-    ties::settle_ties(&mut found.steps, log);
-    let mut refits = polish(&c, &mut found.model, &mut found.gap, &mut found.stats, log);
-    joint::extend(&c, &mut found, &mut refits, log, tick);
-    finish(c, start, found, refits, log)
-}
 
 /// What confirming a step's best candidates gave.
 pub(crate) struct Confirmation {
@@ -51,7 +37,7 @@ pub(crate) struct Confirmation {
 
 /// The start model as measured, said in the log's first line, and the
 /// loop's state with it.
-fn measure_start(c: &Comparison, log: &dyn Fn(String)) -> (Start, State) {
+pub(crate) fn measure_start(c: &Comparison, log: &dyn Fn(String)) -> (Start, State) {
     let model = c.cfg.start.clone();
     let (start_out, stats) = c.measure(&model, c.cfg.seed);
     let halves = c.half_stats(&start_out);
@@ -72,7 +58,7 @@ fn measure_start(c: &Comparison, log: &dyn Fn(String)) -> (Start, State) {
 
 /// Add effects to the model in `state`, one a step, while one holds up
 /// and the gap left is not negligible.
-fn name_effects(c: &Comparison, mut state: State, log: &dyn Fn(String), tick: &dyn Fn()) -> Found {
+pub(crate) fn name_effects(c: &Comparison, mut state: State, log: &dyn Fn(String), tick: &dyn Fn()) -> Found {
     let mut steps = Vec::new();
     let mut stop = format!("stopped after --max-steps {}", c.cfg.max_steps);
     let mut short = Vec::new();
