@@ -7,8 +7,8 @@
 //! stages (default mount, paired) `tilt` is named before `noise` and its
 //! roll (2 degrees, four times the mount's) takes the place of the range
 //! noise across the robot; `noise` alone then removes 3 % of the gap, too
-//! little to be added, while `noise` added with `tilt` re-fitted beside it
-//! (its roll falls to a tenth) removes 10 %.
+//! little to be added, while `noise` fitted in `tilt`'s place and `tilt`
+//! fitted again beside it (its roll falls to a tenth) removes 6 %.
 //!
 //! So with `--joint-refit`, when the loop stops because no candidate
 //! holds up alone, the best
@@ -31,13 +31,12 @@
 //! `--max-steps`.
 
 use dem_core::distribution::{gap, Stats};
-use dem_sensor::effects::{EffectSpec, SPECS};
 use dem_sensor::{Effect, SensorModel};
 
 use crate::comparison::Comparison;
 use crate::fit;
 use crate::outcome::{Found, Refit};
-use crate::search::{confirm_best, polish, rank_candidates, record_step, Confirmation, NEGLIGIBLE_GAP};
+use crate::search::{confirm_best, not_in, polish, rank_candidates, record_step, Confirmation, NEGLIGIBLE_GAP};
 use crate::state::{Candidate, State, StepLog};
 
 /// Candidates of the stopping step tried with the others re-fitted, best
@@ -100,8 +99,7 @@ pub(crate) fn extend(c: &Comparison, found: &mut Found, refits: &mut Vec<Refit>,
         found.stats = added.state.stats.clone();
         found.stop = format!("stopped after --max-steps {}", c.cfg.max_steps);
         if found.steps.len() < c.cfg.max_steps {
-            let candidates: Vec<&EffectSpec> =
-                SPECS.iter().copied().filter(|s| !found.model.effects.iter().any(|e| e.name() == s.name)).collect();
+            let candidates = not_in(&found.model);
             let next_log = StepLog { number: found.steps.len() + 1, log };
             short = rank_candidates(c, &added.state, &candidates, &next_log, tick);
             alone = match short.first() {
@@ -118,8 +116,8 @@ pub(crate) fn extend(c: &Comparison, found: &mut Found, refits: &mut Vec<Refit>,
 }
 
 /// The model re-fitted once more without a new effect (the state each
-/// trial is judged against, and its re-fits), and the best
-/// [`JOINT_TRIALS`] of `short` each added with every effect re-fitted,
+/// trial is judged against, and its re-fits), and the candidates
+/// [`tried`] picks from `short`, each added with every effect re-fitted,
 /// best first; None when no trial removes more than `min_gain` of the gap.
 fn trials(c: &Comparison, found: &Found, short: &[Candidate], log: &StepLog, tick: &dyn Fn()) -> Option<(State, Vec<Refit>, Vec<Trial>)> {
     let (mut model, mut g, mut stats) = (found.model.clone(), found.gap, found.stats.clone());

@@ -63,8 +63,7 @@ pub(crate) fn name_effects(c: &Comparison, mut state: State, log: &dyn Fn(String
     let mut stop = format!("stopped after --max-steps {}", c.cfg.max_steps);
     let mut short = Vec::new();
     for number in 1..=c.cfg.max_steps {
-        let candidates: Vec<&EffectSpec> =
-            SPECS.iter().copied().filter(|s| !state.model.effects.iter().any(|e| e.name() == s.name)).collect();
+        let candidates = not_in(&state.model);
         if candidates.is_empty() {
             stop = "every effect of the vocabulary is in the model".into();
             break;
@@ -91,6 +90,11 @@ pub(crate) fn name_effects(c: &Comparison, mut state: State, log: &dyn Fn(String
         state = added.state;
     }
     Found { steps, stop, model: state.model, gap: state.gap, stats: state.stats, short }
+}
+
+/// The effects of the vocabulary not yet in `model`, in the vocabulary's order.
+pub(crate) fn not_in(model: &SensorModel) -> Vec<&'static EffectSpec> {
+    SPECS.iter().copied().filter(|s| !model.effects.iter().any(|e| e.name() == s.name)).collect()
 }
 
 /// Fit each of `candidates` on top of the model on the fitting subsample;
