@@ -45,8 +45,8 @@ pub mod view;
 mod tests;
 
 pub use heights::{
-    climb_slope, drift_walk, shift_rows, step_under_tracks, MAX_CLIMB_PITCH, MAX_LAG, MAX_SHIFT, MAX_TILT, MAX_TILT_RANGE, MIN_QUANTUM,
-    NOISE_ORIGIN, NOISE_RANGE_HEIGHT, ROUND_UP_FROM, SHAKE_MAX_STEP, TRACK_ROWS,
+    climb_slope, drift_walk, record_pitch, shift_rows, step_under_tracks, MAX_CLIMB_PITCH, MAX_LAG, MAX_SHIFT, MAX_TILT, MAX_TILT_RANGE,
+    MIN_QUANTUM, NOISE_ORIGIN, NOISE_RANGE_HEIGHT, ROUND_UP_FROM, SHAKE_MAX_STEP, TRACK_ROWS,
 };
 pub use holes::{growth_threshold, PATCH_SLOTS};
 pub use steps::{jitter_steps, TIE_MARGIN};

@@ -315,6 +315,48 @@ fn pit_fill_rim_holes_and_view_top_follow_their_formulas() {
     assert!(!d.is_valid(15, 0) && d.is_valid(5, 0) && d.valid_cells() == 99);
 }
 
+/// view-top turns with the record's pitch: a cell is out of view when,
+/// seen in the body's frame (turned back by the pitch about C), it lies
+/// above h - t x. Nose up the ray clears a post far ahead; nose down it
+/// meets the floor far ahead.
+#[test]
+fn view_top_turns_with_the_pitch() {
+    let with_pitch = |p: f32| {
+        let mut d = flat();
+        d.set_valid(15, 0, 0.2); // x = 0.95: above the level ray 0.115
+        let mut att = d.attitude();
+        att[0] = p;
+        d.set_attitude(att);
+        Effect::ViewTop(ViewTop { h: 0.4, t: 0.3 }).apply(&mut d, &mut rng());
+        d
+    };
+    let level = with_pitch(0.0);
+    assert!(!level.is_valid(15, 0) && level.is_valid(19, 1) && level.valid_cells() == 99);
+    let up = with_pitch(0.3);
+    assert!(up.is_valid(15, 0) && up.valid_cells() == 100, "nose up: all in view");
+    let down = with_pitch(-0.3);
+    assert!(!down.is_valid(15, 0) && !down.is_valid(19, 1) && down.is_valid(8, 1), "nose down: the far floor out of view");
+    // Against the body frame on rough DEMs, pitches either way, NaN read as 0.
+    for (p, h, t) in [(0.25, 0.3, 0.5), (-0.4, 0.5, 0.2), (0.7, 0.2, 1.2), (-0.9, 0.6, 0.8), (f32::NAN, 0.3, 0.3)] {
+        let mut d = rough();
+        let mut att = d.attitude();
+        att[0] = p;
+        d.set_attitude(att);
+        Effect::ViewTop(ViewTop { h, t }).apply(&mut d, &mut rng());
+        let pf = if p.is_nan() { 0.0 } else { f64::from(p) };
+        for (r, row) in grid(&rough()).iter().enumerate() {
+            for (c, z) in row.iter().enumerate() {
+                let x = row_center_x(r);
+                let seen = z.is_some_and(|z| {
+                    let (xb, zb) = (x * pf.cos() + z * pf.sin(), -x * pf.sin() + z * pf.cos());
+                    zb <= h - t * xb
+                });
+                assert_eq!(d.is_valid(r, c), seen, "pitch {p} h {h} t {t} cell ({r}, {c})");
+            }
+        }
+    }
+}
+
 /// Heights of `d` as f64 (None where missing), for the references below.
 fn grid(d: &Dem) -> Vec<Vec<Option<f64>>> {
     (0..GRID_ROWS).map(|r| (0..COLS).map(|c| d.is_valid(r, c).then(|| d.height(r, c) as f64)).collect()).collect()

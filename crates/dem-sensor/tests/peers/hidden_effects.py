@@ -42,7 +42,9 @@ heights relative to the robot centre; missing = mask -1, height 0):
                (rows r-1, r+1) or along y (columns c-1, c+1) reads the lower of
                the two with probability p (the higher such rim when both lines
                qualify)
-  view-top     cells whose height is above h - t x missing
+  view-top     cells whose point, turned back by the record's pitch (row
+               20, column 0) into the body's frame, lies above h - t x
+               missing
   hole-growth  a valid cell with k missing 4-neighbours (inside the grid)
                is missing with probability 1 - (1 - p)^k, k counted before
                any cell is removed
@@ -311,8 +313,15 @@ def drop_holes(d, rng, p):
 
 
 def view_top(d, rng, h, t):
+    # Each cell's point turned back by the pitch into the body's frame,
+    # there compared with the level top ray.
+    pitch = float(d[20, 0, 0])
+    p = float(np.clip(pitch, -1.0, 1.0)) if np.isfinite(pitch) else 0.0
+    z = d[:20, :, 0].astype(np.float64)
+    x = np.broadcast_to(X[:, None], z.shape)
+    xb, zb = x * np.cos(p) + z * np.sin(p), -x * np.sin(p) + z * np.cos(p)
     valid = d[:20, :, 1] > 0
-    set_missing(d, valid & (d[:20, :, 0] > (h - t * X)[:, None]))
+    set_missing(d, valid & (zb > h - t * xb))
 
 
 def mixed_cells(d, rng, up, down):

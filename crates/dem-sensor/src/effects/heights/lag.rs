@@ -1,10 +1,10 @@
 //! `lag`: latency, the DEM is an older frame's map.
 
-use super::{climb_slope, ops, shift_rows, MAX_CLIMB_PITCH, MAX_LAG};
+use super::{climb_slope, ops, shift_rows, MAX_LAG};
 use crate::draws::Draws;
 use crate::effects::{params, EffectKind, EffectSpec, Family, Limit, Range, Stage};
 use crate::evidence::{part_way_steps, pct, side_share, Context};
-use crate::graph::ops::{Cells, INPUT};
+use crate::graph::ops::Cells;
 use dem_core::distribution::Stats;
 use dem_core::format::{Dem, GRID_ROWS};
 use dem_graph::Builder;
@@ -76,8 +76,7 @@ fn lag(d: &mut Dem, rng: &mut Draws, s: f64, spread: f64) {
 }
 
 /// `lag`: one shift per record, s (1 + spread (2u - 1)), and the climb
-/// shift tan(pitch), the pitch read from row 20 of the graph's input DEM
-/// ([`INPUT`], which every sensor graph passes through to its output).
+/// shift tan(pitch), the pitch [`ops::record_pitch`].
 fn operators(b: &mut Builder, c: &Cells, u: &str, s: f64, spread: f64) -> Cells {
     let u = b.reshape(u, &[-1, 1, 1]);
     let t = b.mul_const(&u, 2.0);
@@ -85,19 +84,7 @@ fn operators(b: &mut Builder, c: &Cells, u: &str, s: f64, spread: f64) -> Cells 
     let t = b.mul_const(&t, spread as f32);
     let t = b.add_const(&t, 1.0);
     let shift = b.mul_const(&t, s as f32);
-    let p = b.take(INPUT, 1, GRID_ROWS as i64, GRID_ROWS as i64 + 1);
-    let p = b.take(&p, 2, 0, 1);
-    let p = b.take(&p, 3, 0, 1);
-    let p = b.reshape(&p, &[-1, 1, 1]);
-    // NaN: p - p is not 0.
-    let diff = b.bin("Sub", &p, &p);
-    let zero = b.scalar(0.0);
-    let known = b.bin("Equal", &diff, &zero);
-    let p = b.select(&known, &p, &zero);
-    let lo = b.scalar(-MAX_CLIMB_PITCH as f32);
-    let hi = b.scalar(MAX_CLIMB_PITCH as f32);
-    let p = b.bin("Max", &p, &lo);
-    let p = b.bin("Min", &p, &hi);
+    let p = ops::record_pitch(b);
     let sin = b.un("Sin", &p);
     let cos = b.un("Cos", &p);
     let tan = b.bin("Div", &sin, &cos);

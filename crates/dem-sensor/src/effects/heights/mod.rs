@@ -50,7 +50,8 @@ pub const MAX_LAG: f64 = 0.5;
 /// Row shifts (`lag`, `drift`) are clamped to +-this many metres (10
 /// rows): with `lag`'s box no shift reaches it; `drift` at absurd rates does.
 pub const MAX_SHIFT: f64 = 1.0;
-/// `lag` reads the record's pitch clamped to +-this (rad, 57 degrees).
+/// `lag` and `view-top` read the record's pitch clamped to +-this (rad, 57
+/// degrees).
 pub const MAX_CLIMB_PITCH: f64 = 1.0;
 
 /// h += a lever(x) + b y on the valid cells (`tilt`, `shake`).
@@ -80,15 +81,21 @@ pub fn step_under_tracks(d: &Dem) -> f64 {
     j.min(SHAKE_MAX_STEP)
 }
 
-/// `lag`'s climb per metre of shift: tan of the record's pitch (row 20,
-/// column 0), clamped to +-[`MAX_CLIMB_PITCH`]; 0 when it is not finite.
-pub fn climb_slope(d: &Dem) -> f64 {
+/// The record's pitch (row 20, column 0; rad, nose up > 0), clamped to
+/// +-[`MAX_CLIMB_PITCH`]; 0 when it is not finite (the contract's "not
+/// recorded" is 0 too). `lag` and `view-top` read it.
+pub fn record_pitch(d: &Dem) -> f64 {
     let p = d.attitude()[0] as f64;
     if p.is_finite() {
-        p.clamp(-MAX_CLIMB_PITCH, MAX_CLIMB_PITCH).tan()
+        p.clamp(-MAX_CLIMB_PITCH, MAX_CLIMB_PITCH)
     } else {
         0.0
     }
+}
+
+/// `lag`'s climb per metre of shift: tan of [`record_pitch`].
+pub fn climb_slope(d: &Dem) -> f64 {
+    record_pitch(d).tan()
 }
 
 /// `drift`'s displacements per row from its 40 normals (pair j: `z[2j]`
@@ -136,10 +143,29 @@ pub fn shift_rows(d: &mut Dem, dx: &[f64; GRID_ROWS], dz: &[f64; GRID_ROWS]) {
 
 /// The operators the family's effects share in the graph.
 pub(crate) mod ops {
-    use super::{MAX_SHIFT, SHAKE_MAX_STEP, TRACK_ROWS};
-    use crate::graph::ops::{is_valid, per_row, set_heights, Cells};
+    use super::{MAX_CLIMB_PITCH, MAX_SHIFT, SHAKE_MAX_STEP, TRACK_ROWS};
+    use crate::graph::ops::{is_valid, per_row, set_heights, Cells, INPUT};
     use dem_core::format::{col_center_y, row_center_x, COLS, GRID_ROWS};
     use dem_graph::Builder;
+
+    /// [`super::record_pitch`] per record `(N, 1, 1)`, read from row 20 of
+    /// the graph's input DEM ([`INPUT`], which every sensor graph passes
+    /// through to its output).
+    pub(crate) fn record_pitch(b: &mut Builder) -> String {
+        let p = b.take(INPUT, 1, GRID_ROWS as i64, GRID_ROWS as i64 + 1);
+        let p = b.take(&p, 2, 0, 1);
+        let p = b.take(&p, 3, 0, 1);
+        let p = b.reshape(&p, &[-1, 1, 1]);
+        // NaN: p - p is not 0.
+        let diff = b.bin("Sub", &p, &p);
+        let zero = b.scalar(0.0);
+        let known = b.bin("Equal", &diff, &zero);
+        let p = b.select(&known, &p, &zero);
+        let lo = b.scalar(-MAX_CLIMB_PITCH as f32);
+        let hi = b.scalar(MAX_CLIMB_PITCH as f32);
+        let p = b.bin("Max", &p, &lo);
+        b.bin("Min", &p, &hi)
+    }
 
     /// Standard normals from `k` Box-Muller pairs of uniforms `(N, 2 k)`: the
     /// cosines and the sines, each `(N, k, 1)`.
