@@ -65,7 +65,7 @@ impl EffectKind for ViewTop {
 
 /// `view-top` (formula in its spec) at pitch `p`: the level body's
 /// half-plane where t x + z exceeds h, turned by p about C (its normal
-/// (t, 1) turned, its distance h from C kept).
+/// (t, 1) turned with it, the offset h kept).
 fn cut_above_top_ray(d: &mut Dem, h: f64, t: f64, p: f64) {
     let (along, up) = (t * p.cos() - p.sin(), t * p.sin() + p.cos());
     for r in 0..GRID_ROWS {
