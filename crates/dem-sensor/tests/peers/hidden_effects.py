@@ -117,6 +117,12 @@ def noise(d, rng, sigma0, k):
     d[:20, :, 0] = np.where(valid, h, d[:20, :, 0])
 
 
+def record_pitch(d):
+    """The record's pitch (row 20, column 0) clamped to +-1 rad, 0 when not finite."""
+    pitch = float(d[20, 0, 0])
+    return float(np.clip(pitch, -1.0, 1.0)) if np.isfinite(pitch) else 0.0
+
+
 def set_missing(d, sel):
     d[:20, :, 0][sel] = 0.0
     d[:20, :, 1][sel] = -1.0
@@ -315,8 +321,7 @@ def drop_holes(d, rng, p):
 def view_top(d, rng, h, t):
     # Each cell's point turned back by the pitch into the body's frame,
     # there compared with the level top ray.
-    pitch = float(d[20, 0, 0])
-    p = float(np.clip(pitch, -1.0, 1.0)) if np.isfinite(pitch) else 0.0
+    p = record_pitch(d)
     z = d[:20, :, 0].astype(np.float64)
     x = np.broadcast_to(X[:, None], z.shape)
     xb, zb = x * np.cos(p) + z * np.sin(p), -x * np.sin(p) + z * np.cos(p)
@@ -434,8 +439,7 @@ def step_jitter(d, rng, sigma, edge):
 
 def lag(d, rng, s, spread):
     sr = s * (1 + spread * (2 * rng.random() - 1))
-    pitch = float(d[20, 0, 0])
-    climb = sr * np.tan(np.clip(pitch, -1.0, 1.0)) if np.isfinite(pitch) else 0.0
+    climb = sr * np.tan(record_pitch(d))
     _shift(d, np.full(20, sr), np.full(20, climb))
 
 
