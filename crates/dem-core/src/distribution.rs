@@ -193,6 +193,20 @@ impl Acc {
         }
     }
 
+    /// Room for the samples of `records` records: the vectors then grow
+    /// once, not cell by cell.
+    fn with_capacity(records: usize) -> Self {
+        // vec![v; n] would clone `v`, and a clone drops the capacity.
+        let rows = |n: usize| (0..n).map(|_| Vec::with_capacity(records * COLS)).collect();
+        Acc {
+            loc: rows(GRID_ROWS),
+            spread: rows(GRID_ROWS),
+            edge: rows(GRID_ROWS - 1),
+            steps: Vec::with_capacity(2 * records * GRID_ROWS * COLS),
+            ..Default::default()
+        }
+    }
+
     fn add(&mut self, d: &Dem, sim: Option<&Dem>) {
         self.n += 1;
         for r in 0..GRID_ROWS {
@@ -340,6 +354,29 @@ pub fn quantile(v: &mut [f32], q: f64) -> Option<f64> {
     Some(*x as f64)
 }
 
+/// Quantiles `qs` (ascending) of `v`, each as [`quantile`] gives it,
+/// reordering `v`: each selection searches only the part of `v` above the
+/// one before, so four quantiles cost about two selections.
+pub fn quantiles<const N: usize>(v: &mut [f32], qs: [f64; N]) -> [Option<f64>; N] {
+    let mut out = [None; N];
+    if v.is_empty() {
+        return out;
+    }
+    let n = v.len();
+    let mut from = 0;
+    for (o, q) in out.iter_mut().zip(qs) {
+        let k = ((n - 1) as f64 * q).round() as usize;
+        assert!(k + 1 >= from, "quantiles: qs must be ascending");
+        // k == from - 1: the element the last selection placed.
+        if k >= from {
+            v[from..].select_nth_unstable_by(k - from, |a, b| a.total_cmp(b));
+            from = k + 1;
+        }
+        *o = Some(v[k] as f64);
+    }
+    out
+}
+
 /// Mean and (population) sd of `v`, in f64; (0, 0) when empty.
 pub fn mean_sd(v: &[f32]) -> (f64, f64) {
     let n = v.len().max(1) as f64;
@@ -358,7 +395,7 @@ pub fn stats(out: &[Dem], sim: Option<&[Dem]>) -> Stats {
         .par_chunks(256)
         .enumerate()
         .map(|(k, chunk)| {
-            let mut a = Acc::new();
+            let mut a = Acc::with_capacity(chunk.len());
             for (i, d) in chunk.iter().enumerate() {
                 a.add(d, sim.map(|s| &s[k * 256 + i]));
             }
@@ -396,24 +433,34 @@ fn summarise(mut a: Acc, paired: bool) -> Stats {
     // Root mean square of the spread samples without their top
     // [`SD_TRIM`]: a handful of cells (a changed height at one step edge)
     // must not carry the term; the tail has its own quantile terms.
-    let spread_sd = a
+    // Per row: q50, q90, q99 and the trim's cut, each 0 for an empty row.
+    let spread_q: Vec<[f64; 4]> = a
         .spread
         .iter()
         .map(|s| {
             let mut v = s.clone();
-            let cut = quantile(&mut v, 1.0 - SD_TRIM).unwrap_or(0.0);
+            let q = quantiles(&mut v, [0.5, 0.9, 0.99, 1.0 - SD_TRIM]);
+            q.map(|x| x.unwrap_or(0.0))
+        })
+        .collect();
+    let spread_sd = a
+        .spread
+        .iter()
+        .zip(&spread_q)
+        .map(|(s, q)| {
+            let cut = q[3];
             let kept: Vec<f64> = s.iter().map(|&x| x as f64).filter(|&x| x <= cut).collect();
             (kept.iter().map(|x| x * x).sum::<f64>() / kept.len().max(1) as f64).sqrt()
         })
         .collect();
     let spread_support = sup(&a.spread);
     terms.push(Term { name: "spread-sd", values: spread_sd, support: spread_support.clone(), scale: 0.002 });
-    for (name, q) in [("spread-q50", 0.5), ("spread-q90", 0.9)] {
-        let values = a.spread.iter_mut().map(|v| quantile(v, q).unwrap_or(0.0)).collect();
+    for (name, k) in [("spread-q50", 0), ("spread-q90", 1)] {
+        let values = spread_q.iter().map(|q| q[k]).collect();
         terms.push(Term { name, values, support: spread_support.clone(), scale: 0.002 });
     }
     if paired {
-        let values = a.spread.iter_mut().map(|v| quantile(v, 0.99).unwrap_or(0.0)).collect();
+        let values = spread_q.iter().map(|q| q[2]).collect();
         terms.push(Term { name: "spread-q99", values, support: spread_support, scale: 0.004 });
     }
     terms.push(Term {
@@ -568,6 +615,21 @@ pub fn gap(a: &Stats, b: &Stats) -> f64 {
 mod tests {
     use super::*;
     use crate::format::empty_dem;
+
+    /// Several quantiles at once equal one [`quantile`] each, on lengths
+    /// from 0 to 40 with ties, for coinciding and neighbouring ranks too.
+    #[test]
+    fn quantiles_at_once_equal_one_at_a_time() {
+        let qs = [0.0, 0.5, 0.5, 0.51, 0.9, 0.99, 0.995, 1.0];
+        for n in 0..40usize {
+            let v: Vec<f32> = (0..n).map(|i| ((i * 7919) % 13) as f32 * 0.25).collect();
+            let mut w = v.clone();
+            let got = quantiles(&mut w, qs);
+            for (g, &q) in got.iter().zip(&qs) {
+                assert_eq!(*g, quantile(&mut v.clone(), q), "n {n} q {q}");
+            }
+        }
+    }
 
     /// Moved by the difference a subsample makes, real stands to the
     /// subsample as it stands to the whole set, component by component.
