@@ -367,7 +367,7 @@ pub fn quantiles<const N: usize>(v: &mut [f32], qs: [f64; N]) -> [Option<f64>; N
     for (o, q) in out.iter_mut().zip(qs) {
         let k = ((n - 1) as f64 * q).round() as usize;
         assert!(k + 1 >= from, "quantiles: qs must be ascending");
-        // k == from - 1: the element the last selection placed.
+        // Otherwise k == from - 1: the element the last selection placed.
         if k >= from {
             v[from..].select_nth_unstable_by(k - from, |a, b| a.total_cmp(b));
             from = k + 1;
@@ -430,9 +430,6 @@ fn summarise(mut a: Acc, paired: bool) -> Stats {
             s.iter_mut().zip(l).for_each(|(x, &d)| *x = (d - m).abs());
         }
     }
-    // Root mean square of the spread samples without their top
-    // [`SD_TRIM`]: a handful of cells (a changed height at one step edge)
-    // must not carry the term; the tail has its own quantile terms.
     // Per row: q50, q90, q99 and the trim's cut, each 0 for an empty row.
     let spread_q: Vec<[f64; 4]> = a
         .spread
@@ -443,6 +440,9 @@ fn summarise(mut a: Acc, paired: bool) -> Stats {
             q.map(|x| x.unwrap_or(0.0))
         })
         .collect();
+    // Root mean square of the spread samples without their top
+    // [`SD_TRIM`]: a handful of cells (a changed height at one step edge)
+    // must not carry the term; the tail has its own quantile terms.
     let spread_sd = a
         .spread
         .iter()
