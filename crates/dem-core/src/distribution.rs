@@ -52,6 +52,9 @@
 //! one number weighed like a whole term would favour a row-wide pose
 //! effect for any of them.
 
+use std::borrow::Cow;
+use std::ops::Range;
+
 use rayon::prelude::*;
 
 use crate::format::{row_center_x, Dem, DemCells, COLS, GRID_ROWS};
@@ -85,6 +88,14 @@ pub const COHERENCE_FLOOR: f64 = 0.005;
 
 /// Edges (m) of the bins of non-zero neighbour differences (`steps`).
 pub const STEP_BINS: [f64; 6] = [1e-4, 0.001, 0.003, 0.01, 0.03, 0.1];
+
+/// The along-robot differences (m) the `edge-*` terms count above.
+const EDGE_ABOVE: [(&str, f64); 3] = [("edge-2cm", 0.02), ("edge-steep", 0.05), ("edge-10cm", 0.1)];
+
+/// The bin of [`STEP_BINS`] that a neighbour difference falls in.
+fn step_bin(x: f32) -> Option<usize> {
+    STEP_BINS.windows(2).position(|w| (w[0]..w[1]).contains(&(x as f64)))
+}
 
 /// One statistic: a value per component (row, row pair, or quantile) with
 /// the number of samples behind it.
@@ -128,8 +139,11 @@ struct Acc {
     loc: Vec<Vec<f32>>,
     /// Paired: abs(D); unpaired: abs(across-robot differences) / sqrt 2.
     spread: Vec<Vec<f32>>,
-    edge: Vec<Vec<f32>>,
-    steps: Vec<f32>,
+    /// Per row pair: along-robot neighbour pairs, and how many differ by
+    /// more than each of [`EDGE_ABOVE`].
+    edge: [(usize, [usize; 3]); GRID_ROWS - 1],
+    /// Non-zero neighbour differences per bin of [`STEP_BINS`].
+    steps: [usize; STEP_BINS.len() - 1],
     /// Paired: residuals toward the other surface, per [`STEP_SIDES`].
     side: [Vec<f32>; 4],
     /// Paired: residuals of across-robot neighbours beside a step.
@@ -193,13 +207,7 @@ impl Acc {
     fn with_capacity(records: usize) -> Self {
         // vec![v; n] would clone `v`, and a clone drops the capacity.
         let rows = |n: usize| (0..n).map(|_| Vec::with_capacity(records * COLS)).collect();
-        Acc {
-            loc: rows(GRID_ROWS),
-            spread: rows(GRID_ROWS),
-            edge: rows(GRID_ROWS - 1),
-            steps: Vec::with_capacity(2 * records * GRID_ROWS * COLS),
-            ..Default::default()
-        }
+        Acc { loc: rows(GRID_ROWS), spread: rows(GRID_ROWS), ..Default::default() }
     }
 
     fn add(&mut self, d: &Dem, sim: Option<&Dem>) {
@@ -249,47 +257,71 @@ impl Acc {
                         self.spread[r].push(dy * std::f32::consts::FRAC_1_SQRT_2);
                     }
                     if dy >= 1e-4 {
-                        self.steps.push(dy);
+                        self.step(dy);
                     }
                 }
                 if r + 1 < GRID_ROWS && d.is_valid(r + 1, c) {
                     let dx = (d.height(r + 1, c) - h).abs();
-                    self.edge[r].push(dx);
+                    let (pairs, above) = &mut self.edge[r];
+                    *pairs += 1;
+                    for (count, (_, min)) in above.iter_mut().zip(EDGE_ABOVE) {
+                        *count += usize::from(dx as f64 > min);
+                    }
                     if dx >= 1e-4 {
-                        self.steps.push(dx);
+                        self.step(dx);
                     }
                 }
             }
         }
     }
 
-    fn merge(mut self, o: Acc) -> Acc {
-        self.n += o.n;
-        for r in 0..GRID_ROWS {
-            self.miss[r] += o.miss[r];
-            self.full_row[r] += o.full_row[r];
-            self.shadow[r] += o.shadow[r];
-            self.jump[r] += o.jump[r];
-            self.pair_miss[r] += o.pair_miss[r];
-            self.partial[r] += o.partial[r];
-            self.level[r].0 += o.level[r].0;
-            self.level[r].1 += o.level[r].1;
+    fn step(&mut self, x: f32) {
+        if let Some(b) = step_bin(x) {
+            self.steps[b] += 1;
         }
-        for (a, b) in self.loc.iter_mut().zip(o.loc) {
-            a.extend(b);
+    }
+
+    /// The accumulators of consecutive chunks as one, the samples in the
+    /// chunks' order, each copied once.
+    fn concat(parts: Vec<Acc>) -> Acc {
+        let len = |f: fn(&Acc) -> &[Vec<f32>], i: usize| parts.iter().map(|p| f(p)[i].len()).sum::<usize>();
+        let mut all = Acc::new();
+        for (r, (loc, spread)) in all.loc.iter_mut().zip(all.spread.iter_mut()).enumerate() {
+            loc.reserve_exact(len(|p| &p.loc, r));
+            spread.reserve_exact(len(|p| &p.spread, r));
         }
-        for (a, b) in self.spread.iter_mut().zip(o.spread) {
-            a.extend(b);
+        for (k, side) in all.side.iter_mut().enumerate() {
+            side.reserve_exact(len(|p| &p.side, k));
         }
-        for (a, b) in self.edge.iter_mut().zip(o.edge) {
-            a.extend(b);
+        for o in parts {
+            all.n += o.n;
+            for r in 0..GRID_ROWS {
+                all.miss[r] += o.miss[r];
+                all.full_row[r] += o.full_row[r];
+                all.shadow[r] += o.shadow[r];
+                all.jump[r] += o.jump[r];
+                all.pair_miss[r] += o.pair_miss[r];
+                all.partial[r] += o.partial[r];
+                all.level[r].0 += o.level[r].0;
+                all.level[r].1 += o.level[r].1;
+            }
+            for (a, b) in all.edge.iter_mut().zip(o.edge) {
+                a.0 += b.0;
+                a.1.iter_mut().zip(b.1).for_each(|(x, y)| *x += y);
+            }
+            all.steps.iter_mut().zip(o.steps).for_each(|(x, y)| *x += y);
+            for (a, b) in all.loc.iter_mut().zip(&o.loc) {
+                a.extend_from_slice(b);
+            }
+            for (a, b) in all.spread.iter_mut().zip(&o.spread) {
+                a.extend_from_slice(b);
+            }
+            for (a, b) in all.side.iter_mut().zip(&o.side) {
+                a.extend_from_slice(b);
+            }
+            all.coherence.merge(&o.coherence);
         }
-        self.steps.extend(o.steps);
-        for (a, b) in self.side.iter_mut().zip(o.side) {
-            a.extend(b);
-        }
-        self.coherence.merge(&o.coherence);
-        self
+        all
     }
 }
 
@@ -370,24 +402,44 @@ pub fn mean_sd(v: &[f32]) -> (f64, f64) {
     (m, var.sqrt())
 }
 
+/// Records per parallel chunk of [`stats`] and [`stats_made`].
+const CHUNK: usize = 256;
+
 /// Summarise `out`; with `sim` (same length, record i paired with record
 /// i), heights are taken as residuals against the sim records.
 pub fn stats(out: &[Dem], sim: Option<&[Dem]>) -> Stats {
+    summarise(accumulate(out.len(), sim, |range| Cow::Borrowed(&out[range])), sim.is_some())
+}
+
+/// [`stats`] of `n` records that `make(range)` makes a chunk at a time
+/// (records `range`, in order). The same statistics, bit for bit, as
+/// making all `n` first; a caller that makes records only to summarise
+/// them (a model applied at each of a fit's points) then never holds more
+/// than a chunk per thread, and each chunk is summarised while it is still
+/// in cache.
+pub fn stats_made(n: usize, sim: Option<&[Dem]>, make: impl Fn(Range<usize>) -> Vec<Dem> + Sync) -> Stats {
+    summarise(accumulate(n, sim, |range| Cow::Owned(make(range))), sim.is_some())
+}
+
+/// The samples of `n` records, [`CHUNK`] at a time in parallel; the
+/// chunks are merged in order, so the samples keep the records' order.
+fn accumulate<'a>(n: usize, sim: Option<&[Dem]>, chunk: impl Fn(Range<usize>) -> Cow<'a, [Dem]> + Sync) -> Acc {
     if let Some(s) = sim {
-        assert_eq!(s.len(), out.len(), "paired sets have one sim record per record");
+        assert_eq!(s.len(), n, "paired sets have one sim record per record");
     }
-    let acc = out
-        .par_chunks(256)
-        .enumerate()
-        .map(|(k, chunk)| {
-            let mut a = Acc::with_capacity(chunk.len());
-            for (i, d) in chunk.iter().enumerate() {
-                a.add(d, sim.map(|s| &s[k * 256 + i]));
+    let parts = (0..n.div_ceil(CHUNK))
+        .into_par_iter()
+        .map(|k| {
+            let range = k * CHUNK..((k + 1) * CHUNK).min(n);
+            let records = chunk(range.clone());
+            let mut a = Acc::with_capacity(records.len());
+            for (d, i) in records.iter().zip(range) {
+                a.add(d, sim.map(|s| &s[i]));
             }
             a
         })
-        .reduce(Acc::new, Acc::merge);
-    summarise(acc, sim.is_some())
+        .collect::<Vec<_>>();
+    Acc::concat(parts)
 }
 
 fn summarise(mut a: Acc, paired: bool) -> Stats {
@@ -454,11 +506,11 @@ fn summarise(mut a: Acc, paired: bool) -> Stats {
         support: a.level.iter().map(|&(_, t)| t).collect(),
         scale: 0.02,
     });
-    let edge_support = sup(&a.edge);
-    for (name, above) in [("edge-2cm", 0.02), ("edge-steep", 0.05), ("edge-10cm", 0.1)] {
+    let edge_support: Vec<usize> = a.edge.iter().map(|e| e.0).collect();
+    for (k, (name, _)) in EDGE_ABOVE.into_iter().enumerate() {
         terms.push(Term {
             name,
-            values: a.edge.iter().map(|v| v.iter().filter(|&&x| x as f64 > above).count() as f64 / v.len().max(1) as f64).collect(),
+            values: a.edge.iter().map(|(pairs, above)| above[k] as f64 / (*pairs).max(1) as f64).collect(),
             support: edge_support.clone(),
             scale: 0.01,
         });
@@ -467,10 +519,7 @@ fn summarise(mut a: Acc, paired: bool) -> Stats {
     let pairs: usize = a.level.iter().map(|l| l.1).sum::<usize>() + edge_support.iter().sum::<usize>();
     terms.push(Term {
         name: "steps",
-        values: STEP_BINS
-            .windows(2)
-            .map(|w| a.steps.iter().filter(|&&x| (w[0]..w[1]).contains(&(x as f64))).count() as f64 / pairs.max(1) as f64)
-            .collect(),
+        values: a.steps.iter().map(|&k| k as f64 / pairs.max(1) as f64).collect(),
         support: vec![pairs; STEP_BINS.len() - 1],
         scale: 0.01,
     });

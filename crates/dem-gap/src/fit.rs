@@ -13,7 +13,7 @@ use dem_core::format::{row_center_x, Dem, GRID_ROWS};
 use dem_sensor::effects::{EffectSpec, Fov, Limit, Range, Startup};
 use dem_sensor::{Effect, SensorModel};
 
-use dem_core::distribution::{gap, hides_too_much, stats, Stats};
+use dem_core::distribution::{gap, hides_too_much, stats_made, Stats};
 
 mod prefix;
 
@@ -46,19 +46,47 @@ pub struct Target<'a> {
 impl Target<'_> {
     /// Statistics of model(sim).
     pub fn model_stats(&self, model: &SensorModel) -> Stats {
-        let mut out = self.sim.to_vec();
-        model.apply_all_at(&mut out, self.seed, 0, self.times);
-        stats(&out, self.paired.then_some(self.sim))
+        self.stats_after(self.sim, model, None)
+    }
+
+    /// Statistics of `model` applied to `from` (the sim records, or their
+    /// output of the effects before `model`), record `i` with record `i`'s
+    /// draws and time; `drawn`, when given, holds those draws
+    /// ([`SensorModel::uniforms_of`] of a model with `model`'s effect
+    /// names: the streams depend on the names, not the parameters). Each
+    /// chunk is made and summarised in turn ([`stats_made`]), so no copy of
+    /// all the records is made.
+    fn stats_after(&self, from: &[Dem], model: &SensorModel, drawn: Option<&[f32]>) -> Stats {
+        let k = model.draws();
+        stats_made(from.len(), self.paired.then_some(self.sim), |range| {
+            let mut u = vec![0.0f32; k];
+            let mut out = from[range.clone()].to_vec();
+            for (d, i) in out.iter_mut().zip(range) {
+                let time = self.times.and_then(|t| t.get(i).copied());
+                match drawn {
+                    Some(all) => model.apply_drawn(d, &all[i * k..(i + 1) * k], time),
+                    None => {
+                        model.uniforms(self.seed, i as u64, &mut u);
+                        model.apply_drawn(d, &u, time);
+                    }
+                }
+            }
+            out
+        })
     }
 
     /// Gap of model(sim) against real; infinite for a model that hides far
     /// more cells than real misses ([`hides_too_much`]).
     pub fn gap(&self, model: &SensorModel) -> f64 {
-        let s = self.model_stats(model);
-        if hides_too_much(&s, self.real).is_some() {
+        self.gap_of(&self.model_stats(model))
+    }
+
+    /// [`Target::gap`] of a model whose output has statistics `s`.
+    fn gap_of(&self, s: &Stats) -> f64 {
+        if hides_too_much(s, self.real).is_some() {
             return f64::INFINITY;
         }
-        gap(&s, self.real)
+        gap(s, self.real)
     }
 }
 

@@ -12,7 +12,6 @@
 //! also occurs in the part applied first (otherwise the whole model is
 //! applied at every point).
 
-use dem_core::distribution::{gap, hides_too_much, stats};
 use dem_core::format::Dem;
 use dem_sensor::{Effect, SensorModel};
 
@@ -28,11 +27,21 @@ pub struct Prepared<'a> {
     /// The sim records after `base.effects[..at]`; None when the model
     /// cannot be split there.
     before: Option<Vec<Dem>>,
+    /// The candidate's name.
+    name: &'static str,
+    /// Each sim record's draws of the candidate and the effects after it:
+    /// the same at every parameter point, so drawn once.
+    drawn: Vec<f32>,
 }
 
 /// Where [`SensorModel::with`] inserts `e` into `base`.
 fn place(base: &SensorModel, e: &Effect) -> usize {
     base.effects.iter().position(|x| x.stage() > e.stage()).unwrap_or(base.effects.len())
+}
+
+/// `e` followed by the effects of `base` from `at` on.
+fn rest(base: &SensorModel, at: usize, e: Effect) -> SensorModel {
+    SensorModel { effects: std::iter::once(e).chain(base.effects[at..].iter().cloned()).collect() }
 }
 
 impl<'a> Prepared<'a> {
@@ -47,29 +56,26 @@ impl<'a> Prepared<'a> {
             SensorModel { effects: first.to_vec() }.apply_all_at(&mut out, target.seed, 0, target.times);
             out
         });
-        Prepared { target, base, at, before }
+        let rest = rest(base, at, *probe);
+        let drawn = if before.is_some() { rest.uniforms_of(target.seed, 0, target.sim.len()) } else { Vec::new() };
+        Prepared { target, base, at, before, name: probe.name(), drawn }
     }
 
     /// [`Target::gap`] of `base` with `e` added.
     pub fn gap(&self, e: Effect) -> f64 {
         let before = match &self.before {
-            Some(b) if place(self.base, &e) == self.at => b,
+            Some(b) if place(self.base, &e) == self.at && e.name() == self.name => b,
             _ => return self.target.gap(&self.base.with(e)),
         };
-        let mut out = before.clone();
-        let rest = SensorModel { effects: std::iter::once(e).chain(self.base.effects[self.at..].iter().cloned()).collect() };
-        rest.apply_all_at(&mut out, self.target.seed, 0, self.target.times);
-        let s = stats(&out, self.target.paired.then_some(self.target.sim));
-        if hides_too_much(&s, self.target.real).is_some() {
-            return f64::INFINITY;
-        }
-        gap(&s, self.target.real)
+        let rest = rest(self.base, self.at, e);
+        self.target.gap_of(&self.target.stats_after(before, &rest, Some(&self.drawn)))
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use dem_core::distribution::stats;
     use dem_core::format::{col_center_y, empty_dem, row_center_x, DemCells, COLS, GRID_ROWS};
     use dem_sensor::effects::{Bias, Dropout, EdgeHoles, Fov, Noise, Occlusion, RowDropout, Smoothing};
 
