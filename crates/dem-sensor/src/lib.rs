@@ -131,16 +131,14 @@ impl SensorModel {
     /// effect's come from its own stream ([`effect_rng`]).
     pub fn uniforms(&self, seed: u64, index: u64, out: &mut [f32]) {
         assert_eq!(out.len(), self.draws(), "uniforms: wrong length");
-        let mut seen: std::collections::HashMap<&'static str, u64> = std::collections::HashMap::new();
         let mut at = 0;
-        for e in &self.effects {
-            let occurrence = seen.entry(e.name()).or_insert(0);
+        for (i, e) in self.effects.iter().enumerate() {
             let n = e.draws();
             if n > 0 {
-                let mut rng = effect_rng(seed, e, *occurrence, index);
+                let occurrence = self.effects[..i].iter().filter(|x| x.name() == e.name()).count() as u64;
+                let mut rng = effect_rng(seed, e, occurrence, index);
                 draws::fill_uniform(&mut rng, &mut out[at..at + n]);
             }
-            *occurrence += 1;
             at += n;
         }
     }

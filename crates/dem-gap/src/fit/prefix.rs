@@ -24,11 +24,17 @@ pub struct Prepared<'a> {
     base: &'a SensorModel,
     /// Where the candidate goes in the base model.
     at: usize,
-    /// The sim records after `base.effects[..at]`; None when the model
-    /// cannot be split there.
-    before: Option<Vec<Dem>>,
     /// The candidate's name.
     name: &'static str,
+    /// None when the model cannot be split there.
+    split: Option<Split>,
+}
+
+/// What every parameter point of a candidate shares when the model splits
+/// at its place.
+struct Split {
+    /// The sim records after `base.effects[..at]`.
+    before: Vec<Dem>,
     /// Each sim record's draws of the candidate and the effects after it:
     /// the same at every parameter point, so drawn once.
     drawn: Vec<f32>,
@@ -51,24 +57,23 @@ impl<'a> Prepared<'a> {
         let at = place(base, probe);
         let (first, later) = base.effects.split_at(at);
         let shared = later.iter().chain(std::iter::once(probe)).any(|l| first.iter().any(|f| f.name() == l.name()));
-        let before = (!shared).then(|| {
-            let mut out = target.sim.to_vec();
-            SensorModel { effects: first.to_vec() }.apply_all_at(&mut out, target.seed, 0, target.times);
-            out
+        let split = (!shared).then(|| {
+            let mut before = target.sim.to_vec();
+            SensorModel { effects: first.to_vec() }.apply_all_at(&mut before, target.seed, 0, target.times);
+            let drawn = rest(base, at, *probe).uniforms_of(target.seed, 0, target.sim.len());
+            Split { before, drawn }
         });
-        let rest = rest(base, at, *probe);
-        let drawn = if before.is_some() { rest.uniforms_of(target.seed, 0, target.sim.len()) } else { Vec::new() };
-        Prepared { target, base, at, before, name: probe.name(), drawn }
+        Prepared { target, base, at, name: probe.name(), split }
     }
 
     /// [`Target::gap`] of `base` with `e` added.
     pub fn gap(&self, e: Effect) -> f64 {
-        let before = match &self.before {
-            Some(b) if place(self.base, &e) == self.at && e.name() == self.name => b,
+        let split = match &self.split {
+            Some(s) if place(self.base, &e) == self.at && e.name() == self.name => s,
             _ => return self.target.gap(&self.base.with(e)),
         };
         let rest = rest(self.base, self.at, e);
-        self.target.gap_of(&self.target.stats_after(before, &rest, Some(&self.drawn)))
+        self.target.gap_of(&self.target.stats_after(&split.before, &rest, Some(&split.drawn)))
     }
 }
 
