@@ -911,3 +911,60 @@ fn riser_shares_reads_back_a_known_move() {
         assert!(flat.contains(&format!("| {kind} | 0 | - | - | - |")), "{flat}");
     }
 }
+
+/// scripts/experiments/residual_bands.py (where a model spreads heights
+/// against real, per terrain and band of rows) on a known spread: real is
+/// sim plus 1 cm of noise on every valid cell, the model sim plus 2 cm on
+/// flat records and nothing elsewhere, the real records in reverse order
+/// behind pairs.csv.
+#[test]
+fn residual_bands_reads_back_a_known_spread() {
+    let dir = tempdir();
+    dem_testkit::py(
+        dir.path(),
+        &format!(
+            "import numpy as np, os\n\
+             os.makedirs('d')\n\
+             s = np.load({:?})[::10]\n\
+             lab = open({:?}).read().splitlines()\n\
+             rows = [lab[0]] + lab[1::10][:len(s)]\n\
+             flat = np.array([r.split(',')[1] == 'flat' for r in rows[1:]])\n\
+             rng = np.random.default_rng(5)\n\
+             v = s[:, :20, :, 1] > 0\n\
+             real, model = s.copy(), s.copy()\n\
+             real[:, :20, :, 0] += np.where(v, 0.01 * rng.standard_normal(v.shape), 0).astype(np.float32)\n\
+             model[:, :20, :, 0] += np.where(v & flat[:, None, None], 0.02 * rng.standard_normal(v.shape), 0).astype(np.float32)\n\
+             n = len(s)\n\
+             np.save('d/sim.npy', s)\n\
+             np.save('d/real.npy', real[::-1])\n\
+             np.save('model.npy', model)\n\
+             open('d/real_labels.csv', 'w').write('\\n'.join([rows[0]] + rows[1:][::-1]) + '\\n')\n\
+             open('d/pairs.csv', 'w').write('sim_index,real_index\\n' + ''.join(f'{{i}},{{n - 1 - i}}\\n' for i in range(n)))\n",
+            testdata("sim.npy"),
+            testdata("sim_labels.csv")
+        ),
+    );
+    let script = workspace_root().join("scripts/experiments/residual_bands.py");
+    let o = Command::new(python()).arg(script).args([&arg(dir.path(), "d"), &arg(dir.path(), "model.npy")]).output().expect("python");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = String::from_utf8_lossy(&o.stdout).into_owned();
+    // | terrain | band | records | step cells | even ground | at steps |
+    let rows: Vec<Vec<String>> =
+        out.lines().skip(2).map(|l| l.split('|').map(|c| c.trim().to_string()).filter(|c| !c.is_empty()).collect()).collect();
+    assert_eq!(rows.len(), 5 * 3, "{out}");
+    let sds = |c: &str| -> (f64, f64) {
+        let (r, m) = c.split_once(" / ").unwrap_or_else(|| panic!("{c} in\n{out}"));
+        (r.parse().unwrap(), m.parse().unwrap())
+    };
+    for r in &rows {
+        let (real, model) = sds(&r[4]);
+        assert!((real - 10.0).abs() < 1.0, "{out}");
+        let want = if r[0] == "flat" { 20.0 } else { 0.0 };
+        assert!((model - want).abs() < 2.0, "{out}");
+    }
+    // Stairs and pallets have step cells, and there the same sds.
+    let stairs = rows.iter().find(|r| r[0] == "stairs-up" && r[1] == "near").unwrap_or_else(|| panic!("{out}"));
+    assert!(stairs[3].trim_end_matches(" %").parse::<f64>().unwrap() > 5.0, "{out}");
+    let (real, model) = sds(&stairs[5]);
+    assert!((real - 10.0).abs() < 1.5 && model == 0.0, "{out}");
+}
