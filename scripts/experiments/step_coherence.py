@@ -20,7 +20,7 @@ import sys
 
 import numpy as np
 
-JUMP = 0.05
+from residual_bands import step_cells
 
 
 def correlation(res, mask, a, b):
@@ -39,12 +39,7 @@ def main():
     a, b = a[:n, :20], b[:n, :20]
     valid = (a[..., 1] > 0) & (b[..., 1] > 0)
     res = np.where(valid, b[..., 0] - a[..., 0], np.nan)
-    seen = a[..., 1] > 0
-    jump = np.abs(np.diff(a[..., 0], axis=1)) > JUMP
-    jump &= seen[:, 1:] & seen[:, :-1]
-    step = np.zeros_like(seen)
-    step[:, 1:] |= jump
-    step[:, :-1] |= jump
+    step = step_cells(np.where(a[..., 1] > 0, a[..., 0], np.nan))
     cells = []
     for mask in (valid & step, valid & ~step):
         s = np.s_

@@ -15,6 +15,7 @@ use dem_core::format::Dem;
 use dem_sensor::SensorModel;
 
 use crate::fit;
+use crate::held_out::HeldOut;
 use crate::load::{pick, GapConfig, Sets};
 use crate::measurement::measure_at;
 use crate::sampling::{draw_floor, real_halves, sampling_floor, sim_halves};
@@ -35,6 +36,8 @@ pub(crate) struct Comparison<'a> {
     /// Sim-side records of each half with real's statistics on it
     /// ([`comparison_halves`]).
     halves: Vec<(Vec<usize>, Stats)>,
+    /// The same halves for re-fits held out ([`HeldOut`]).
+    pub held_out: HeldOut,
     /// The records the candidates are fitted on.
     fit_sim: Vec<Dem>,
     fit_times: Option<Vec<f64>>,
@@ -52,12 +55,13 @@ impl<'a> Comparison<'a> {
         let split_floor = if paired { 0.0 } else { sampling_floor(sets) };
         let times = sets.sim_time.as_deref();
         let halves = comparison_halves(sets);
+        let held_out = HeldOut::new(sets, &halves, cfg.fit_records, cfg.seed);
         let idx = fitting_subsample(cfg, sets.sim.len());
         let fit_sim = pick(&sets.sim, &idx);
         let fit_times = times.map(|t| pick(t, &idx));
         let fit_real = if paired { distribution::stats(&pick(&sets.real, &idx), Some(&fit_sim)) } else { real.clone() };
         let subsampled = !paired && idx.len() < sets.sim.len();
-        Comparison { cfg, sets, paired, times, real, split_floor, halves, fit_sim, fit_times, fit_real, subsampled }
+        Comparison { cfg, sets, paired, times, real, split_floor, halves, held_out, fit_sim, fit_times, fit_real, subsampled }
     }
 
     /// model(sim) on all records with the draws of `seed`, and its statistics.
@@ -74,6 +78,17 @@ impl<'a> Comparison<'a> {
     /// model's own draws'.
     pub fn floor_of(&self, model: &SensorModel) -> f64 {
         self.split_floor.max(draw_floor(model, &self.sets.sim, self.times, self.paired, self.cfg.seed))
+    }
+
+    /// Whether `gap`, of `model`, is below the sampling floor: paired, the
+    /// model's draws' floor; unpaired, the split's (the draws' floor is
+    /// smaller there and costs two applications of the model).
+    pub fn below_floor(&self, model: &SensorModel, gap: f64) -> bool {
+        if self.paired {
+            gap < self.floor_of(model)
+        } else {
+            gap < self.split_floor
+        }
     }
 
     /// Statistics of model(sim) `out` on each half.

@@ -257,6 +257,7 @@ mod tests {
             gap: 0.5,
             stats: Stats { records: 0, paired: true, terms: vec![], step_coherence: None },
             short: vec![],
+            refits: vec![],
         };
         let short = [candidate(drift, 0.083), candidate(bias, 0.003), candidate(noise, 0.003), candidate(shake, 0.0)];
         // Step 1: noise 21 % (more than half of lag's 31 %) rose to 26 %

@@ -82,8 +82,11 @@ pub(crate) struct Found {
     /// When no candidate held up: the candidates of that step (best
     /// first, the refused left out), for [`crate::joint`].
     pub(crate) short: Vec<crate::state::Candidate>,
+    /// Effects re-fitted before a step below the sampling floor.
+    pub refits: Vec<Refit>,
 }
-/// An effect re-fitted after the naming loop with all others in place.
+/// An effect re-fitted with all others in place: before a step below the
+/// sampling floor, or after the naming loop.
 #[derive(Debug, Clone)]
 pub struct Refit {
     /// As named.

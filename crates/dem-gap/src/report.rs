@@ -29,9 +29,10 @@
 //! rivals the data does not order behind the named effect (`gain`: the gap
 //! the rival removes on all records in its place, `gain_on_top` added to
 //! it; the halves' gains, the rival's and the named effect's): the step
-//! names one of them, not the one. `refits`: effects re-fitted after the
-//! loop with all others in place (the final model, `sensor.json`, holds
-//! these parameters).
+//! names one of them, not the one. `refits`: effects re-fitted with all
+//! others in place, before a step below the sampling floor and after the
+//! loop, in that order (the final model, `sensor.json`, holds the last
+//! parameters of each).
 //!
 //! ```text
 //! ```
@@ -579,7 +580,7 @@ fn steps_md(s: &mut String, o: &Outcome) {
     }
     let _ = writeln!(s, "\nStopped: {}.\n", o.stop);
     if !o.refits.is_empty() {
-        let _ = writeln!(s, "Re-fitted after naming, each with all other effects in place (the final model has these):\n");
+        let _ = writeln!(s, "Re-fitted, each with all other effects in place, before a step below the sampling floor and after naming (the final model has the last of each):\n");
         for r in &o.refits {
             let edge =
                 if r.at_edge.is_empty() { String::new() } else { format!(" **at the edge of its box in {}**", r.at_edge.join(", ")) };

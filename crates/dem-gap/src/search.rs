@@ -10,7 +10,7 @@
 //! in [`crate::comparison`]; here is only what changes from step to step.
 
 use dem_core::distribution::{self, gap, Stats};
-use dem_sensor::effects::{EffectSpec, SPECS};
+use dem_sensor::effects::{spec_named, EffectSpec, SPECS};
 use dem_sensor::evidence::share_removed;
 use dem_sensor::{Effect, SensorModel};
 
@@ -62,6 +62,7 @@ pub(crate) fn name_effects(c: &Comparison, mut state: State, log: &dyn Fn(String
     let mut steps = Vec::new();
     let mut stop = format!("stopped after --max-steps {}", c.cfg.max_steps);
     let mut short = Vec::new();
+    let mut refits = Vec::new();
     for number in 1..=c.cfg.max_steps {
         let candidates = not_in(&state.model);
         if candidates.is_empty() {
@@ -76,6 +77,19 @@ pub(crate) fn name_effects(c: &Comparison, mut state: State, log: &dyn Fn(String
             break;
         }
         let step_log = StepLog { number, log };
+        // Below the sampling floor, what is left may be the misfit of the
+        // effects named so far (each fitted before the next was there),
+        // and a later effect would be named for it: on occlusion and noise
+        // made by the vocabulary's own formulas, `noise` fitted before
+        // `occlusion` left a spread that `tilt` then took. So the named
+        // effects are re-fitted with each other in place first.
+        if state.model.effects.len() > 1 && c.below_floor(&state.model, state.gap) {
+            let done = refits.len();
+            refits.extend(polish(c, &mut state.model, &mut state.gap, &mut state.stats, &|line| step_log.line(line)));
+            if refits.len() > done {
+                state.halves = c.half_stats(&c.measure(&state.model, c.cfg.seed).0);
+            }
+        }
         let ranking = rank_candidates(c, &state, &candidates, &step_log, tick);
         let trials = ranking.iter().take(2).map(|r| (r.fit.effect, state.model.with(r.fit.effect)));
         let Confirmation { added, refused } = confirm_best(c, &state, trials, &step_log);
@@ -89,7 +103,7 @@ pub(crate) fn name_effects(c: &Comparison, mut state: State, log: &dyn Fn(String
         steps.push(record_step(c, &state, &added, &ranking, refused, tied_with, &step_log));
         state = added.state;
     }
-    Found { steps, stop, model: state.model, gap: state.gap, stats: state.stats, short }
+    Found { steps, stop, model: state.model, gap: state.gap, stats: state.stats, short, refits }
 }
 
 /// The effects of the vocabulary not yet in `model`, in the vocabulary's order.
@@ -122,8 +136,9 @@ pub(crate) fn rank_candidates(c: &Comparison, state: &State, candidates: &[&Effe
 /// The first of `trials` (a candidate and the model with it, best first)
 /// that holds up on all data; the runner-up gets a chance when the best
 /// does not. A gain must exceed `min_gain` of the gap with the model's
-/// draws and again with other draws, and, where the halves decide, hold
-/// on both halves.
+/// draws and again with other draws, where the halves decide, hold on
+/// both halves, and below the sampling floor, re-fitted on either half,
+/// on the other ([`crate::held_out`]).
 pub(crate) fn confirm_best(
     c: &Comparison,
     state: &State,
@@ -139,8 +154,12 @@ pub(crate) fn confirm_best(
     // Paired, the halves decide only below the model's sampling floor
     // (measured once, when a candidate gets that far): there what
     // separates the sets may be the draws, and a gain that is an effect
-    // holds on both halves of the records.
+    // holds on both halves of the records. Below the floor the gain must
+    // also hold out.
     let mut below_floor_now: Option<bool> = None;
+    // The model's statistics on each half for the held-out check, measured
+    // once for both candidates.
+    let mut held_out_base: Option<Vec<Stats>> = None;
     for (e, trial) in trials.take(2) {
         let (out, s) = c.measure(&trial, seed);
         if let Some(why) = distribution::hides_too_much(&s, &c.real) {
@@ -174,18 +193,39 @@ pub(crate) fn confirm_best(
         let halves = c.half_stats(&out);
         let on_halves: Vec<f64> =
             c.half_gaps(&state.halves).iter().zip(c.half_gaps(&halves)).map(|(before, after)| before - after).collect();
-        let halves_decide = !c.paired || *below_floor_now.get_or_insert_with(|| state.gap < c.floor_of(&state.model));
-        if !halves_decide || on_halves.iter().all(|&x| x > 0.0) {
-            let added = Added { effect: e, state: State { model: trial, gap: g, stats: s, halves } };
-            return Confirmation { added: Some(added), refused };
+        let below_floor = *below_floor_now.get_or_insert_with(|| c.below_floor(&state.model, state.gap));
+        let halves_decide = !c.paired || below_floor;
+        if halves_decide && !on_halves.iter().all(|&x| x > 0.0) {
+            log.line(format!(
+                "{e} not added: it removes {gain:.3} of the gap, but {} on the two halves (sim half against real half): not on both (sampling, not an effect)",
+                both(&on_halves)
+            ));
+            continue;
         }
-        let why = format!(
-            "it removes {gain:.3} of the gap, but {} on the two halves (sim half against real half): not on both (sampling, not an effect)",
-            on_halves.iter().map(|x| format!("{x:.3}")).collect::<Vec<_>>().join(" and ")
-        );
-        log.line(format!("{e} not added: {why}"));
+        if below_floor {
+            let base = held_out_base.get_or_insert_with(|| c.held_out.base(&state.model));
+            let held = spec_named(e.name()).map(|spec| c.held_out.shares(spec, &state.model, base)).unwrap_or_default();
+            let percent = held.iter().map(|x| format!("{:.1}%", 100.0 * x)).collect::<Vec<_>>().join(" and ");
+            if held.iter().any(|&x| x <= c.cfg.min_gain) {
+                log.line(format!(
+                    "{e} not added: re-fitted on either half, it removes {percent} of the other half's gap (held out; needed: more than {:.0}%): it fits the records' sampling, not an effect",
+                    100.0 * c.cfg.min_gain
+                ));
+                continue;
+            }
+            if !held.is_empty() {
+                log.line(format!("{e} holds out: re-fitted on either half, it removes {percent} of the other half's gap"));
+            }
+        }
+        let added = Added { effect: e, state: State { model: trial, gap: g, stats: s, halves } };
+        return Confirmation { added: Some(added), refused };
     }
     Confirmation { added: None, refused }
+}
+
+/// Two gains, as the log gives them.
+fn both(gains: &[f64]) -> String {
+    gains.iter().map(|x| format!("{x:.3}")).collect::<Vec<_>>().join(" and ")
 }
 
 /// Why the loop stops when no candidate of a step holds up.

@@ -22,10 +22,6 @@ use super::Target;
 pub struct Prepared<'a> {
     target: &'a Target<'a>,
     base: &'a SensorModel,
-    /// Where the candidate goes in the base model.
-    at: usize,
-    /// The candidate's name.
-    name: &'static str,
     /// None when the model cannot be split there.
     split: Option<Split>,
 }
@@ -33,6 +29,10 @@ pub struct Prepared<'a> {
 /// What every parameter point of a candidate shares when the model splits
 /// at its place.
 struct Split {
+    /// Where the candidate goes in the base model.
+    at: usize,
+    /// The candidate's name.
+    name: &'static str,
     /// The sim records after `base.effects[..at]`.
     before: Vec<Dem>,
     /// Each sim record's draws of the candidate and the effects after it:
@@ -61,18 +61,18 @@ impl<'a> Prepared<'a> {
             let mut before = target.sim.to_vec();
             SensorModel { effects: first.to_vec() }.apply_all_at(&mut before, target.seed, 0, target.times);
             let drawn = rest(base, at, *probe).uniforms_of(target.seed, 0, target.sim.len());
-            Split { before, drawn }
+            Split { at, name: probe.name(), before, drawn }
         });
-        Prepared { target, base, at, name: probe.name(), split }
+        Prepared { target, base, split }
     }
 
     /// [`Target::gap`] of `base` with `e` added.
     pub fn gap(&self, e: Effect) -> f64 {
         let split = match &self.split {
-            Some(s) if place(self.base, &e) == self.at && e.name() == self.name => s,
+            Some(s) if place(self.base, &e) == s.at && e.name() == s.name => s,
             _ => return self.target.gap(&self.base.with(e)),
         };
-        let rest = rest(self.base, self.at, e);
+        let rest = rest(self.base, split.at, e);
         self.target.gap_of(&self.target.stats_after(&split.before, &rest, Some(&split.drawn)))
     }
 }
