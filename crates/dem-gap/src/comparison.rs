@@ -5,6 +5,7 @@
 //! measure against these, so they are taken once.
 
 use std::borrow::Cow;
+use std::sync::OnceLock;
 
 use rand::seq::index::sample;
 use rand::SeedableRng;
@@ -36,8 +37,9 @@ pub(crate) struct Comparison<'a> {
     /// Sim-side records of each half with real's statistics on it
     /// ([`comparison_halves`]).
     halves: Vec<(Vec<usize>, Stats)>,
-    /// The same halves for re-fits held out ([`HeldOut`]).
-    pub held_out: HeldOut,
+    /// The same halves for re-fits held out ([`Self::held_out`]), made
+    /// when a step first falls below the floor: most runs never do.
+    held_out: OnceLock<HeldOut>,
     /// The records the candidates are fitted on.
     fit_sim: Vec<Dem>,
     fit_times: Option<Vec<f64>>,
@@ -55,13 +57,25 @@ impl<'a> Comparison<'a> {
         let split_floor = if paired { 0.0 } else { sampling_floor(sets) };
         let times = sets.sim_time.as_deref();
         let halves = comparison_halves(sets);
-        let held_out = HeldOut::new(sets, &halves, cfg.fit_records, cfg.seed);
         let idx = fitting_subsample(cfg, sets.sim.len());
         let fit_sim = pick(&sets.sim, &idx);
         let fit_times = times.map(|t| pick(t, &idx));
         let fit_real = if paired { distribution::stats(&pick(&sets.real, &idx), Some(&fit_sim)) } else { real.clone() };
         let subsampled = !paired && idx.len() < sets.sim.len();
-        Comparison { cfg, sets, paired, times, real, split_floor, halves, held_out, fit_sim, fit_times, fit_real, subsampled }
+        Comparison {
+            cfg,
+            sets,
+            paired,
+            times,
+            real,
+            split_floor,
+            halves,
+            held_out: OnceLock::new(),
+            fit_sim,
+            fit_times,
+            fit_real,
+            subsampled,
+        }
     }
 
     /// model(sim) on all records with the draws of `seed`, and its statistics.
@@ -89,6 +103,11 @@ impl<'a> Comparison<'a> {
         } else {
             gap < self.split_floor
         }
+    }
+
+    /// The halves ready for held-out re-fits ([`HeldOut`]).
+    pub fn held_out(&self) -> &HeldOut {
+        self.held_out.get_or_init(|| HeldOut::new(self.sets, &self.halves, self.cfg.fit_records, self.cfg.seed))
     }
 
     /// Statistics of model(sim) `out` on each half.

@@ -79,7 +79,7 @@ impl HeldOut {
     }
 
     /// Statistics of `model` on each half's records, what the gains of a
-    /// step's candidates are measured from ([`Self::gains`]).
+    /// step's candidates are measured from ([`Self::shares`]).
     pub fn base(&self, model: &SensorModel) -> Vec<Stats> {
         self.halves.iter().map(|h| self.target(&h.sim, h.times.as_deref(), &h.real).model_stats(model)).collect()
     }

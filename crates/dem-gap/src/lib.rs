@@ -19,8 +19,8 @@
 //!    against real half k ([`sim_halves`], [`real_halves`]), and, below
 //!    the sampling floor, re-fitted on either half, remove `min_gain` of
 //!    the other half's gap (held out), so fitting which records happen to
-//!    be in the set does not pass (`confirm_best`). A close rival the data does not tell from it is
-//!    named with it ([`ties`]). Re-measure on all data, repeat; at the end
+//!    be in the set does not pass (`confirm_best`). A close rival the data
+//!    does not tell from it is named with it ([`ties`]). Re-measure on all data, repeat; at the end
 //!    each effect is re-fitted with the others in place (`polish`); with
 //!    `--joint-refit`, when the loop stopped because no candidate held up
 //!    alone, the best of them

@@ -10,7 +10,7 @@
 //! in [`crate::comparison`]; here is only what changes from step to step.
 
 use dem_core::distribution::{self, gap, Stats};
-use dem_sensor::effects::{spec_named, EffectSpec, SPECS};
+use dem_sensor::effects::{EffectSpec, SPECS};
 use dem_sensor::evidence::share_removed;
 use dem_sensor::{Effect, SensorModel};
 
@@ -203,8 +203,8 @@ pub(crate) fn confirm_best(
             continue;
         }
         if below_floor {
-            let base = held_out_base.get_or_insert_with(|| c.held_out.base(&state.model));
-            let held = spec_named(e.name()).map(|spec| c.held_out.shares(spec, &state.model, base)).unwrap_or_default();
+            let base = held_out_base.get_or_insert_with(|| c.held_out().base(&state.model));
+            let held = c.held_out().shares(e.spec(), &state.model, base);
             let percent = held.iter().map(|x| format!("{:.1}%", 100.0 * x)).collect::<Vec<_>>().join(" and ");
             if held.iter().any(|&x| x <= c.cfg.min_gain) {
                 log.line(format!(
