@@ -23,6 +23,11 @@ pub const GRID_CELLS: usize = GRID_ROWS * COLS;
 pub const GRID_LEN: usize = GRID_CELLS * CHANNELS;
 /// Edge of a grid cell in metres.
 pub const CELL: f64 = 0.1;
+/// x of the grid's back edge, metres from C (row 0 starts here).
+pub const GRID_BACK: f64 = -0.6;
+/// x of the grid's front edge, metres from C (row 19 ends here): GRID_BACK
+/// plus GRID_ROWS cells, written out so that messages print it as 1.4.
+pub const GRID_FRONT: f64 = 1.4;
 /// Index of the attitude row.
 pub const ATTITUDE_ROW: usize = 20;
 /// Height of flat ground under the robot, relative to C.
@@ -44,7 +49,7 @@ pub const fn at(row: usize, col: usize, channel: usize) -> usize {
 /// Centre of grid row `row` along x, metres from C (row 0: -0.55 m).
 #[inline]
 pub fn row_center_x(row: usize) -> f64 {
-    -0.6 + CELL * (row as f64 + 0.5)
+    GRID_BACK + CELL * (row as f64 + 0.5)
 }
 
 /// Centre of column `col` along y, metres from C (y positive to the left).

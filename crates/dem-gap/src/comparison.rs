@@ -13,6 +13,7 @@ use rand_chacha::ChaCha8Rng;
 
 use dem_core::distribution::{self, gap, Stats};
 use dem_core::format::Dem;
+use dem_sensor::effects::EffectSpec;
 use dem_sensor::SensorModel;
 
 use crate::fit;
@@ -50,6 +51,18 @@ pub(crate) struct Comparison<'a> {
 }
 
 impl<'a> Comparison<'a> {
+    /// True when the run may fit `spec`: an effect that moves whole
+    /// records only where both sides hold the same terrain mix (paired,
+    /// over pairs, drawn to one mix) or when the user asked for it.
+    pub fn fits(&self, spec: &EffectSpec) -> bool {
+        !spec.whole_record || self.whole_record_left_out().is_none()
+    }
+
+    /// Why the effects that move whole records are left out, when they are.
+    pub fn whole_record_left_out(&self) -> Option<&'static str> {
+        self.sets.unmatched_mix.filter(|_| !self.cfg.whole_record)
+    }
+
     /// The comparison of `sets` as `cfg` asks for it.
     pub fn new(cfg: &'a GapConfig, sets: &'a Sets) -> Comparison<'a> {
         let paired = sets.paired;
@@ -210,7 +223,7 @@ mod tests {
                 d
             })
             .collect();
-        let noise = SensorModel { effects: vec![Effect::Noise(Noise { sigma0: 0.004, k: 0.01 })] };
+        let noise = SensorModel::new(vec![Effect::Noise(Noise { sigma0: 0.004, k: 0.01 })]);
         let (real, _) = measure(&noise, &sim, true, 1);
         for paired in [true, false] {
             let rs = distribution::stats(&real, paired.then_some(&sim[..]));

@@ -96,7 +96,7 @@ mod tests {
         for (e, terrain, says) in cases {
             let sim = vec![terrain; 400];
             let mut real = sim.clone();
-            SensorModel { effects: vec![e] }.apply_all(&mut real, 5, 0);
+            SensorModel::new(vec![e]).apply_all(&mut real, 5, 0);
             let (model, measured) = (stats(&sim, Some(&sim)), stats(&real, Some(&sim)));
             let s = evidence(&e, &model, &model, &measured, 2.0, 1.0);
             assert!(s.contains(says), "{e}: {s}");
@@ -112,7 +112,7 @@ mod tests {
             (Effect::Drift(Drift { rate: 0.05, zrate: 0.1, x0: 0.45 }), "rows behind x0 step against each other"),
         ] {
             let mut real = sim.clone();
-            SensorModel { effects: vec![e] }.apply_all(&mut real, 5, 0);
+            SensorModel::new(vec![e]).apply_all(&mut real, 5, 0);
             let (model, measured) = (stats(&sim, None), stats(&real, None));
             let s = evidence(&e, &model, &model, &measured, 2.0, 1.0);
             assert!(s.contains(says), "{e}: {s}");

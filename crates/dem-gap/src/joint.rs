@@ -76,7 +76,7 @@ pub(crate) fn extend(c: &Comparison, found: &mut Found, refits: &mut Vec<Refit>,
     while !short.is_empty() && found.steps.len() < c.cfg.max_steps && found.gap >= NEGLIGIBLE_GAP {
         let step_log = StepLog { number: found.steps.len() + 1, log };
         let confirmed = trials(c, found, &short, &step_log, tick).and_then(|(base, base_refits, trials)| {
-            let Confirmation { added, refused } = confirm_best(c, &base, trials.iter().map(|t| (t.effect, t.model.clone())), &step_log);
+            let Confirmation { added, refused, .. } = confirm_best(c, &base, trials.iter().map(|t| (t.effect, t.model.clone())), &step_log);
             added.map(|added| (base, base_refits, trials, added, refused))
         });
         let Some((base, base_refits, trials, added, refused)) = confirmed else {
@@ -99,7 +99,7 @@ pub(crate) fn extend(c: &Comparison, found: &mut Found, refits: &mut Vec<Refit>,
         found.stats = added.state.stats.clone();
         found.stop = format!("stopped after --max-steps {}", c.cfg.max_steps);
         if found.steps.len() < c.cfg.max_steps {
-            let candidates = not_in(&found.model);
+            let candidates = not_in(c, &found.model);
             let next_log = StepLog { number: found.steps.len() + 1, log };
             short = rank_candidates(c, &added.state, &candidates, &next_log, tick);
             alone = match short.first() {
@@ -253,7 +253,7 @@ mod tests {
                 step(tilt, vec![(tilt, 0.276), (noise, 0.261), (shake, 0.238), (drift, 0.097), (bias, 0.010)]),
             ],
             stop: String::new(),
-            model: SensorModel { effects: vec![lag, tilt] },
+            model: SensorModel::new(vec![lag, tilt]),
             gap: 0.5,
             stats: Stats { records: 0, paired: true, terms: vec![], step_coherence: None },
             short: vec![],

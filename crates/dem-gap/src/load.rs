@@ -40,8 +40,16 @@ pub struct GapConfig {
     /// Smallest fraction of the gap an added effect must remove.
     pub min_gain: f64,
     /// Unpaired, with terrain labels on both sides: draw the sim records
-    /// to the real set's terrain mix first (see [`terrain_mix`]).
+    /// to the real set's terrain mix first (see [`terrain_mix`]); the
+    /// command line's default.
     pub match_terrain: bool,
+    /// Fit the effects that move whole records ([`EffectSpec::whole_record`])
+    /// also where the sets' terrain mixes are not known to match (unpaired
+    /// without both label files, or not drawn to one mix); the model then
+    /// says so in its warnings.
+    ///
+    /// [`EffectSpec::whole_record`]: dem_sensor::effects::EffectSpec::whole_record
+    pub whole_record: bool,
     /// Only the pairs of this split.
     pub split: Option<Split>,
     /// With pairs: compare the pairs' records as two sets (each record once
@@ -80,6 +88,10 @@ pub struct Sets {
     /// Unpaired over the records of pairs: each record once per pair it is
     /// in, so both sides share the pairs' terrain mix.
     pub over_pairs: bool,
+    /// Why the two sides' terrain mixes are not known to match, when they
+    /// are not (unpaired, without both label files or not drawn to one
+    /// mix); None paired, over pairs or drawn to one mix.
+    pub unmatched_mix: Option<&'static str>,
 }
 
 /// What the labels give per record.
@@ -185,14 +197,19 @@ fn pair_indices(split: Option<Split>, pp: &str, n_sim: usize, n_real: usize) -> 
 /// real's terrain mix when `cfg` asks for it and the mixes differ.
 fn unpaired_sets(cfg: &GapConfig, mut sim: Side, real: Side) -> Sets {
     let mut mix = None;
-    if let (true, Some(s), Some(r)) = (cfg.match_terrain, &sim.terrain, &real.terrain) {
-        let keep = terrain_mix(s, r, cfg.seed);
-        if !keep.iter().copied().eq(0..sim.records.len()) {
-            mix = Some((keep.len(), sim.records.len()));
-            sim = sim.pick(&keep);
+    let unmatched_mix = match (&sim.terrain, &real.terrain) {
+        (Some(s), Some(r)) if cfg.match_terrain => {
+            let keep = terrain_mix(s, r, cfg.seed);
+            if !keep.iter().copied().eq(0..sim.records.len()) {
+                mix = Some((keep.len(), sim.records.len()));
+                sim = sim.pick(&keep);
+            }
+            None
         }
-    }
-    Sets { terrain_mix: mix, ..Sets::unpaired(sim, real) }
+        (Some(_), Some(_)) => Some("the sim records were not drawn to the real set's terrain mix (--no-match-terrain-mix)"),
+        _ => Some("without both label files (--sim-labels, --real-labels) the two sets' terrain mixes cannot be matched"),
+    };
+    Sets { terrain_mix: mix, unmatched_mix, ..Sets::unpaired(sim, real) }
 }
 
 impl Sets {
@@ -210,6 +227,7 @@ impl Sets {
             sim_runs: sim.runs,
             terrain_mix: None,
             over_pairs: false,
+            unmatched_mix: None,
         }
     }
 }
@@ -237,6 +255,7 @@ fn paired_sets(sim: Side, real: Side) -> Sets {
         sim_runs: None,
         terrain_mix: None,
         over_pairs: false,
+        unmatched_mix: None,
     }
 }
 

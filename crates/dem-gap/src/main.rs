@@ -18,7 +18,8 @@ use dem_sensor::SensorModel;
 /// helps and the gap left is not negligible. What no effect explains is
 /// reported with where it lives (statistic, rows, side, terrain), and a
 /// gap below the sampling floor with the records (runs) that would show it. A fit at the edge of its
-/// search box is flagged (stderr, report.md, report.json `at_edge`); a
+/// search box is flagged (stderr, report.md, report.json `at_edge`, and
+/// the warnings of sensor.json, which an export carries into its file); a
 /// model that hides far more cells than real misses is never accepted. Writes DIR/report.json, DIR/sensor.json (usable by
 /// `dem-sensor apply`), DIR/report.md with pictures; progress on stderr.
 ///
@@ -75,9 +76,23 @@ struct Args {
     min_gain: f64,
     /// Unpaired, with both label files: draw the sim records (by --seed) to
     /// the real set's terrain mix before comparing, so that a different mix
-    /// is not read as sensor effects.
-    #[arg(long)]
+    /// is not read as sensor effects. The default with both label files;
+    /// the flag says so explicitly (and refuses to run without them).
+    #[arg(long, conflicts_with = "no_match_terrain_mix")]
     match_terrain_mix: bool,
+    /// Unpaired, with both label files: compare the sim records as they
+    /// are, whatever their terrain mix. The effects that move whole
+    /// records (bias, tilt, shake) are then left out unless
+    /// --whole-record-effects.
+    #[arg(long)]
+    no_match_terrain_mix: bool,
+    /// Fit the effects that move whole records (bias, tilt, shake) also
+    /// where the terrain mixes are not known to match (unpaired without
+    /// both label files, or with --no-match-terrain-mix). A set with more
+    /// stairs has other record means, and such an effect takes that
+    /// terrain for a sensor's error; the model's warnings say so.
+    #[arg(long)]
+    whole_record_effects: bool,
     /// With --pairs: only the pairs of this split (train or val).
     #[arg(long, value_enum)]
     split: Option<Split>,
@@ -156,7 +171,8 @@ fn main() -> ExitCode {
             seed: a.seed,
             fit_records: a.fit_records,
             min_gain: a.min_gain,
-            match_terrain: a.match_terrain_mix,
+            match_terrain: !a.no_match_terrain_mix,
+            whole_record: a.whole_record_effects,
             split: a.split,
             over_pairs: a.unpaired,
             joint_refit: a.joint_refit,

@@ -176,7 +176,7 @@ pub struct Outcome {
 /// with the effects `refits` re-fitted.
 pub(crate) fn finish(c: Comparison, start: Start, found: Found, refits: Vec<Refit>, log: &dyn Fn(String)) -> Outcome {
     let (cfg, sets) = (c.cfg, c.sets);
-    let Found { steps, stop, model, gap: gap_final, stats: final_stats, .. } = found;
+    let Found { steps, stop, mut model, gap: gap_final, stats: final_stats, .. } = found;
     // The parameters were searched with the seed's draws and each step
     // checked with `other_draws`: where the effects are random (holes,
     // blobs), the gap on those draws includes the luck the search found.
@@ -193,6 +193,7 @@ pub(crate) fn finish(c: Comparison, start: Start, found: Found, refits: Vec<Refi
     if let Some(m) = &more_data {
         log(m.sentence(sets.real.len(), sets.sim.len()));
     }
+    model.warnings = warnings(&c, &model, &steps, &refits, &record_kinds);
     Outcome {
         steps,
         gap_initial: start.gap,
@@ -215,6 +216,44 @@ pub(crate) fn finish(c: Comparison, start: Start, found: Found, refits: Vec<Refi
         missing_bands: left.missing_bands,
         record_kinds,
     }
+}
+
+/// Why the final `model` may not be the sensor's, one sentence each, for
+/// its file's metadata: sets of different terrain, an effect that moves
+/// whole records fitted where the mixes are not known to match, effects
+/// whose fit (as named or re-fitted) ended at the edge of its box.
+fn warnings(c: &Comparison, model: &SensorModel, steps: &[Step], refits: &[Refit], kinds: &mix::RecordKinds) -> Vec<String> {
+    let mut w = Vec::new();
+    if kinds.differs() {
+        w.push(kinds.sentence());
+    }
+    if let Some(why) = c.sets.unmatched_mix.filter(|_| !c.paired) {
+        let whole: Vec<&str> = model.effects.iter().filter(|e| e.spec().whole_record).map(|e| e.name()).collect();
+        if !whole.is_empty() {
+            w.push(format!(
+                "{} move whole records and were fitted on sets whose terrain mixes are not known to match ({why})",
+                whole.join(", ")
+            ));
+        }
+    }
+    // The model holds each effect as last re-fitted: a re-fit's edge, else
+    // the step's.
+    let edges: Vec<String> = model
+        .effects
+        .iter()
+        .filter_map(|e| {
+            let refit = refits.iter().rev().find(|r| r.after.name() == e.name()).map(|r| &r.at_edge);
+            let at = refit.or_else(|| steps.iter().find(|s| s.effect.name() == e.name()).map(|s| &s.at_edge))?;
+            (!at.is_empty()).then(|| format!("{} ({})", e.name(), at.join(", ")))
+        })
+        .collect();
+    if !edges.is_empty() {
+        w.push(format!(
+            "fitted at the edge of the search box, widened to the physical limits: {}; such an effect is the closest of the vocabulary, not a measurement",
+            edges.join(", ")
+        ));
+    }
+    w
 }
 
 /// Mean paired equation 7.1 error of sim, the start model(sim) and

@@ -31,8 +31,12 @@ pub const NEGLIGIBLE_GAP: f64 = 0.05;
 /// What confirming a step's best candidates gave.
 pub(crate) struct Confirmation {
     pub added: Option<Added>,
-    /// Candidates whose model hides far more cells than real misses.
+    /// Candidates whose model hides far more cells than real misses, or
+    /// moves level records as a whole more than real's move, with the reason.
     pub refused: Vec<(Effect, String)>,
+    /// The candidates refused for moving level records: fitted to the
+    /// gap of the same sets, they are not fitted again in later steps.
+    pub moves_level: Vec<&'static str>,
 }
 
 /// The start model as measured, said in the log's first line, and the
@@ -52,6 +56,12 @@ pub(crate) fn measure_start(c: &Comparison, log: &dyn Fn(String)) -> (Start, Sta
         model.summary(),
         if gap_initial < floor_initial { format!("; {}", below_floor(gap_initial, floor_initial)) } else { String::new() }
     ));
+    if let Some(why) = c.whole_record_left_out() {
+        log(format!(
+            "{why}: the effects that move whole records ({}) are left out (--whole-record-effects fits them)",
+            whole_record_names()
+        ));
+    }
     let start = Start { gap: gap_initial, floor: floor_initial, stats: stats.clone() };
     (start, State { model, gap: gap_initial, stats, halves })
 }
@@ -63,8 +73,9 @@ pub(crate) fn name_effects(c: &Comparison, mut state: State, log: &dyn Fn(String
     let mut stop = format!("stopped after --max-steps {}", c.cfg.max_steps);
     let mut short = Vec::new();
     let mut refits = Vec::new();
+    let mut moves_level: Vec<&'static str> = Vec::new();
     for number in 1..=c.cfg.max_steps {
-        let candidates = not_in(&state.model);
+        let candidates: Vec<_> = not_in(c, &state.model).into_iter().filter(|s| !moves_level.contains(&s.name)).collect();
         if candidates.is_empty() {
             stop = "every effect of the vocabulary is in the model".into();
             break;
@@ -91,8 +102,9 @@ pub(crate) fn name_effects(c: &Comparison, mut state: State, log: &dyn Fn(String
             }
         }
         let ranking = rank_candidates(c, &state, &candidates, &step_log, tick);
-        let trials = ranking.iter().take(2).map(|r| (r.fit.effect, state.model.with(r.fit.effect)));
-        let Confirmation { added, refused } = confirm_best(c, &state, trials, &step_log);
+        let trials = ranking.iter().map(|r| (r.fit.effect, state.model.with(r.fit.effect)));
+        let Confirmation { added, refused, moves_level: more } = confirm_best(c, &state, trials, &step_log);
+        moves_level.extend(more);
         let Some(added) = added else {
             stop = nothing_holds(c.cfg.min_gain, c.paired, &ranking, state.gap, &refused);
             log(stop.clone());
@@ -106,9 +118,15 @@ pub(crate) fn name_effects(c: &Comparison, mut state: State, log: &dyn Fn(String
     Found { steps, stop, model: state.model, gap: state.gap, stats: state.stats, short, refits }
 }
 
-/// The effects of the vocabulary not yet in `model`, in the vocabulary's order.
-pub(crate) fn not_in(model: &SensorModel) -> Vec<&'static EffectSpec> {
-    SPECS.iter().copied().filter(|s| !model.effects.iter().any(|e| e.name() == s.name)).collect()
+/// The names of the effects that move whole records, comma-separated.
+pub(crate) fn whole_record_names() -> String {
+    SPECS.iter().filter(|s| s.whole_record).map(|s| s.name).collect::<Vec<_>>().join(", ")
+}
+
+/// The effects of the vocabulary not yet in `model` that this comparison
+/// may fit ([`Comparison::fits`]), in the vocabulary's order.
+pub(crate) fn not_in(c: &Comparison, model: &SensorModel) -> Vec<&'static EffectSpec> {
+    SPECS.iter().copied().filter(|s| c.fits(s) && !model.effects.iter().any(|e| e.name() == s.name)).collect()
 }
 
 /// Fit each of `candidates` on top of the model on the fitting subsample;
@@ -135,7 +153,8 @@ pub(crate) fn rank_candidates(c: &Comparison, state: &State, candidates: &[&Effe
 
 /// The first of `trials` (a candidate and the model with it, best first)
 /// that holds up on all data; the runner-up gets a chance when the best
-/// does not. A gain must exceed `min_gain` of the gap with the model's
+/// does not (a candidate refused for moving level records as a whole
+/// does not count: the next one gets its chance). A gain must exceed `min_gain` of the gap with the model's
 /// draws and again with other draws, where the halves decide, hold on
 /// both halves, and below the sampling floor, re-fitted on either half,
 /// on the other ([`crate::held_out`]).
@@ -160,8 +179,26 @@ pub(crate) fn confirm_best(
     // The model's statistics on each half for the held-out check, measured
     // once for both candidates.
     let mut held_out_base: Option<Vec<Stats>> = None;
-    for (e, trial) in trials.take(2) {
+    let mut tried = 0;
+    let mut moves_level = Vec::new();
+    for (e, trial) in trials {
+        if tried == 2 {
+            break;
+        }
         let (out, s) = c.measure(&trial, seed);
+        // Paired, the residuals show a record-wide move record by record;
+        // unpaired, level records are where it shows.
+        if let Some(why) = (e.spec().whole_record && !c.paired)
+            .then(|| crate::mix::LevelPlanes::of(&c.sets.sim, &out, &c.sets.real))
+            .flatten()
+            .and_then(|l| l.too_wide())
+        {
+            log.line(format!("{e} refused: {why}"));
+            refused.push((e, why));
+            moves_level.push(e.name());
+            continue;
+        }
+        tried += 1;
         if let Some(why) = distribution::hides_too_much(&s, &c.real) {
             log.line(format!("{e} refused: {why}"));
             refused.push((e, why));
@@ -218,9 +255,9 @@ pub(crate) fn confirm_best(
             }
         }
         let added = Added { effect: e, state: State { model: trial, gap: g, stats: s, halves } };
-        return Confirmation { added: Some(added), refused };
+        return Confirmation { added: Some(added), refused, moves_level };
     }
-    Confirmation { added: None, refused }
+    Confirmation { added: None, refused, moves_level }
 }
 
 /// Two gains, as the log gives them.

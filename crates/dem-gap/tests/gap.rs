@@ -132,9 +132,26 @@ fn hidden_smoothing() {
     single("smoothing", "smoothing:w=0.37", &[("w", 0.37, None)]);
 }
 
+/// `bias` moves whole records: paired, and unpaired when asked for
+/// (without labels the terrain mixes are not known to match), it is named;
+/// unpaired without the flag it is left out, and the log says why.
 #[test]
 fn hidden_bias() {
-    single("bias", "bias:b=0.017,t=-0.041", &[("b", 0.017, None), ("t", -0.041, None)]);
+    let want = [("b", 0.017, None), ("t", -0.041, None)];
+    let dir = tempdir();
+    let (sim, pairs) = setup(dir.path());
+    let real = hide(dir.path(), &sim, "real.npy", &["bias:b=0.017,t=-0.041"]);
+    check_single(&gap(dir.path(), &sim, &real, Some(&pairs), &[], "paired"), "bias", &want);
+    let asked = gap(dir.path(), &sim, &real, None, &["--whole-record-effects"], "asked");
+    check_single(&asked, "bias", &want);
+    let model = std::fs::read_to_string(dir.path().join("asked/sensor.json")).unwrap();
+    assert!(model.contains("move whole records and were fitted on sets whose terrain mixes are not known to match"), "{model}");
+    let out = arg(dir.path(), "left-out");
+    let o = run("dem-gap", &["--sim", &sim, "--real", &real, "--out", &out, "--seed", "3", "--max-steps", "1"], None);
+    ok(&o);
+    assert!(stderr(&o).contains("the effects that move whole records (bias, tilt, shake) are left out"), "{}", stderr(&o));
+    let r: Value = serde_json::from_str(&std::fs::read_to_string(Path::new(&out).join("report.json")).unwrap()).unwrap();
+    assert!(!names(&r).contains(&"bias".to_string()), "{r:#}");
 }
 
 #[test]
@@ -411,7 +428,7 @@ fn two_hidden_effects_are_both_named() {
     assert_eq!(names(&r).len(), 2, "{r:#}");
 
     let real = hide(dir.path(), &sim, "real2.npy", &["bias:b=-0.013,t=0.02", "dropout:p=0.09"]);
-    let r = gap(dir.path(), &sim, &real, None, &[], "unpaired");
+    let r = gap(dir.path(), &sim, &real, None, &["--whole-record-effects"], "unpaired");
     both_first_rest_weak(&r, ["bias", "dropout"]);
     assert_eq!(names(&r).len(), 2, "{r:#}");
 }
@@ -680,11 +697,13 @@ fn the_motion_stages_are_named_paired() {
     }
 }
 
-/// `--match-terrain-mix`: real holds only the stairs-up records of sim, so
-/// the sim side is drawn to stairs up alone, says so in both reports, and
-/// the same sets without the flag or with one mix compare as they are.
+/// With both label files the sim side is drawn to real's terrain mix (by
+/// default, and with `--match-terrain-mix`): real holds only the
+/// stairs-up records of sim, so the sim side is drawn to stairs up alone,
+/// says so in both reports, and the same sets with
+/// `--no-match-terrain-mix` or with one mix compare as they are.
 #[test]
-fn sim_is_drawn_to_the_real_terrain_mix_when_asked() {
+fn sim_is_drawn_to_the_real_terrain_mix() {
     let dir = tempdir();
     let (sim, _) = setup(dir.path());
     dem_testkit::py(
@@ -713,8 +732,13 @@ fn sim_is_drawn_to_the_real_terrain_mix_when_asked() {
     // Every compared sim record is stairs up: the per-terrain table has one row.
     assert_eq!(md.matches("| stairs-up |").count(), 1, "{md}");
     assert!(!md.contains("| flat |"), "{md}");
-    let plain = gap(dir.path(), &sim, &up, None, &labels, "plain");
+    let by_default = gap(dir.path(), &sim, &up, None, &labels, "default");
+    assert_eq!(by_default["terrain_mix"], drawn["terrain_mix"], "drawn by default");
+    let plain = gap(dir.path(), &sim, &up, None, &[&labels[..], &["--no-match-terrain-mix"]].concat(), "plain");
     assert!(plain["terrain_mix"].is_null());
+    // Not drawn to one mix: the effects that move whole records are left out.
+    let md = std::fs::read_to_string(dir.path().join("plain/sensor.json")).unwrap();
+    assert!(!md.contains("\"bias\"") && !md.contains("\"tilt\"") && !md.contains("\"shake\""), "{md}");
     let one_mix = ["--sim-labels", ul.as_str(), "--real-labels", ul.as_str(), "--max-steps", "1", "--match-terrain-mix"];
     let same = gap(dir.path(), &up, &up, None, &one_mix, "same");
     assert!(same["terrain_mix"].is_null(), "one mix: nothing drawn");

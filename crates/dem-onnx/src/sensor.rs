@@ -127,6 +127,7 @@ impl Stored {
         let mut m = Vec::new();
         if let Some(r) = &self.residual {
             m.push((RESIDUAL_KEY.to_string(), serde_json::to_string(r).expect("a model serialises")));
+            m.extend(sensor_graph::warning_metadata(r));
         }
         if self.heights != Heights::Network {
             m.push((HEIGHTS_KEY.to_string(), self.heights.to_string()));

@@ -41,6 +41,12 @@ pub const MAX_EFFECTS: usize = 64;
 pub struct SensorModel {
     /// The effects, in the order they act on a DEM.
     pub effects: Vec<Effect>,
+    /// Why the model may not be the sensor's, one sentence each (dem-gap
+    /// writes them: a fit at the edge of its box, sets of different
+    /// terrain); an export carries them into the file's metadata, so
+    /// `dem-apply --info` shows them. Not part of what the model does.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
 }
 
 /// The random stream of one effect on one record: keyed by the seed, the
@@ -56,6 +62,11 @@ pub fn effect_rng(seed: u64, effect: &Effect, occurrence: u64, record: u64) -> C
 }
 
 impl SensorModel {
+    /// The model of `effects`, in that order, without warnings.
+    pub fn new(effects: Vec<Effect>) -> Self {
+        SensorModel { effects, warnings: Vec::new() }
+    }
+
     /// Read a model from a JSON file, checking every parameter.
     pub fn read(path: &str) -> Result<Self> {
         let text = std::fs::read_to_string(path).map_err(|source| DemError::Open { path: path.into(), source })?;
@@ -98,7 +109,7 @@ impl SensorModel {
         let mut effects = self.effects.clone();
         let at = effects.iter().position(|x| x.stage() > e.stage()).unwrap_or(effects.len());
         effects.insert(at, e);
-        SensorModel { effects }
+        SensorModel { effects, warnings: self.warnings.clone() }
     }
 
     /// The model with only the effects named in `names` (in the model's
@@ -112,7 +123,8 @@ impl SensorModel {
                 return Err(format!("the model has no {n} effect (it has: {})", have.join(", ")));
             }
         }
-        Ok(SensorModel { effects: self.effects.iter().filter(|e| names.iter().any(|n| n == e.name())).cloned().collect() })
+        let effects = self.effects.iter().filter(|e| names.iter().any(|n| n == e.name())).cloned().collect();
+        Ok(SensorModel { effects, warnings: self.warnings.clone() })
     }
 
     /// Apply every effect to record number `index` of a stream, in order.
@@ -377,10 +389,20 @@ mod tests {
                 Effect::Noise(Noise { sigma0: 0.003, k: 0.01 }),
                 Effect::Dropout(Dropout { p: 0.1 }),
             ],
+            warnings: vec!["fitted at the edge of its box: noise (k)".into()],
         };
         let back = SensorModel::from_json(&m.to_json()).unwrap();
         assert_eq!(back, m);
         assert!(m.to_json().contains("\"effect\": \"occlusion\""));
+        // Without warnings the file is what it was before models had them.
+        let plain = SensorModel::new(m.effects.clone());
+        assert!(!plain.to_json().contains("warnings"), "{}", plain.to_json());
+        // Inside MAX_PARAM and the effect's own rule, outside its physical box.
+        let e = SensorModel::from_json(r#"{"effects":[{"effect":"tilt","params":{"pitch":0.01,"roll":0.01,"x0":0.2,"range":10.0}}]}"#)
+            .unwrap_err();
+        assert!(e.contains("effect 0 (tilt): range = 10 is outside its physical box 0..=3"), "{e}");
+        let e = SensorModel::from_json(r#"{"effects":[{"effect":"occlusion","params":{"h":1.15,"x0":-1.0}}]}"#).unwrap_err();
+        assert!(e.contains("x0 = -1 is outside its physical box -0.6..=1.4"), "{e}");
         assert!(SensorModel::from_json(r#"{"effects":[{"effect":"dropout","params":{"p":1.5}}]}"#).is_err());
         assert!(SensorModel::from_json(r#"{"effects":[{"effect":"blur","params":{}}]}"#).is_err());
         assert!(SensorModel::from_json(r#"{"effects":[{"effect":"fov","params":{"x_min":1.0,"x_max":0.0}}]}"#).is_err());
@@ -411,6 +433,7 @@ mod tests {
                 Effect::Dropout(Dropout { p: 0.3 }),
                 Effect::RowDropout(RowDropout { p: 0.2 }),
             ],
+            warnings: Vec::new(),
         };
         let mut all = vec![flat; 50];
         m.apply_all(&mut all, 7, 0);

@@ -22,7 +22,7 @@ use dem_sensor::{apply_shard_emit, SensorModel};
   dem-apply --model gy.onnx sim.npy | dem-sensor apply --sensor gap/sensor.json --only startup \
       --labels sim_labels.csv -o realistic.npy
   dem-sensor show --sensor sensor.json        # the effects, one a line
-  dem-sensor effects                          # the vocabulary: effect,family,stage,draws,params,emulator_stages
+  dem-sensor effects                          # the vocabulary: effect,family,stage,draws,params,emulator_stages,limits
   dem-sensor export --sensor gap/sensor.json -o sensor.onnx   # one ONNX graph: dem, uniform, time -> dem_out
   dem-sensor apply --sensor sensor.json --seed 1 --emit-uniform u.npy sim.npy -o out.npy   # sensor.onnx fed u.npy gives out.npy
   dem-split --shards 4 --out part sim.npy | tail -n +2 | while IFS=, read shard first n; do
@@ -167,6 +167,9 @@ fn main() -> ExitCode {
             let mut out = std::io::stdout().lock();
             for e in &m.effects {
                 writeln!(out, "{e}")?;
+            }
+            for w in &m.warnings {
+                dem_core::cli::log(format_args!("warning: {w}"));
             }
             Ok(())
         }

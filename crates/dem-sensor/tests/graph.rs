@@ -77,7 +77,7 @@ fn every_effect_alone_computes_the_same_in_the_graph() {
     let names: std::collections::BTreeSet<&str> = effects.iter().map(Effect::name).collect();
     assert_eq!(names.len(), dem_sensor::effects::NAMES.len(), "every effect of the vocabulary is checked");
     for e in effects {
-        let model = SensorModel { effects: vec![e] };
+        let model = SensorModel::new(vec![e]);
         let before = records();
         let mut after = before.clone();
         model.apply_all_at(&mut after, 9, 0, None);
@@ -116,8 +116,7 @@ fn a_model_of_several_effects_computes_the_same_in_the_graph() {
 
 #[test]
 fn the_graph_says_what_its_inputs_are() {
-    let model =
-        SensorModel { effects: vec![Effect::Noise(Noise { sigma0: 0.01, k: 0.0 }), Effect::Startup(Startup { x0: 0.3, v: 0.2, p: 0.1 })] };
+    let model = SensorModel::new(vec![Effect::Noise(Noise { sigma0: 0.01, k: 0.0 }), Effect::Startup(Startup { x0: 0.3, v: 0.2, p: 0.1 })]);
     let proto = graph::sensor_model(&model, "s", &[]);
     let names: Vec<&str> = proto.graph.as_ref().unwrap().input.iter().map(|i| i.name.as_str()).collect();
     assert_eq!(names, ["dem", "uniform", "time"]);
@@ -125,7 +124,7 @@ fn the_graph_says_what_its_inputs_are() {
     assert!(meta.contains(&("dem.uniform_count", "102")), "{meta:?}");
     assert!(meta.contains(&("dem.inputs", "dem,uniform,time")), "{meta:?}");
     assert!(proto.doc_string.contains("uniform float32 (N,102)") && proto.doc_string.contains("NaN where unknown"), "{}", proto.doc_string);
-    let det = SensorModel { effects: vec![Effect::Bias(Bias { b: 0.01, t: 0.0 })] };
+    let det = SensorModel::new(vec![Effect::Bias(Bias { b: 0.01, t: 0.0 })]);
     let names: Vec<String> = graph::sensor_model(&det, "s", &[]).graph.unwrap().input.iter().map(|i| i.name.clone()).collect();
     assert_eq!(names, ["dem"], "a model without draws or time takes the DEM alone");
 }

@@ -56,7 +56,7 @@ fn parameters_round_trip_through_values_params_and_json() {
         let values: Vec<f64> = params.iter().map(|p| p.1).collect();
         assert_eq!(Effect::from_values(spec.name, &values), Some(e), "{}", spec.name);
         assert_eq!(Effect::from_values(spec.name, &values[..values.len() - 1]), None, "{}: one value short", spec.name);
-        let model = SensorModel { effects: vec![e] };
+        let model = SensorModel::new(vec![e]);
         let json = model.to_json();
         assert_eq!(SensorModel::from_json(&json), Ok(model), "{}", spec.name);
         let parsed: serde_json::Value = serde_json::from_str(&json).unwrap();
@@ -194,7 +194,11 @@ fn the_emulator_stages_are_the_specs_and_the_docs_table() {
     }
     let csv = dem_sensor::effects::csv();
     assert_eq!(csv.lines().count(), SPECS.len() + 1);
-    assert!(csv.contains("\nstep-jitter,steps,registration,100,sigma edge,vibration\n"), "{csv}");
+    assert!(csv.contains("\nstep-jitter,steps,registration,100,sigma edge,vibration,sigma=0..0.1 edge=0..1\n"), "{csv}");
+    assert!(
+        csv.contains("\ntilt,heights,registration,2,pitch roll x0 range,extrinsic,pitch=0..0.2 roll=0..0.2 x0=-0.6..1.45 range=0..3\n"),
+        "{csv}"
+    );
 }
 
 /// `params` of the wrong type gets serde's wording for a struct variant,

@@ -275,6 +275,36 @@ fn the_readme_quickstart_runs() {
     }
 }
 
+/// The file `make demo` hands out is a product: its steps that make it
+/// (preparation, G_Y, the virtual sensor) run as the demo runs them, and
+/// the virtual sensor meets every goal `scripts/sensor_goals.py --goals
+/// demo` checks on testdata's measured DEMs of the same poses (heights,
+/// roughness, the spread of record means, whole-row holes, whole-record
+/// lifts), which the demo's last lines report.
+#[test]
+fn the_demo_s_virtual_sensor_meets_its_goals() {
+    let dir = tempdir();
+    let root = workspace_root();
+    let bin_dir = bin("dem-apply").parent().unwrap().to_path_buf();
+    let o = Command::new("bash")
+        .arg(root.join("scripts/demo_fast.sh"))
+        .args(["prep", "train", "sensor"])
+        .current_dir(&root)
+        .env("BIN", &bin_dir)
+        .env("OUT", dir.path())
+        .env("PY", python())
+        .env("TD", root.join("testdata"))
+        .output()
+        .unwrap();
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "the demo's sensor steps failed ({}):\n{out}\n{}", o.status, String::from_utf8_lossy(&o.stderr));
+    let goals = std::fs::read_to_string(dir.path().join("virtual_sensor_goals.txt")).unwrap();
+    let lines: Vec<&str> = goals.lines().filter(|l| l.starts_with("goal (demo)")).collect();
+    assert_eq!(lines.len(), 5, "{goals}");
+    assert!(lines.iter().all(|l| l.ends_with(": ok")), "the demo's virtual sensor misses a goal:\n{goals}");
+    assert!(dir.path().join("virtual_sensor.onnx").exists());
+}
+
 #[test]
 fn the_readme_pipeline_runs() {
     let s = Scratch::new();

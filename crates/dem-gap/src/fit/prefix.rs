@@ -47,7 +47,7 @@ fn place(base: &SensorModel, e: &Effect) -> usize {
 
 /// `e` followed by the effects of `base` from `at` on.
 fn rest(base: &SensorModel, at: usize, e: Effect) -> SensorModel {
-    SensorModel { effects: std::iter::once(e).chain(base.effects[at..].iter().cloned()).collect() }
+    SensorModel::new(std::iter::once(e).chain(base.effects[at..].iter().cloned()).collect())
 }
 
 impl<'a> Prepared<'a> {
@@ -59,7 +59,7 @@ impl<'a> Prepared<'a> {
         let shared = later.iter().chain(std::iter::once(probe)).any(|l| first.iter().any(|f| f.name() == l.name()));
         let split = (!shared).then(|| {
             let mut before = target.sim.to_vec();
-            SensorModel { effects: first.to_vec() }.apply_all_at(&mut before, target.seed, 0, target.times);
+            SensorModel::new(first.to_vec()).apply_all_at(&mut before, target.seed, 0, target.times);
             let drawn = rest(base, at, *probe).uniforms_of(target.seed, 0, target.sim.len());
             Split { at, name: probe.name(), before, drawn }
         });
@@ -105,7 +105,7 @@ mod tests {
     fn the_split_model_gives_the_whole_model_s_gap_bit_for_bit() {
         let sim = records(40);
         let mut real_recs = sim.clone();
-        SensorModel { effects: vec![Effect::Noise(Noise { sigma0: 0.004, k: 0.01 }), Effect::Dropout(Dropout { p: 0.1 })] }.apply_all(
+        SensorModel::new(vec![Effect::Noise(Noise { sigma0: 0.004, k: 0.01 }), Effect::Dropout(Dropout { p: 0.1 })]).apply_all(
             &mut real_recs,
             9,
             0,

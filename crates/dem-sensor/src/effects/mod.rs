@@ -168,13 +168,17 @@ pub fn modelling(stage: &str) -> Vec<&'static str> {
 }
 
 /// The vocabulary as CSV, one effect a line in the vocabulary's order:
-/// `effect,family,stage,draws,params,emulator_stages`, lists separated by
-/// spaces.
+/// `effect,family,stage,draws,params,emulator_stages,limits`, lists
+/// separated by spaces; `limits` each parameter's physical box
+/// (`name=lo..hi`, [`ParamSpec::limit`]), which every model is held to.
 pub fn csv() -> String {
-    let mut out = String::from("effect,family,stage,draws,params,emulator_stages\n");
+    let mut out = String::from("effect,family,stage,draws,params,emulator_stages,limits\n");
     for s in SPECS {
         let params: Vec<&str> = s.params.iter().map(|p| p.name).collect();
-        let line = [s.name, s.family.name(), s.stage.name(), &s.draws.to_string(), &params.join(" "), &s.emulator.join(" ")].join(",");
+        let limits: Vec<String> = s.params.iter().map(|p| format!("{}={}..{}", p.name, p.limit.lo, p.limit.hi)).collect();
+        let line =
+            [s.name, s.family.name(), s.stage.name(), &s.draws.to_string(), &params.join(" "), &s.emulator.join(" "), &limits.join(" ")]
+                .join(",");
         out.push_str(&line);
         out.push('\n');
     }
@@ -272,6 +276,12 @@ pub struct EffectSpec {
     pub formula: &'static str,
     /// Its parameters, in [`Effect::params`] order.
     pub params: &'static [ParamSpec],
+    /// It moves every valid cell of a record together by one draw or one
+    /// constant (an offset or a plane: `bias`, `tilt`, `shake`). Fitted
+    /// between sets of different terrain, such an effect stands in for the
+    /// terrain (a set with more stairs has other record means), so dem-gap
+    /// fits it only where both sides hold the same terrain mix.
+    pub whole_record: bool,
     /// Its place in the physical chain.
     pub stage: Stage,
     /// The stages of dem-synth's emulator ([`EMULATOR_STAGES`]) whose
@@ -543,7 +553,22 @@ impl Effect {
         if let Some((n, v)) = self.params().into_iter().find(|(_, v)| v.abs() > MAX_PARAM) {
             return Err(format!("{n} = {v:e} is outside -{MAX_PARAM}..={MAX_PARAM} (the grid spans 2 m; no sensor effect is that large)"));
         }
-        self.check_own()
+        self.check_own()?;
+        self.check_physical()
+    }
+
+    /// Every parameter inside its physical box ([`ParamSpec::limit`]):
+    /// what the sensor can do, whoever wrote the file (dem-gap's search
+    /// never leaves the box; a hand-written or edited model is held to it
+    /// alike by every tool that reads one).
+    fn check_physical(&self) -> Result<(), String> {
+        for (p, (n, v)) in self.spec().params.iter().zip(self.params()) {
+            let Limit { lo, hi, .. } = p.limit;
+            if !(lo..=hi).contains(&v) {
+                return Err(format!("{n} = {v} is outside its physical box {lo}..={hi} ({})", p.doc));
+            }
+        }
+        Ok(())
     }
 
     /// Apply to one DEM, drawing this effect's uniforms from `rng`

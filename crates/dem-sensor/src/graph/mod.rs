@@ -103,6 +103,7 @@ pub fn sensor_model(model: &SensorModel, name: &str, extra_metadata: &[(String, 
     let mut metadata = vec![(GRAPH_KEY.to_string(), GRAPH_SENSOR_ONLY.to_string())];
     metadata.extend(io_metadata(model));
     metadata.push((RESIDUAL_JSON_KEY.into(), serde_json::to_string(model).expect("a model serialises")));
+    metadata.extend(warning_metadata(model));
     metadata.extend_from_slice(extra_metadata);
     let doc = format!(
         "dem-tools virtual sensor of named effects ({}), no network. Inputs: {}. Output: dem_out float32 (N,21,5,2), \
@@ -111,6 +112,16 @@ pub fn sensor_model(model: &SensorModel, name: &str, extra_metadata: &[(String, 
         input_list(model)
     );
     b.model(name, graph_inputs(model), vec![dem_graph::batch_value(OUTPUT, &[21, 5, 2])], doc, &metadata)
+}
+
+/// The `metadata_props` key of a model's warnings ([`SensorModel::warnings`]),
+/// one a line: `dem-apply --info` prints them under it.
+pub const WARNINGS_KEY: &str = "dem.warnings";
+
+/// [`WARNINGS_KEY`] with `model`'s warnings, one a line; nothing when it
+/// has none.
+pub fn warning_metadata(model: &SensorModel) -> Option<(String, String)> {
+    (!model.warnings.is_empty()).then(|| (WARNINGS_KEY.to_string(), model.warnings.join("\n")))
 }
 
 /// The `metadata_props` key that says what a dem-tools graph holds.

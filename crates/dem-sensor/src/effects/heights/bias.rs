@@ -25,6 +25,7 @@ impl EffectKind for Bias {
         emulator: &[],
         formula: "h += b + t x",
         params: Self::PARAMS,
+        whole_record: true,
         stage: Stage::Registration,
         draws: 0,
     };

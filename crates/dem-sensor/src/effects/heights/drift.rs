@@ -34,6 +34,7 @@ impl EffectKind for Drift {
             last row behind x0 (xi_j, zeta_j the normals of Box-Muller pair j); h'(x) = h(x - dx) + dz by shift_rows; rows from x0 \
             on are left alone: the map registers older frames at a believed pose that walks at random per metre travelled",
         params: Self::PARAMS,
+        whole_record: false,
         stage: Stage::Pose,
         // A Box-Muller pair per row: its x and its height step.
         draws: 2 * GRID_ROWS,
@@ -60,7 +61,7 @@ impl EffectKind for Drift {
     }
 
     fn examples() -> Vec<Self> {
-        vec![Drift { rate: 0.08, zrate: 0.03, x0: 0.4 }, Drift { rate: 2.0, zrate: 0.0, x0: 2.0 }]
+        vec![Drift { rate: 0.08, zrate: 0.03, x0: 0.4 }, Drift { rate: 1.0, zrate: 0.0, x0: 1.45 }]
     }
 }
 

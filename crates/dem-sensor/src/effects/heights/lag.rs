@@ -32,6 +32,7 @@ impl EffectKind for Lag {
             row 20 column 0 (clamped to +-MAX_CLIMB_PITCH, 0 if not finite): the DEM is the map of a frame s_r / v old, cut at that \
             older pose. See shift_rows for the interpolation; validity is kept",
         params: Self::PARAMS,
+        whole_record: false,
         stage: Stage::Pose,
         draws: 1,
     };

@@ -37,8 +37,12 @@ pub const ROUND_UP_FROM: f64 = 0.501;
 /// Largest sd (rad) of `tilt`'s pitch and roll and of `shake`'s `sigma`:
 /// a calibration or a body that far off (29 degrees) is no sensor effect.
 pub const MAX_TILT: f64 = 0.5;
-/// Largest `range` (m) of `tilt`: a depth camera's useful range.
-pub const MAX_TILT_RANGE: f64 = 10.0;
+/// Largest `range` (m) of `tilt`: the farthest depth the camera measures
+/// (dem-synth's RealSense-like camera, `range_max` 3 m; a D435's depth
+/// error at 3 m is already about 2 % of the range, and elevation maps
+/// built from it discard farther points). A cell seen from no farther
+/// than this has no longer lever for an angle: 1 degree lifts it 5 cm.
+pub const MAX_TILT_RANGE: f64 = 3.0;
 /// The rows under the tracks whose x-neighbour steps `shake` reads: rows
 /// 2..=9, centres from x = -0.35 to 0.35 m (tracks 0.7 m long about C).
 pub const TRACK_ROWS: (usize, usize) = (2, 9);

@@ -27,6 +27,7 @@ impl EffectKind for Noise {
         formula: "h += sigma z, z a standard normal (Box-Muller, crate::draws), sigma = sigma0 + k d^2, d = distance from the nominal \
             sensor mount NOISE_ORIGIN to the cell's centre at its height (clamped to +-NOISE_RANGE_HEIGHT)",
         params: Self::PARAMS,
+        whole_record: false,
         stage: Stage::Noise,
         // 50 Box-Muller pairs: one normal per cell.
         draws: GRID_ROWS * COLS,

@@ -24,6 +24,7 @@ impl EffectKind for Quantization {
         emulator: &[],
         formula: "h = q floor(h / q + ROUND_UP_FROM) (half steps round up, the same in every runtime)",
         params: Self::PARAMS,
+        whole_record: false,
         stage: Stage::Quantization,
         draws: 0,
     };

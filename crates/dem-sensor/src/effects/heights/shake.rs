@@ -33,6 +33,7 @@ impl EffectKind for Shake {
             pair), h += a x + b y: the body rocks about C, more on edges. Unlike `tilt` it pivots at C (rows behind C move the other \
             way) and its spread follows the terrain under the tracks",
         params: Self::PARAMS,
+        whole_record: true,
         stage: Stage::Registration,
         // One Box-Muller pair.
         draws: 2,

@@ -16,9 +16,11 @@ params! {
     Tilt {
         // Sds of the camera's pitch and roll errors up to 3 degrees (0.05
         // rad); x0 from behind the grid (every row tilts) to 1 m ahead; the
-        // lever at x0 from none to 4 m (a map fused from far views). No error
-        // (sd 0) is a natural end; x0 behind the grid (every row tilts) or past
-        // it (no row pitches) too, and no lever at x0.
+        // lever at x0 from none to the camera's farthest depth
+        // (MAX_TILT_RANGE): no cell is seen from farther, so no lever is
+        // longer. No error (sd 0) is a natural end; x0 behind the grid
+        // (every row tilts) or past it (no row pitches) too, and no lever at
+        // x0.
         /// Sd (rad) of the pitch error.
         pitch: fit Range::lin(0.0, 0.05), limit Limit::new(0.0, 0.2).natural_lo();
         /// Sd (rad) of the roll error.
@@ -26,7 +28,7 @@ params! {
         /// Cells behind this x (m) keep the error of x0.
         x0: fit Range::lin(-0.6, 1.0), limit Limit::new(-0.6, 1.45).natural_lo().natural_hi();
         /// Mean horizontal range (m) from which the map's cells at x0 were seen: the lever of the angle there.
-        range: fit Range::lin(0.0, 4.0), limit Limit::new(0.0, 10.0).natural_lo();
+        range: fit Range::lin(0.0, MAX_TILT_RANGE), limit Limit::new(0.0, MAX_TILT_RANGE).natural_lo();
     }
 }
 
@@ -42,6 +44,7 @@ impl EffectKind for Tilt {
             x0 was seen from `range` + (x - x0) on average, the cells behind x0 keep the error of their last views, so the whole DEM \
             rises or falls with the angle and tilts about a pivot `range` behind x0",
         params: Self::PARAMS,
+        whole_record: true,
         stage: Stage::Registration,
         // One Box-Muller pair.
         draws: 2,

@@ -31,6 +31,7 @@ impl EffectKind for DropHoles {
             edge lies anywhere between their centres): the map cells over a drop edge get points from the lip and, as the view \
             moves, from the floor below it, outliers of the older ones; their variance grows past the map's threshold",
         params: Self::PARAMS,
+        whole_record: false,
         stage: Stage::JumpHoles,
         // Two per cell: whether the edge's cell is lost, and which of the two.
         draws: 2 * GRID_ROWS * COLS,

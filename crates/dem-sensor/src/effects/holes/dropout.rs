@@ -24,6 +24,7 @@ impl EffectKind for Dropout {
         emulator: &["dropout", "holes"],
         formula: "each valid cell missing with probability p",
         params: Self::PARAMS,
+        whole_record: false,
         stage: Stage::Dropout,
         // One per cell.
         draws: GRID_ROWS * COLS,

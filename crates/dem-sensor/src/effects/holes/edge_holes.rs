@@ -27,6 +27,7 @@ impl EffectKind for EdgeHoles {
         emulator: &["smoothing", "holes"],
         formula: "a valid cell whose valid 4-neighbour is higher by more than g is missing with probability p (the foot of a height jump)",
         params: Self::PARAMS,
+        whole_record: false,
         stage: Stage::JumpHoles,
         // One per cell.
         draws: GRID_ROWS * COLS,

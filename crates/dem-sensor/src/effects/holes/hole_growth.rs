@@ -27,6 +27,7 @@ impl EffectKind for HoleGrowth {
         formula: "a valid cell with k missing 4-neighbours (inside the grid) is missing with probability 1 - (1 - p)^k (the edge of a \
             hole, where a 10 cm cell holds fewer seen map cells than the two of four the map needs)",
         params: Self::PARAMS,
+        whole_record: false,
         stage: Stage::HoleGrowth,
         // One per cell.
         draws: GRID_ROWS * COLS,

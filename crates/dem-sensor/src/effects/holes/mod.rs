@@ -44,14 +44,27 @@ pub(super) fn check_jump(g: f64, p: f64) -> Result<(), String> {
 
 /// The cells of `d` under dark blobs of `radius` centred at `blobs` (x, y):
 /// see [`drop_patches`].
-pub(super) fn darken(d: &mut Dem, blobs: &[(f64, f64)], radius: f64, a: f64) {
-    let covered = |x: f64, y: f64| blobs.iter().any(|&(px, py)| (x - px).powi(2) + (y - py).powi(2) <= radius * radius);
+///
+/// Whether a quarter is covered is decided in float32, operation for
+/// operation as the graph decides it (centre minus blob, squared, summed,
+/// against radius squared), so every runtime that computes IEEE float32
+/// draws the same blobs: in float64 a quarter centre a rounding error from
+/// the rim was covered here and not in the graph, and the cell beside a
+/// step moved by `a` times the step.
+pub(super) fn darken(d: &mut Dem, blobs: &[(f32, f32)], radius: f64, a: f64) {
+    let r2 = (radius * radius) as f32;
+    let covered = |x: f32, y: f32| {
+        blobs.iter().any(|&(px, py)| {
+            let (dx, dy) = (x - px, y - py);
+            dx * dx + dy * dy <= r2
+        })
+    };
     let seen: [[usize; COLS]; GRID_ROWS] = std::array::from_fn(|r| {
         std::array::from_fn(|c| {
             let (x, y) = (row_center_x(r), col_center_y(c));
             [(-1.0, -1.0), (-1.0, 1.0), (1.0, -1.0), (1.0, 1.0)]
                 .into_iter()
-                .filter(|&(sx, sy)| !covered(x + sx * HALF / 2.0, y + sy * HALF / 2.0))
+                .filter(|&(sx, sy)| !covered((x + sx * HALF / 2.0) as f32, (y + sy * HALF / 2.0) as f32))
                 .count()
         })
     });

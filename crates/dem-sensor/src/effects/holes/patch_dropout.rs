@@ -40,6 +40,7 @@ impl EffectKind for PatchDropout {
             or four covered: the cell is missing (the map needs two of four); one or two: h += a (h_low - h), h_low the lowest of h \
             and its x-neighbours left valid (the points a patch takes from a cell beside a step are those that lifted it)",
         params: Self::PARAMS,
+        whole_record: false,
         stage: Stage::Patches,
         // Per slot: whether it holds a blob, the blob's x, its y.
         draws: 3 * PATCH_SLOTS,
@@ -90,11 +91,14 @@ fn drop_patches(d: &mut Dem, rng: &mut Draws, n: f64, radius: f64, a: f64) {
     let (ylo, yhi) = (col_center_y(COLS - 1) - HALF, col_center_y(0) + HALF);
     let (xlo, xhi) = (row_center_x(0) - HALF, row_center_x(GRID_ROWS - 1) + HALF);
     let mut blobs = Vec::with_capacity(PATCH_SLOTS);
+    // Centres anywhere a blob can touch the grid, in float32 as the graph
+    // computes them (see `darken`).
+    let (span_x, span_y) = ((xhi - xlo + 2.0 * radius) as f32, (yhi - ylo + 2.0 * radius) as f32);
+    let (from_x, from_y) = ((xlo - radius) as f32, (ylo - radius) as f32);
     for _ in 0..PATCH_SLOTS {
-        let (u, s, t): (f64, f64, f64) = (rng.gen(), rng.gen(), rng.gen());
-        if u < n / PATCH_SLOTS as f64 {
-            // Centres anywhere a blob can touch the grid.
-            blobs.push((xlo - radius + s * (xhi - xlo + 2.0 * radius), ylo - radius + t * (yhi - ylo + 2.0 * radius)));
+        let (u, s, t) = (rng.gen() as f32, rng.gen() as f32, rng.gen() as f32);
+        if u < (n / PATCH_SLOTS as f64) as f32 {
+            blobs.push((s * span_x + from_x, t * span_y + from_y));
         }
     }
     if !blobs.is_empty() {

@@ -31,6 +31,7 @@ impl EffectKind for PitFill {
             "a valid cell lower by more than g than both valid neighbours of a line through it (rows r +- 1, or columns c +- 1) reads \
             the lower of the two with probability p",
         params: Self::PARAMS,
+        whole_record: false,
         stage: Stage::PitFill,
         // One per cell.
         draws: GRID_ROWS * COLS,

@@ -24,6 +24,7 @@ impl EffectKind for RowDropout {
         emulator: &[],
         formula: "each grid row wholly missing with probability p",
         params: Self::PARAMS,
+        whole_record: false,
         stage: Stage::RowDropout,
         // One per row.
         draws: GRID_ROWS,

@@ -33,6 +33,7 @@ impl EffectKind for DropBlend {
             the one behind only when larger by more than TIE_MARGIN): the stereo window straddles the jump in range at a drop edge \
             and its mean range puts the cell's points part of the way to the other surface",
         params: Self::PARAMS,
+        whole_record: false,
         stage: Stage::DropMoves,
         // Two per cell: whether it is blended, and how far.
         draws: 2 * GRID_ROWS * COLS,

@@ -42,6 +42,7 @@ impl EffectKind for FloorLift {
             neighbour: the edge hides the floor nearest it, and the cell keeps points lifted toward the edge (x past the grid: every \
             row; x at the cone's lowest ray: the rows where the map keeps that grazing view)",
         params: Self::PARAMS,
+        whole_record: false,
         stage: Stage::DropMoves,
         // Two per cell: whether it is lifted, and how far.
         draws: 2 * GRID_ROWS * COLS,

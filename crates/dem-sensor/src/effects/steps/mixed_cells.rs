@@ -35,6 +35,7 @@ impl EffectKind for MixedCells {
             behind, i.e. beyond a drop): a half of the lower cell whose centre the higher surface reaches reads the higher height, a \
             half of the higher cell the lower surface reaches (the step lies in it, deeper than e) reads the lower height",
         params: Self::PARAMS,
+        whole_record: false,
         stage: Stage::MixedCells,
         // Per row boundary a step position, then a reach per column.
         draws: (GRID_ROWS - 1) * (1 + COLS),

@@ -38,6 +38,7 @@ impl EffectKind for RiserBlend {
             [-1, 1], negative: away from the other surface: the stereo window over a riser's corners moves the points there along \
             their rays, up or down the step as the view angle gives",
         params: Self::PARAMS,
+        whole_record: false,
         stage: Stage::RiserMoves,
         // One per cell.
         draws: GRID_ROWS * COLS,

@@ -40,6 +40,7 @@ impl EffectKind for StepJitter {
             whose heights agree, so one frame's horizontal misregistration (the body's vibration) stays in it, a different one in \
             each cell; even ground averages it out and reads nothing",
         params: Self::PARAMS,
+        whole_record: false,
         stage: Stage::Registration,
         // One normal per cell, as `noise` draws them.
         draws: GRID_ROWS * COLS,

@@ -26,6 +26,7 @@ impl EffectKind for Fov {
         emulator: &["fov"],
         formula: "cells whose centre x is outside [x_min, x_max] missing",
         params: Self::PARAMS,
+        whole_record: false,
         stage: Stage::FieldOfView,
         draws: 0,
     };

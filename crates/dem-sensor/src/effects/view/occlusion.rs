@@ -5,19 +5,21 @@ use crate::draws::Draws;
 use crate::effects::{cell_heights, params, EffectKind, EffectSpec, Family, Limit, Range, Stage};
 use crate::evidence::{pct, per_rec, Context};
 use crate::graph::ops::{drop_cells, is_valid, nb, per_row, Cells, Side, HALF};
-use dem_core::format::{row_center_x, Dem, DemCells, COLS, GRID_ROWS};
+use dem_core::format::{row_center_x, Dem, DemCells, COLS, GRID_BACK, GRID_FRONT, GRID_ROWS};
 use dem_graph::Builder;
 
 params! {
     /// Cells hidden from the sensor by taller terrain.
     #[serde(expecting = "struct variant Effect::Occlusion")]
     Occlusion {
-        // A sensor mounted on the robot: above C by 0.2 to 1.2 m, along x
-        // within the tracks and flippers.
+        // A sensor mounted on the robot: above C by 0.2 to 1.2 m (at most
+        // 3 m, a mast), along x within the tracks and flippers, and at
+        // most anywhere over the grid (GRID_BACK..GRID_FRONT): a sensor behind
+        // or ahead of the map is not on the robot the map is around.
         /// Sensor height above C (m).
         h: fit Range::lin(0.2, 1.2), limit Limit::new(0.05, 3.0);
         /// Sensor position along x (m).
-        x0: fit Range::lin(-0.4, 0.5), limit Limit::new(-1.0, 1.2);
+        x0: fit Range::lin(-0.4, 0.5), limit Limit::new(GRID_BACK, GRID_FRONT);
     }
 }
 
@@ -32,6 +34,7 @@ impl EffectKind for Occlusion {
             sensor and its valid neighbour toward the sensor is not more than that lower (a top above the sensor faces away from it; \
             only the cell holding the face is seen)",
         params: Self::PARAMS,
+        whole_record: false,
         stage: Stage::Occlusion,
         draws: 0,
     };

@@ -18,7 +18,7 @@ params! {
         /// Blind edge at the start of a run (m along x).
         x0: fit Range::lin(-0.3, 1.2), limit Limit::new(-0.6, 1.45).natural_lo().natural_hi();
         /// Speed at which the blind edge recedes (m/s); 0: unknown.
-        v: fit Range::lin(0.02, 0.6), limit Limit::new(0.005, 3.0);
+        v: fit Range::lin(0.02, 0.6), limit Limit::new(0.0, 3.0);
         /// Share of records that are startup frames (used without times).
         p: fit Range::lin(0.0, 0.6), limit Limit::new(0.0, 1.0).natural_lo();
     }
@@ -32,6 +32,7 @@ impl EffectKind for Startup {
         formula: "rows whose centre x < e missing: e = x0 - v t for a record t seconds into its run (labels' `time`, v > 0); without a \
             time, with probability p the record is a startup frame and e = x0 - u (x0 + 0.6), u uniform",
         params: Self::PARAMS,
+        whole_record: false,
         stage: Stage::Startup,
         // u1: whether a record without a time is a startup frame; u2: its edge.
         draws: 2,

@@ -35,6 +35,7 @@ impl EffectKind for ViewTop {
             camera's vertical field of view with the body level) turned about C by the record's pitch p (row 20 column 0, clamped to \
             +-MAX_CLIMB_PITCH, 0 if not finite)",
         params: Self::PARAMS,
+        whole_record: false,
         stage: Stage::FieldOfView,
         draws: 0,
     };
