@@ -90,7 +90,7 @@ gap() {
   awk 'BEGIN { print "sim_index,real_index" } NR > 1 { print NR - 2 "," NR - 2 }' "$TD/real_labels.csv" > "$OUT/same_poses.csv"
   "$BIN/dem-gap" --sim "$OUT/no-occlusion/real.npy" --real "$TD/real.npy" --pairs "$OUT/same_poses.csv" \
       --sim-labels "$OUT/no-occlusion/real_labels.csv" --real-labels "$TD/real_labels.csv" \
-      --max-steps 2 --seed 1 --out "$OUT/gap" 2>"$OUT/gap.log"
+      --max-steps 1 --fit-records 500 --seed 1 --out "$OUT/gap" 2>"$OUT/gap.log"
   grep "added\|^dem-gap: gap" "$OUT/gap.log" || true
 }
 

@@ -16,14 +16,15 @@ output on it). Over the pairs, per terrain (sim labels) and for all records, it 
   rows_closer   1 - sum_r |miss_v(r) - miss_m(r)| / sum_r |miss_s(r) - miss_m(r)|, miss(r) the
                 share of row r's cells missing: how much closer to measured than sim v's
                 missing cells per row are (1: the same as measured)
-  whole_rows    share of (record, row) pairs with all five cells missing, in the rows where
-                measured has (almost) none (under 0.5 % of records): v against measured
+  whole_rows    per row, the share of records with all five cells of the row missing, v's
+                less measured's: the largest excess over the rows (a row that v strips
+                where measured does not), and the row it is in
 
 With --goals, each goal is checked and printed as `goal ... ok` or `goal ... MISSED`, and
 --check exits 1 when one is missed:
   demo    (the bundled data, made without the motion stages): height_cm within 2 cm,
-          roughness within 1.5x, spread within 1.5x, whole_rows at most 0.5 %, lift99 within
-          1.5x measured's (or under 2 cm)
+          roughness within 1.5x, spread within 1.5x, whole_rows at most 5 points (the
+          tolerance of a missing-cell rate), lift99 within 1.5x measured's (or under 2 cm)
   recipe  (worlds with a mount error drawn per run and drift): vs_sim within 0.75-1.33,
           spread within 1.5x, roughness within 1.5x, rows_closer at least 0.7, lift99 as demo
 """
@@ -83,7 +84,7 @@ def measures(s, r, x):
     miss = lambda v: 1.0 - v.mean(axis=(0, 2))
     ms, mr, mx = miss(vs), miss(vr), miss(vx)
     sim_off = np.abs(ms - mr).sum()
-    quiet = whole_rows(vr).mean(axis=0) < 0.005
+    excess = whole_rows(vx).mean(axis=0) - whole_rows(vr).mean(axis=0)
     lift = lambda m: float(np.nanpercentile(np.abs(m), 99))
     return {
         "records": len(s),
@@ -95,8 +96,8 @@ def measures(s, r, x):
         "real_lift99_cm": 100 * lift(m_real),
         "rough": roughness(hx, vx) / roughness(hr, vr),
         "rows_closer": float(1 - np.abs(mx - mr).sum() / sim_off) if sim_off > 0 else float("nan"),
-        "whole_rows": float(whole_rows(vx)[:, quiet].mean()) if quiet.any() else 0.0,
-        "real_whole_rows": float(whole_rows(vr)[:, quiet].mean()) if quiet.any() else 0.0,
+        "whole_rows": float(excess.max()),
+        "whole_rows_at": int(excess.argmax()),
     }
 
 
@@ -105,7 +106,7 @@ def line(name, m):
         f"{name:<12} {m['records']:>6}  height {m['height_cm']:5.2f} cm (sim {m['sim_height_cm']:4.2f})  "
         f"vs_sim {m['vs_sim']:4.2f}x  spread {m['spread']:4.2f}x  lift99 {m['lift99_cm']:5.2f} cm (measured {m['real_lift99_cm']:4.2f})  "
         f"rough {m['rough'][0]:4.2f}x/{m['rough'][1]:4.2f}x  rows_closer {m['rows_closer']:5.2f}  "
-        f"whole_rows {100 * m['whole_rows']:4.2f}% (measured {100 * m['real_whole_rows']:4.2f}%)"
+        f"whole_rows {100 * m['whole_rows']:+5.1f} points (row {m['whole_rows_at']})"
     )
 
 
@@ -118,7 +119,7 @@ GOALS = {
         ("heights within 2 cm of measured", lambda m: m["height_cm"] <= 2.0),
         ("roughness within 1.5x measured", lambda m: bool(np.all(m["rough"] <= 1.5) and np.all(m["rough"] >= 1 / 1.5))),
         ("spread of record-mean errors within 1.5x measured's", lambda m: m["spread"] <= 1.5),
-        ("no whole-row holes where measured has none (<= 0.5 %)", lambda m: m["whole_rows"] <= 0.005),
+        ("no row stripped of all its cells more often than in measured (by at most 5 points)", lambda m: m["whole_rows"] <= 0.05),
         ("no whole-record lift (lift99 within 1.5x measured's or under 2 cm)", lift_ok),
     ],
     "recipe": [

@@ -23,7 +23,7 @@ const RESIDUAL: &str = r#"{"effects": [
     {"effect": "startup", "params": {"x0": 0.35, "v": 0.3, "p": 0.2}},
     {"effect": "occlusion", "params": {"h": 0.45, "x0": 0.15}},
     {"effect": "drop-blend", "params": {"p": 0.5, "a": 0.6}},
-    {"effect": "floor-lift", "params": {"x": 2.0, "p": 0.4, "a": 1.3}},
+    {"effect": "floor-lift", "params": {"x": 1.45, "p": 0.4, "a": 1.3}},
     {"effect": "noise", "params": {"sigma0": 0.003, "k": 0.01}},
     {"effect": "patch-dropout", "params": {"n": 1.5, "r": 0.09, "a": 0.5}},
     {"effect": "hole-growth", "params": {"p": 0.15}}

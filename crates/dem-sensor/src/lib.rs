@@ -400,7 +400,9 @@ mod tests {
         // Inside MAX_PARAM and the effect's own rule, outside its physical box.
         let e = SensorModel::from_json(r#"{"effects":[{"effect":"tilt","params":{"pitch":0.01,"roll":0.01,"x0":0.2,"range":10.0}}]}"#)
             .unwrap_err();
-        assert!(e.contains("effect 0 (tilt): range = 10 is outside its physical box 0..=3"), "{e}");
+        assert!(e.contains("effect 0 (tilt): range = 10 must be in [0, 3] m"), "{e}");
+        let e = SensorModel::from_json(r#"{"effects":[{"effect":"drift","params":{"rate":2.0,"zrate":0.0,"x0":0.4}}]}"#).unwrap_err();
+        assert!(e.contains("effect 0 (drift): rate = 2 is outside its physical box 0..=1"), "{e}");
         let e = SensorModel::from_json(r#"{"effects":[{"effect":"occlusion","params":{"h":1.15,"x0":-1.0}}]}"#).unwrap_err();
         assert!(e.contains("x0 = -1 is outside its physical box -0.6..=1.4"), "{e}");
         assert!(SensorModel::from_json(r#"{"effects":[{"effect":"dropout","params":{"p":1.5}}]}"#).is_err());

@@ -98,7 +98,7 @@ fn a_model_of_several_effects_computes_the_same_in_the_graph() {
             {"effect": "drop-holes", "params": {"p": 0.3}},
             {"effect": "pit-fill", "params": {"g": 0.03, "p": 0.5}},
             {"effect": "mixed-cells", "params": {"up": 0.03, "down": 0.05}},
-            {"effect": "floor-lift", "params": {"x": 2.0, "p": 0.4, "a": 1.2}},
+            {"effect": "floor-lift", "params": {"x": 1.45, "p": 0.4, "a": 1.2}},
             {"effect": "smoothing", "params": {"w": 0.7}},
             {"effect": "tilt", "params": {"pitch": 0.01, "roll": 0.01, "x0": 0.4, "range": 2.0}},
             {"effect": "shake", "params": {"sigma": 0.002, "edge": 0.07}},

@@ -70,38 +70,32 @@ proptest! {
     }
 }
 
-/// One effect at parameters anywhere in its box (a, b in [0, 1], s a sign).
+/// One effect at parameters anywhere in its physical box (the limits of
+/// its spec, which every accepted model stays in): each parameter at a
+/// (odd ones b) of the way from its low to its high limit, from the high
+/// end when `s` < 0; a point its own rule refuses (fov's x_min at or past
+/// x_max) moves the second parameter to its high limit, which every own
+/// rule accepts.
 fn extreme(effect: &str, a: f64, b: f64, s: f64) -> String {
-    let p = match effect {
-        "noise" => format!(r#"{{"sigma0":{},"k":{}}}"#, 10.0 * a, 10.0 * b),
-        "dropout" | "row-dropout" | "hole-growth" | "drop-holes" => format!(r#"{{"p":{a}}}"#),
-        "occlusion" => format!(r#"{{"h":{},"x0":{}}}"#, 1e-3 + 9.99 * a, s * 10.0 * b),
-        "fov" => format!(r#"{{"x_min":{},"x_max":{}}}"#, -10.0 * a, 1e-3 + 9.999 * b),
-        "smoothing" => format!(r#"{{"w":{}}}"#, 1e-3 + 0.999 * a),
-        "bias" => format!(r#"{{"b":{},"t":{}}}"#, s * 10.0 * a, -s * 10.0 * b),
-        "quantization" => format!(r#"{{"q":{}}}"#, 1e-4 + 9.9999 * a * a * a),
-        "startup" => format!(r#"{{"x0":{},"v":{},"p":{b}}}"#, s * 10.0 * a, 10.0 * b),
-        "patch-dropout" => format!(r#"{{"n":{},"r":{},"a":{b}}}"#, 8.0 * a, 10.0 * b),
-        "edge-holes" | "rim-holes" | "pit-fill" => format!(r#"{{"g":{},"p":{b}}}"#, 1e-3 + 9.99 * a),
-        "mixed-cells" => format!(r#"{{"up":{},"down":{}}}"#, 10.0 * a, 10.0 * b),
-        "drop-blend" => format!(r#"{{"p":{a},"a":{b}}}"#),
-        "riser-blend" => format!(r#"{{"foot":{},"top":{}}}"#, s * a, -s * b),
-        "floor-lift" => format!(r#"{{"x":{},"p":{a},"a":{}}}"#, s * 10.0 * b, 10.0 * b),
-        "view-top" => format!(r#"{{"h":{},"t":{}}}"#, s * 10.0 * a, 10.0 * b),
-        "tilt" => format!(r#"{{"pitch":{},"roll":{},"x0":{},"range":{}}}"#, 0.5 * a, 0.5 * b, s * 10.0 * b, 4.0 * a),
-        "shake" => format!(r#"{{"sigma":{},"edge":{}}}"#, 0.5 * a, 10.0 * b),
-        "step-jitter" => format!(r#"{{"sigma":{},"edge":{}}}"#, 10.0 * a, 10.0 * b),
-        "lag" => format!(r#"{{"s":{},"spread":{b}}}"#, s * 0.5 * a),
-        "drift" => format!(r#"{{"rate":{},"zrate":{},"x0":{}}}"#, 10.0 * a, 10.0 * b, s * 10.0 * a),
-        other => unreachable!("{other}"),
+    let spec = dem_sensor::effects::spec_named(effect).expect("a vocabulary name");
+    let at = |k: usize, t: f64| {
+        let l = spec.params[k].limit;
+        let t = if s < 0.0 { 1.0 - t } else { t };
+        l.lo + t * (l.hi - l.lo)
     };
-    format!(r#"{{"effect":"{effect}","params":{p}}}"#)
+    let mut values: Vec<f64> = (0..spec.params.len()).map(|k| at(k, if k % 2 == 0 { a } else { b })).collect();
+    let accepted = |v: &[f64]| dem_sensor::Effect::from_values(effect, v).is_some_and(|e| e.check().is_ok());
+    if !accepted(&values) && values.len() > 1 {
+        values[1] = spec.params[1].limit.hi;
+    }
+    let e = dem_sensor::Effect::from_values(effect, &values).expect("as many values as parameters");
+    serde_json::to_string(&e).expect("an effect serialises")
 }
 
 proptest! {
     #![proptest_config(config())]
 
-    /// Stacks of up to 64 effects anywhere in their boxes, on heights up to
+    /// Stacks of up to 64 effects anywhere in their physical boxes, on heights up to
     /// 1e30 m either way, write only finite values.
     #[test]
     fn every_accepted_stack_writes_only_finite_values(

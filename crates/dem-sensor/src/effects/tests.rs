@@ -155,7 +155,7 @@ fn a_patch_loses_the_cells_it_covers_and_lowers_the_ones_it_partly_covers_beside
     // (3.5 cm away), and the near two quarters (7.9 cm) of the four
     // cells around it, none of the diagonal cells' (10.6 cm).
     let mut d = stair();
-    holes::darken(&mut d, &[(x11, y2)], 0.09, 0.5);
+    holes::darken(&mut d, &[(x11 as f32, y2 as f32)], 0.09, 0.5);
     assert!(!d.is_valid(11, 2));
     // Row 10 (the riser's top) keeps half its quarters: it reads half
     // way down to its lower neighbour, row 9.
@@ -169,16 +169,16 @@ fn a_patch_loses_the_cells_it_covers_and_lowers_the_ones_it_partly_covers_beside
     // Centred on the riser's foot (row 9): the foot is lost, so the top
     // beside it has no lower neighbour left and keeps its height.
     let mut d = stair();
-    holes::darken(&mut d, &[(row_center_x(9), y2)], 0.09, 1.0);
+    holes::darken(&mut d, &[(row_center_x(9) as f32, y2 as f32)], 0.09, 1.0);
     assert!(!d.is_valid(9, 2));
     assert!((d.height(10, 2) - (FLAT_GROUND + 0.15)).abs() < 1e-6);
     // a = 0: the partly covered cells keep their heights.
     let mut d = stair();
-    holes::darken(&mut d, &[(x11, y2)], 0.09, 0.0);
+    holes::darken(&mut d, &[(x11 as f32, y2 as f32)], 0.09, 0.0);
     assert!((d.height(10, 2) - (FLAT_GROUND + 0.15)).abs() < 1e-6);
     // Too small to cover three quarters of any cell: nothing is lost.
     let mut d = stair();
-    holes::darken(&mut d, &[(x11, y2)], 0.03, 0.0);
+    holes::darken(&mut d, &[(x11 as f32, y2 as f32)], 0.03, 0.0);
     assert_eq!(d.valid_cells(), 100);
 }
 

@@ -13,7 +13,7 @@ params! {
     #[serde(expecting = "struct variant Effect::Quantization")]
     Quantization {
         /// Step (m).
-        q: fit Range::log(0.002, 0.05), limit Limit::new(0.0005, 0.2);
+        q: fit Range::log(0.002, 0.05), limit Limit::new(MIN_QUANTUM, 0.2);
     }
 }
 

@@ -83,17 +83,24 @@ fn mix_cells(d: &mut Dem, rng: &mut Draws, up: f64, down: f64) {
     let mut raise = [[[f64::NEG_INFINITY; 2]; COLS]; GRID_ROWS];
     let mut lower = [[[f64::INFINITY; 2]; COLS]; GRID_ROWS];
     let (near, far) = (0.5 * HALF, 1.5 * HALF);
+    // Every decision (the jump, the reach past each half's centre) in
+    // float32, operation for operation as the graph takes it, so that a
+    // jump of exactly MIXED_JUMP or a reach exactly at a centre is decided
+    // alike in every runtime; the heights moved are the same either way.
+    let (near, far) = (near as f32, far as f32);
     for b in 0..GRID_ROWS - 1 {
         // The step's distance past the boundary into row b (negative: into b + 1).
-        let s = (1.0 - 2.0 * rng.gen()) * HALF;
+        let s = rng.gen() as f32 * (-2.0 * HALF) as f32 + HALF as f32;
         for c in 0..COLS {
-            let u: f64 = rng.gen();
+            let u = rng.gen() as f32;
             let (Some(z0), Some(z1)) = (z[b][c], z[b + 1][c]) else { continue };
-            if (z1 - z0).abs() <= MIXED_JUMP {
+            let dz = z1 as f32 - z0 as f32;
+            if dz.abs() <= MIXED_JUMP as f32 {
                 continue;
             }
             // (lower row, its half at the boundary, higher row, its half, step depth into the lower row)
-            let (lo, lo_half, hi, hi_half, depth, reach) = if z1 > z0 { (b, 1, b + 1, 0, s, up) } else { (b + 1, 0, b, 1, -s, down) };
+            let (lo, lo_half, hi, hi_half, depth, reach) =
+                if dz > 0.0 { (b, 1, b + 1, 0, s, up as f32) } else { (b + 1, 0, b, 1, -s, down as f32) };
             let (zlo, zhi) = (z0.min(z1), z0.max(z1));
             let into_low = depth + u * reach;
             for (dist, h) in [(near, lo_half), (far, 1 - lo_half)] {
