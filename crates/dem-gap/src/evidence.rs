@@ -139,6 +139,6 @@ mod tests {
         let s = evidence(&e, &model, &model, &set(0.02, 0.02), 2.0, 1.0);
         assert!(s.contains("an offset and a tilt") && !s.contains("terrain"), "{s}");
         let s = evidence(&e, &model, &model, &set(-0.02, 0.09), 2.0, 1.0);
-        assert!(s.contains("more like two sets of different terrain") && s.contains("--match-terrain-mix"), "{s}");
+        assert!(s.contains("more like two sets of different terrain") && s.contains("both label files"), "{s}");
     }
 }

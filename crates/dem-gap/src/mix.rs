@@ -49,7 +49,7 @@ impl RecordKinds {
             format!(
                 "the sets hold different terrain: {shares}. No sensor effect makes or removes terrain, so the gap is partly terrain, and effects that move \
                  whole records (tilt, shake, bias) can stand in for it: read the model as unreliable, and compare sets of the same terrain (both label \
-                 files with --match-terrain-mix, or --pairs; dem-filter --unique keeps one of many identical level records)"
+                 files, which draw sim to real's mix, or --pairs; dem-filter --unique keeps one of many identical level records)"
             )
         } else {
             format!("the sets hold the same kinds of terrain: {shares}")

@@ -34,7 +34,8 @@ pub struct Step {
     /// Parameters whose box was widened because the first fit hit its edge.
     pub widened: Vec<&'static str>,
     /// Candidates refused because their model hides far more cells than
-    /// real misses, with the reason.
+    /// real misses, or moves level records as a whole more than real's
+    /// move, with the reason.
     pub refused: Vec<(Effect, String)>,
     /// Close rivals the data does not tell from the effect ([`Tie`]).
     pub tied_with: Vec<Tie>,
@@ -304,7 +305,8 @@ fn leftover(c: &Comparison, model: &SensorModel, gap_final: f64, start: &Start, 
     });
     drop(out_b);
     log(unexplained.summary());
-    let missing_bands = unexplained::missing_bands(&sets.sim, &out_a, &sets.real, both_terrains, sets.sim_time.is_some());
+    let missing_bands =
+        unexplained::missing_bands(&sets.sim, &out_a, &sets.real, both_terrains, sets.sim_time.is_some(), gap_final < floor);
     Leftover { floor, unexplained, missing_bands }
 }
 

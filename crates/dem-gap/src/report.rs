@@ -515,7 +515,7 @@ fn summary_md(s: &mut String, o: &Outcome) {
     if let Some((kept, of)) = o.terrain_mix {
         let _ = writeln!(
             s,
-            "The sim side is {kept} records drawn from the {of} sim records per terrain, to the real set's terrain mix (`--match-terrain-mix`).\n"
+            "The sim side is {kept} records drawn from the {of} sim records per terrain, to the real set's terrain mix (the default with both label files; `--no-match-terrain-mix` compares the sets as they are).\n"
         );
     }
     let _ = writeln!(s, "Final sensor model (`sensor.json`): {}\n", o.model.summary());

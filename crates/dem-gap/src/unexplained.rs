@@ -723,8 +723,16 @@ impl MoreData {
 
 /// Missing-cell rates per terrain (labels on both sides) and for all
 /// records, behind and ahead of the robot: sim, model(sim) (`out`), real.
-/// `times`: the sim labels carry times (so `startup` is fitted by time).
-pub fn missing_bands(sim: &[Dem], out: &[Dem], real: &[Dem], terrains: Option<(&[Terrain], &[Terrain])>, times: bool) -> Vec<BandRow> {
+/// `times`: the sim labels carry times (so `startup` is fitted by time);
+/// `below_floor`: the final gap is below its sampling floor.
+pub fn missing_bands(
+    sim: &[Dem],
+    out: &[Dem],
+    real: &[Dem],
+    terrains: Option<(&[Terrain], &[Terrain])>,
+    times: bool,
+    below_floor: bool,
+) -> Vec<BandRow> {
     let mut rows = Vec::new();
     let all_rates: Vec<[f64; 3]> = HALF_BANDS
         .iter()
@@ -743,6 +751,14 @@ pub fn missing_bands(sim: &[Dem], out: &[Dem], real: &[Dem], terrains: Option<(&
         }
         if terrain.is_none() && band == "behind" && times {
             why.push("behind the robot the map keeps cells seen earlier; see the Unexplained section".to_string());
+        }
+        if terrains.is_none() {
+            why.push(
+                "no terrain labels on both sides: the rate is over all terrains, and the two sets' terrain mixes may differ".to_string(),
+            );
+        }
+        if below_floor {
+            why.push("the gap left is below the sampling floor: the records may not tell this difference from sampling".to_string());
         }
         if why.is_empty() {
             why.push("not known: see the Unexplained section".to_string());
@@ -829,14 +845,19 @@ mod tests {
     }
 
     /// A band's missing rate is flagged where model and real differ by
-    /// more than 5 %, with the time reason behind the robot.
+    /// more than 5 %, with the reasons: no time behind the robot, no
+    /// labels, below the sampling floor.
     #[test]
     fn missing_bands_flag_with_a_reason() {
         let sim = flat(100, |_, _, _| false);
         let real = flat(100, |k, r, _| r < 3 && k % 2 == 0);
-        let rows = missing_bands(&sim, &sim, &real, None, false);
+        let rows = missing_bands(&sim, &sim, &real, None, false, false);
         assert_eq!(rows.len(), 2);
-        assert!(rows[0].flag.as_deref().unwrap().contains("`time`"));
+        let why = rows[0].flag.as_deref().unwrap();
+        assert!(why.contains("`time`") && why.contains("no terrain labels") && !why.contains("sampling floor"), "{why}");
         assert!(rows[1].flag.is_none());
+        let rows = missing_bands(&sim, &sim, &real, None, true, true);
+        let why = rows[0].flag.as_deref().unwrap();
+        assert!(!why.contains("`time`") && why.contains("below the sampling floor"), "{why}");
     }
 }

@@ -728,7 +728,7 @@ fn sim_is_drawn_to_the_real_terrain_mix() {
     assert_eq!(drawn["terrain_mix"]["from"].as_u64(), Some(n_sim));
     assert_eq!(drawn["terrain_mix"]["drawn"].as_u64(), Some(n_sim));
     let md = std::fs::read_to_string(dir.path().join("drawn/report.md")).unwrap();
-    assert!(md.contains("drawn from the") && md.contains("--match-terrain-mix"), "{md}");
+    assert!(md.contains("drawn from the") && md.contains("--no-match-terrain-mix"), "{md}");
     // Every compared sim record is stairs up: the per-terrain table has one row.
     assert_eq!(md.matches("| stairs-up |").count(), 1, "{md}");
     assert!(!md.contains("| flat |"), "{md}");

@@ -93,7 +93,7 @@ fn sentence(c: &Context) -> String {
             mm(ma),
             if mixed {
                 "real is higher on one side and lower on the other, more like two sets of different terrain than one offset: \
-                     read it as the closest effect, and compare the same terrain mix (--match-terrain-mix with both label files, or --pairs)"
+                     read it as the closest effect, and compare the same terrain mix (both label files, which draw sim to real's mix, or --pairs)"
             } else {
                 "an offset and a tilt"
             }
