@@ -113,14 +113,12 @@ mod tests {
         for paired in [true, false] {
             let real = stats(&real_recs, paired.then_some(sim.as_slice()));
             let target = Target { sim: &sim, times: None, paired, real: &real, seed: 3 };
-            let base = SensorModel {
-                effects: vec![
-                    Effect::Occlusion(Occlusion { h: 0.5, x0: 0.1 }),
-                    Effect::Smoothing(Smoothing { w: 0.6 }),
-                    Effect::Noise(Noise { sigma0: 0.002, k: 0.0 }),
-                    Effect::RowDropout(RowDropout { p: 0.05 }),
-                ],
-            };
+            let base = SensorModel::new(vec![
+                Effect::Occlusion(Occlusion { h: 0.5, x0: 0.1 }),
+                Effect::Smoothing(Smoothing { w: 0.6 }),
+                Effect::Noise(Noise { sigma0: 0.002, k: 0.0 }),
+                Effect::RowDropout(RowDropout { p: 0.05 }),
+            ]);
             for e in [
                 Effect::Dropout(Dropout { p: 0.07 }),
                 Effect::Bias(Bias { b: 0.01, t: 0.0 }),
