@@ -141,6 +141,27 @@ onnx.save(m, "{twice}")
     let o = run("dem-apply", &["--model", &twice, &td("sim.npy")], None);
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("dem.residual twice"), "{}", stderr(&o));
+    // A residual outside its effects' physical boxes, as dem-sensor and
+    // dem-train export refuse it: the limit is in the message, nothing written.
+    let outside = arg(dir.path(), "outside.onnx");
+    py(
+        dir.path(),
+        &format!(
+            r#"
+import onnx
+m = onnx.load("{model}")
+for p in m.metadata_props:
+    if p.key == "dem.residual":
+        p.value = p.value.replace('"x":1.45', '"x":2.0')
+onnx.save(m, "{outside}")
+"#
+        ),
+    );
+    let written = arg(dir.path(), "outside.npy");
+    let o = run("dem-apply", &["--model", &outside, &td("sim.npy"), "-o", &written], None);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("x = 2 is outside its physical box -0.6..=1.45"), "{}", stderr(&o));
+    assert!(!std::path::Path::new(&written).exists(), "nothing written");
     // --info never appends to the model (`>> model`).
     let o = dem_testkit::run_cmd(
         std::process::Command::new("bash")
