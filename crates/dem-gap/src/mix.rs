@@ -80,6 +80,9 @@ pub struct LevelPlanes {
     pub real: f64,
     /// Level records: model side, real side.
     pub records: (usize, usize),
+    /// What was fitted: `level records` (unpaired) or `the pairs'
+    /// residuals` (paired).
+    pub what: &'static str,
 }
 
 impl LevelPlanes {
@@ -90,10 +93,36 @@ impl LevelPlanes {
         let level = |d: &Dem| height_sd(d).is_some_and(|s| s < LEVEL_SD);
         let model: Vec<[f64; 3]> = sim.iter().zip(out).filter(|(s, _)| level(s)).filter_map(|(_, o)| plane(o)).collect();
         let real: Vec<[f64; 3]> = real.iter().filter(|d| level(d)).filter_map(plane).collect();
+        LevelPlanes::spreads(&model, &real, "level records")
+    }
+
+    /// Paired: the planes of each pair's residual (the record less its
+    /// sim record, on the cells valid in both), of model(sim) (`out`,
+    /// aligned with `sim`) and of `real` (aligned too). A sensor that moves
+    /// whole records moves the residuals' planes, on every terrain; one
+    /// that does not leaves them where its noise puts them.
+    pub fn of_residuals(sim: &[Dem], out: &[Dem], real: &[Dem]) -> Option<LevelPlanes> {
+        let residual = |d: &Dem, s: &Dem| {
+            let mut r = dem_core::format::empty_dem();
+            for row in 0..GRID_ROWS {
+                for c in (0..COLS).filter(|&c| d.is_valid(row, c) && s.is_valid(row, c)) {
+                    r.set_valid(row, c, d.height(row, c) - s.height(row, c));
+                }
+            }
+            plane(&r)
+        };
+        let model: Vec<[f64; 3]> = out.iter().zip(sim).filter_map(|(o, s)| residual(o, s)).collect();
+        let real: Vec<[f64; 3]> = real.iter().zip(sim).filter_map(|(d, s)| residual(d, s)).collect();
+        LevelPlanes::spreads(&model, &real, "the pairs' residuals")
+    }
+
+    /// The spreads of two sets of planes; None when either has fewer than 10.
+    fn spreads(model: &[[f64; 3]], real: &[[f64; 3]], what: &'static str) -> Option<LevelPlanes> {
         (model.len() >= 10 && real.len() >= 10).then(|| LevelPlanes {
-            model: plane_spread(&model),
-            real: plane_spread(&real),
+            model: plane_spread(model),
+            real: plane_spread(real),
             records: (model.len(), real.len()),
+            what,
         })
     }
 
@@ -102,8 +131,9 @@ impl LevelPlanes {
     pub fn too_wide(&self) -> Option<String> {
         (self.model > LEVEL_PLANE_RATIO * self.real + LEVEL_PLANE_SLACK).then(|| {
             format!(
-                "it moves level records as a whole by {:.1} mm (the spread of their fitted planes, {} records) where real's move {:.1} mm ({} records): \
-                 on level ground the sensor does not move whole records that much, so the gap it fills is another effect's",
+                "it moves {} as a whole by {:.1} mm (the spread of their fitted planes, {} records) where real's move {:.1} mm ({} records): \
+                 the sensor does not move whole records that much, so the gap it fills is another effect's",
+                self.what,
                 1000.0 * self.model,
                 self.records.0,
                 1000.0 * self.real,
@@ -244,6 +274,11 @@ mod tests {
         let why = l.too_wide().unwrap();
         assert!(why.contains("by 10.0 mm") && why.contains("real's move 0.0 mm"), "{why}");
         assert_eq!(LevelPlanes::of(&level, &rocked, &rocked).unwrap().too_wide(), None);
+        // Paired, the residuals' planes: rocked against sim, real not.
+        let paired = LevelPlanes::of_residuals(&level, &rocked, &level).unwrap();
+        assert!((paired.model - 0.01).abs() < 1e-4 && paired.real < 1e-6, "{paired:?}");
+        assert!(paired.too_wide().unwrap().contains("moves the pairs' residuals as a whole"));
+        assert_eq!(LevelPlanes::of_residuals(&level, &rocked, &rocked).unwrap().too_wide(), None);
         assert_eq!(LevelPlanes::of(&level[..5], &rocked[..5], &level), None, "too few level records");
     }
 }

@@ -186,13 +186,14 @@ pub(crate) fn confirm_best(
             break;
         }
         let (out, s) = c.measure(&trial, seed);
-        // Paired, the residuals show a record-wide move record by record;
-        // unpaired, level records are where it shows.
-        if let Some(why) = (e.spec().whole_record && !c.paired)
-            .then(|| crate::mix::LevelPlanes::of(&c.sets.sim, &out, &c.sets.real))
-            .flatten()
-            .and_then(|l| l.too_wide())
-        {
+        // A record-wide move shows, paired, in the planes of the pairs'
+        // residuals; unpaired, on level records, where no terrain stands
+        // in for it.
+        let planes = |c: &Comparison| {
+            let of = if c.paired { crate::mix::LevelPlanes::of_residuals } else { crate::mix::LevelPlanes::of };
+            of(&c.sets.sim, &out, &c.sets.real)
+        };
+        if let Some(why) = e.spec().whole_record.then(|| planes(c)).flatten().and_then(|l| l.too_wide()) {
             log.line(format!("{e} refused: {why}"));
             refused.push((e, why));
             moves_level.push(e.name());
