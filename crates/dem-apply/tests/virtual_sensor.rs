@@ -99,6 +99,24 @@ fn npy_shape(dir: &std::path::Path, path: &str) -> String {
     py(dir, &format!("import numpy as np; print(np.load('{path}').shape)")).trim().replace(' ', "").replace(",", ", ")
 }
 
+/// `model` written to `out` with `from` replaced by `to` in its
+/// `dem.residual` metadata (the graph left as it is).
+fn residual_replaced(dir: &std::path::Path, model: &str, out: &str, from: &str, to: &str) {
+    py(
+        dir,
+        &format!(
+            r#"
+import onnx
+m = onnx.load("{model}")
+for p in m.metadata_props:
+    if p.key == "dem.residual":
+        p.value = p.value.replace('{from}', '{to}')
+onnx.save(m, "{out}")
+"#
+        ),
+    );
+}
+
 #[test]
 fn a_changed_tail_is_refused_and_a_network_alone_says_so() {
     let dir = tempdir();
@@ -107,19 +125,7 @@ fn a_changed_tail_is_refused_and_a_network_alone_says_so() {
     export(&model, &Stored { residual: Some(residual), heights: Heights::Input });
     // The metadata says one model, the graph holds another.
     let tampered = arg(dir.path(), "tampered.onnx");
-    py(
-        dir.path(),
-        &format!(
-            r#"
-import onnx
-m = onnx.load("{model}")
-for p in m.metadata_props:
-    if p.key == "dem.residual":
-        p.value = p.value.replace('"p":0.15', '"p":0.5')
-onnx.save(m, "{tampered}")
-"#
-        ),
-    );
+    residual_replaced(dir.path(), &model, &tampered, r#""p":0.15"#, r#""p":0.5"#);
     let o = run("dem-apply", &["--model", &tampered, &td("sim.npy")], None);
     assert_eq!(o.status.code(), Some(2));
     let err = stderr(&o);
@@ -144,19 +150,7 @@ onnx.save(m, "{twice}")
     // A residual outside its effects' physical boxes, as dem-sensor and
     // dem-train export refuse it: the limit is in the message, nothing written.
     let outside = arg(dir.path(), "outside.onnx");
-    py(
-        dir.path(),
-        &format!(
-            r#"
-import onnx
-m = onnx.load("{model}")
-for p in m.metadata_props:
-    if p.key == "dem.residual":
-        p.value = p.value.replace('"x":1.45', '"x":2.0')
-onnx.save(m, "{outside}")
-"#
-        ),
-    );
+    residual_replaced(dir.path(), &model, &outside, r#""x":1.45"#, r#""x":2.0"#);
     let written = arg(dir.path(), "outside.npy");
     let o = run("dem-apply", &["--model", &outside, &td("sim.npy"), "-o", &written], None);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
