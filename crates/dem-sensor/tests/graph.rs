@@ -149,3 +149,75 @@ fn the_effects_json_lists_every_example() {
     let want: Vec<String> = first.iter().map(line).collect();
     assert!(listed == first, "testdata/effects.json's every_effect should read:\n[\n{}\n]", want.join(",\n"));
 }
+
+/// Staircases whose steps are exactly a threshold in float32 (heights
+/// `k * 0.1f32`, so a step of one is `0.1f32`, which float64 reads as more
+/// than 0.1 and float32 does not), pitched a little, with a pit and a
+/// lone high cell: where a threshold decided in float64 falls the other
+/// way from the graph's.
+fn steps_at_thresholds() -> Vec<Dem> {
+    (0..240)
+        .map(|i| {
+            let mut d = dem_core::format::empty_dem();
+            let (rise, shift) = (1 + i % 3, i % 7);
+            for r in 0..GRID_ROWS {
+                for c in 0..COLS {
+                    let k = if i % 2 == 0 { (r + shift) / 2 } else { (GRID_ROWS - r + shift) / 2 };
+                    d.set_valid(r, c, (k * rise) as f32 * 0.1);
+                }
+            }
+            // A pit one step deep and a lone cell one step up.
+            let (r, c) = (3 + i % 11, i % COLS);
+            d.set_valid(r, c, d.height(r, c) - 0.1);
+            d.set_valid(r + 4, (c + 2) % COLS, d.height(r + 4, (c + 2) % COLS) + 0.1);
+            d.set_attitude([0.01 * (i % 5) as f32 - 0.02, 0.0, 0.0, 0.0, 0.0]);
+            d
+        })
+        .collect()
+}
+
+#[test]
+fn a_step_of_exactly_a_threshold_is_decided_alike_in_the_graph() {
+    let models = [
+        r#"{"effect": "edge-holes", "params": {"g": 0.1, "p": 0.6}}"#,
+        r#"{"effect": "rim-holes", "params": {"g": 0.1, "p": 0.6}}"#,
+        r#"{"effect": "pit-fill", "params": {"g": 0.1, "p": 0.8}}"#,
+        r#"{"effect": "drop-holes", "params": {"p": 0.7}}"#,
+        r#"{"effect": "drop-blend", "params": {"p": 0.7, "a": 0.6}}"#,
+        r#"{"effect": "riser-blend", "params": {"foot": 0.4, "top": -0.3}}"#,
+        r#"{"effect": "floor-lift", "params": {"x": 1.45, "p": 0.7, "a": 1.5}}"#,
+        r#"{"effect": "mixed-cells", "params": {"up": 0.04, "down": 0.06}}"#,
+        r#"{"effect": "occlusion", "params": {"h": 0.3, "x0": 0.0}}"#,
+        r#"{"effect": "view-top", "params": {"h": 0.3, "t": 0.3}}"#,
+    ];
+    let input = steps_at_thresholds();
+    let n = input.len();
+    for json in models {
+        let model = SensorModel::from_json(&format!(r#"{{"effects": [{json}]}}"#)).unwrap();
+        let k = model.draws();
+        let mut uniform = vec![0.0f32; n * k];
+        if k > 0 {
+            for (i, u) in uniform.chunks_mut(k).enumerate() {
+                model.uniforms(3, i as u64, u);
+            }
+        }
+        let t = vec![f32::NAN; n];
+        let mut native = input.clone();
+        for (i, d) in native.iter_mut().enumerate() {
+            model.apply_drawn(d, &uniform[i * k..(i + 1) * k], None);
+        }
+        assert!(native != input, "{json} acts on the staircases");
+        let got = graph::run_tract(&graph::sensor_model(&model, "test", &[]), &model, &input, &uniform, &t).unwrap();
+        for (i, (a, b)) in native.iter().zip(&got).enumerate() {
+            for r in 0..GRID_ROWS {
+                for c in 0..COLS {
+                    assert_eq!(a.is_valid(r, c), b.is_valid(r, c), "{json}: record {i}, cell ({r}, {c}): validity");
+                    if a.is_valid(r, c) {
+                        let d = (a.height(r, c) - b.height(r, c)).abs();
+                        assert!(d <= 1e-6, "{json}: record {i}, cell ({r}, {c}): heights {} and {}", a.height(r, c), b.height(r, c));
+                    }
+                }
+            }
+        }
+    }
+}

@@ -200,8 +200,10 @@ pub fn export(run: &str, out: &str, y: bool, residual: Option<&str>, heights: He
         residual.map_or(String::new(), |(_, m)| format!(", with the residual sensor model {}", m.summary())),
         if heights == Heights::Input { ", heights from the input under its holes" } else { "" },
         report.tail.map_or(String::new(), |t| format!(
-            "; one graph: tract's whole virtual sensor matches dem-apply's (validity {:.4} % of cells apart, heights {:.1e} m)",
+            "; one graph: tract's whole virtual sensor matches dem-apply's ({:.4} % of cells decided apart in validity, \
+             {:.4} % in height; the rest within {:.1e} m)",
             100.0 * t.validity_differ,
+            100.0 * t.height_differ,
             t.max_height_diff
         ))
     ));

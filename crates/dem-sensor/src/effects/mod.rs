@@ -62,6 +62,20 @@ pub const MAX_PARAM: f64 = 10.0;
 /// is a slope, whose cell mean is the centre's height.
 pub const MIXED_JUMP: f64 = dem_core::distribution::JUMP;
 
+/// `a - b > t`, decided in float32 operation for operation as the graph
+/// decides it (heights are float32, so `a` and `b` are exact): a step of
+/// exactly a threshold (sim's stairs have them) is then the same step in
+/// every runtime that computes IEEE float32.
+pub(crate) fn exceeds(a: f64, b: f64, t: f64) -> bool {
+    (a as f32 - b as f32) > t as f32
+}
+
+/// A uniform `u` (float32) below the probability `p`, as the graph's `below`
+/// decides it: against `p` rounded to float32.
+pub(crate) fn hit(u: f64, p: f64) -> bool {
+    (u as f32) < p as f32
+}
+
 /// The family of physics an effect belongs to: the module that defines it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Family {

@@ -2,7 +2,7 @@
 
 use super::ops;
 use crate::draws::Draws;
-use crate::effects::{cell_heights, params, probability, EffectKind, EffectSpec, Family, Limit, Range, Stage, MIXED_JUMP};
+use crate::effects::{cell_heights, exceeds, hit, params, probability, EffectKind, EffectSpec, Family, Limit, Range, Stage, MIXED_JUMP};
 use crate::evidence::{pct, Context};
 use crate::graph::ops::{below, cell_pairs, drop_cells, nb, Cells, Side};
 use dem_core::format::{Dem, DemCells, COLS, GRID_ROWS};
@@ -71,7 +71,7 @@ fn drop_holes(d: &mut Dem, rng: &mut Draws, p: f64) {
         for c in 0..COLS {
             let (u, v): (f64, f64) = (rng.gen(), rng.gen());
             let (Some(lip), Some(floor)) = (z[r][c], z.get(r + 1).and_then(|row| row[c])) else { continue };
-            if lip - floor > MIXED_JUMP && u < p {
+            if exceeds(lip, floor, MIXED_JUMP) && hit(u, p) {
                 d.set_missing(if v < 0.5 { r } else { r + 1 }, c);
             }
         }

@@ -8,7 +8,7 @@
 //! the graph.
 
 use crate::draws::Draws;
-use crate::effects::{cell_heights, neighbours4, probability, Limit, Range};
+use crate::effects::{cell_heights, exceeds, hit, neighbours4, probability, Limit, Range};
 use crate::graph::ops::HALF;
 use dem_core::format::{col_center_y, row_center_x, Dem, DemCells, COLS, GRID_ROWS};
 
@@ -95,8 +95,9 @@ pub(super) fn jump_holes(d: &mut Dem, rng: &mut Draws, g: f64, p: f64, sign: f64
         for c in 0..COLS {
             let u: f64 = rng.gen();
             let Some(zc) = z[r][c] else { continue };
-            let jump = neighbours4(r, c).any(|(rr, cc)| z[rr][cc].is_some_and(|zn| sign * (zn - zc) > g));
-            if jump && u < p {
+            let jump = neighbours4(r, c)
+                .any(|(rr, cc)| z[rr][cc].is_some_and(|zn| if sign > 0.0 { exceeds(zn, zc, g) } else { exceeds(zc, zn, g) }));
+            if jump && hit(u, p) {
                 d.set_missing(r, c);
             }
         }

@@ -2,7 +2,7 @@
 
 use super::{check_jump, JUMP};
 use crate::draws::Draws;
-use crate::effects::{cell_heights, params, EffectKind, EffectSpec, Family, Limit, Range, Stage};
+use crate::effects::{cell_heights, exceeds, hit, params, EffectKind, EffectSpec, Family, Limit, Range, Stage};
 use crate::evidence::{pct, Context};
 use crate::graph::ops::{below, is_valid, neighbour, set_heights, Cells, Side, FAR};
 use dem_core::format::{Dem, DemCells, COLS, GRID_ROWS};
@@ -71,8 +71,8 @@ fn fill_pits(d: &mut Dem, rng: &mut Draws, g: f64, p: f64) {
             let u: f64 = rng.gen();
             let Some(zc) = zc else { continue };
             let rims = [(at(r.wrapping_sub(1), c), at(r + 1, c)), (at(r, c.wrapping_sub(1)), at(r, c + 1))];
-            let fill = rims.into_iter().filter_map(|(a, b)| Some(a?.min(b?))).filter(|&rim| rim - zc > g).reduce(f64::max);
-            if let (Some(rim), true) = (fill, u < p) {
+            let fill = rims.into_iter().filter_map(|(a, b)| Some(a?.min(b?))).filter(|&rim| exceeds(rim, zc, g)).reduce(f64::max);
+            if let (Some(rim), true) = (fill, hit(u, p)) {
                 d.set_valid(r, c, rim as f32);
             }
         }

@@ -2,7 +2,7 @@
 
 use super::{ops, SHARE, TIE_MARGIN};
 use crate::draws::Draws;
-use crate::effects::{cell_heights, params, probability, EffectKind, EffectSpec, Family, Stage, MIXED_JUMP};
+use crate::effects::{cell_heights, hit, params, probability, EffectKind, EffectSpec, Family, Stage, MIXED_JUMP};
 use crate::evidence::{mid, mm, pct, Context};
 use crate::graph::ops::{below, cell_pairs, is_valid, neighbour, set_heights, Cells, Side};
 use dem_core::distribution::Stats;
@@ -83,16 +83,18 @@ fn blend_drops(d: &mut Dem, rng: &mut Draws, p: f64, a: f64) {
             let (u, v): (f64, f64) = (rng.gen(), rng.gen());
             let Some(zc) = z[r][c] else { continue };
             // The other cell across a drop: ahead and lower, or behind and higher.
+            // The steps and the tie between them in float32, operation for
+            // operation as the graph decides them.
             let across = |rr: usize, ahead: bool| {
-                let zn = z.get(rr).and_then(|row| row[c])?;
-                ((if ahead { zc - zn } else { zn - zc }) > MIXED_JUMP).then_some(zn - zc)
+                let step = z.get(rr).and_then(|row| row[c])? as f32 - zc as f32;
+                ((if ahead { -step } else { step }) > MIXED_JUMP as f32).then_some(step)
             };
             let step = match (across(r + 1, true), across(r.wrapping_sub(1), false)) {
-                (Some(f), Some(b)) => Some(if b.abs() > f.abs() + TIE_MARGIN { b } else { f }),
+                (Some(f), Some(b)) => Some(if b.abs() > f.abs() + TIE_MARGIN as f32 { b } else { f }),
                 (f, b) => f.or(b),
             };
-            if let (Some(s), true) = (step, u < p) {
-                d.set_valid(r, c, (zc + v * a * s) as f32);
+            if let (Some(s), true) = (step, hit(u, p)) {
+                d.set_valid(r, c, (zc + v * a * f64::from(s)) as f32);
             }
         }
     }

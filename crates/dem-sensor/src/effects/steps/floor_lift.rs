@@ -2,7 +2,7 @@
 
 use super::SHARE;
 use crate::draws::Draws;
-use crate::effects::{cell_heights, params, probability, EffectKind, EffectSpec, Family, Limit, Range, Stage, MIXED_JUMP};
+use crate::effects::{cell_heights, exceeds, hit, params, probability, EffectKind, EffectSpec, Family, Limit, Range, Stage, MIXED_JUMP};
 use crate::evidence::{mid, pct, Context};
 use crate::graph::ops::{below, cell_pairs, is_valid, neighbour, per_row, set_heights, Cells, Side};
 use dem_core::distribution::Stats;
@@ -91,10 +91,7 @@ fn lift_floors(d: &mut Dem, rng: &mut Draws, x: f64, p: f64, a: f64) {
             let (u, v): (f64, f64) = (rng.gen(), rng.gen());
             let (Some(zc), true) = (zc, r > 0 && row_center_x(r) < x) else { continue };
             let Some(edge) = z[r - 1][c] else { continue };
-            // Decided in float32, operation for operation as the graph
-            // decides it: a drop of exactly MIXED_JUMP (sim's stairs have
-            // them) is then the same drop in every runtime.
-            if (edge as f32 - zc as f32) > MIXED_JUMP as f32 && (u as f32) < p as f32 {
+            if exceeds(edge, zc, MIXED_JUMP) && hit(u, p) {
                 d.set_valid(r, c, (zc + (v * a).min(1.0) * (edge - zc)) as f32);
             }
         }

@@ -86,18 +86,19 @@ fn blend_risers(d: &mut Dem, rng: &mut Draws, foot: f64, top: f64) {
             let Some(zc) = z[r][c] else { continue };
             // (step to the other cell, share): the riser ahead (this cell
             // at its foot) or behind (this cell on its top).
+            // The steps and the tie between them in float32, operation for
+            // operation as the graph decides them.
             let across = |rr: usize, share: f64| {
-                let zn = z.get(rr).and_then(|row| row[c])?;
-                let step = zn - zc;
-                let riser = if rr > r { step > MIXED_JUMP } else { -step > MIXED_JUMP };
+                let step = z.get(rr).and_then(|row| row[c])? as f32 - zc as f32;
+                let riser = if rr > r { step } else { -step } > MIXED_JUMP as f32;
                 riser.then_some((step, share))
             };
             let moved = match (across(r + 1, foot), across(r.wrapping_sub(1), top)) {
-                (Some(f), Some(b)) => Some(if b.0.abs() > f.0.abs() + TIE_MARGIN { b } else { f }),
+                (Some(f), Some(b)) => Some(if b.0.abs() > f.0.abs() + TIE_MARGIN as f32 { b } else { f }),
                 (f, b) => f.or(b),
             };
             if let Some((step, share)) = moved {
-                d.set_valid(r, c, (zc + u * share * step) as f32);
+                d.set_valid(r, c, (zc + u * share * f64::from(step)) as f32);
             }
         }
     }

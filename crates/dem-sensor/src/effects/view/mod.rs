@@ -46,22 +46,27 @@ pub(super) fn blocking_stretch(b: usize, x0: f64, xf: f64) -> Option<(f64, f64)>
 /// True when cell `(t, c)` of the original heights `z` (None = missing) is
 /// hidden from a sensor at `(x0, h)`: see [`occlusion`]'s formula.
 pub fn hidden(z: &[[Option<f64>; COLS]; GRID_ROWS], t: usize, c: usize, h: f64, x0: f64) -> bool {
-    let Some(zt) = z[t][c] else { return false };
+    // Decided in float32, operation for operation as the graph decides it,
+    // so a cell on the line of sight is hidden alike in every runtime.
+    let at = |r: usize| z[r][c].map(|v| v as f32);
+    let Some(zt) = at(t) else { return false };
     let Some((xf, between)) = sight(t, x0) else { return false };
+    let tol = OCCLUSION_TOLERANCE as f32;
     // A top above the sensor faces away from it: only the cell that holds
     // the face toward the sensor (its near neighbour lower) is seen.
-    if zt > h + OCCLUSION_TOLERANCE {
+    if zt > (h + OCCLUSION_TOLERANCE) as f32 {
         let near = if xf > x0 { t.checked_sub(1) } else { Some(t + 1).filter(|&n| n < GRID_ROWS) };
-        if near.and_then(|n| z[n][c]).is_some_and(|zn| zn > zt - OCCLUSION_TOLERANCE) {
+        if near.and_then(at).is_some_and(|zn| zn > zt + -tol) {
             return true;
         }
     }
-    let line = |x: f64| h + (zt - h) * (x - x0) / (xf - x0);
+    let rise = zt + -(h as f32);
+    let share = |x: f64| ((x - x0) / (xf - x0)) as f32;
     for b in between {
-        let Some(zb) = z[b][c] else { continue };
+        let Some(zb) = at(b) else { continue };
         // The blocker's top, clipped to the stretch between sensor and target.
         let Some((lo, hi)) = blocking_stretch(b, x0, xf) else { continue };
-        if zb > line(lo).min(line(hi)) + OCCLUSION_TOLERANCE {
+        if zb > (rise * share(lo)).min(rise * share(hi)) + (h + OCCLUSION_TOLERANCE) as f32 {
             return true;
         }
     }

@@ -67,12 +67,18 @@ impl EffectKind for ViewTop {
 /// `view-top` (formula in its spec) at pitch `p`: the level body's
 /// half-plane where t x + z exceeds h, turned by p about C (its normal
 /// (t, 1) turned with it, the offset h kept).
+///
+/// Decided in float32, operation for operation as the graph decides it, so
+/// a cell on the line is cut alike in every runtime (up to its cosine and
+/// sine of the pitch).
 fn cut_above_top_ray(d: &mut Dem, h: f64, t: f64, p: f64) {
-    let (along, up) = (t * p.cos() - p.sin(), t * p.sin() + p.cos());
+    let (p, t) = (p as f32, t as f32);
+    let (cos, sin) = (p.cos(), p.sin());
+    let (along, up) = (cos * t - sin, sin * t + cos);
     for r in 0..GRID_ROWS {
-        let x = row_center_x(r);
+        let x = row_center_x(r) as f32;
         for c in 0..COLS {
-            if d.is_valid(r, c) && along * x + up * d.height(r, c) as f64 > h {
+            if d.is_valid(r, c) && along * x + up * d.height(r, c) > h as f32 {
                 d.set_missing(r, c);
             }
         }
