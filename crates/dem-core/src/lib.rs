@@ -10,6 +10,8 @@
 //! - [`seeded`]: random streams fixed by (seed, record index).
 //! - [`distribution`]: the distribution gap between two sets of DEMs (what
 //!   dem-gap fits and dem-eval's `gap` column reports).
+//! - [`temporal`]: how consecutive frames of a run move (the labels' runs,
+//!   times and poses; dem-eval's `frame_*` columns).
 //! - [`output`]: atomic output files.
 //! - [`swap`]: the warning when `--sim` and `--real` look swapped.
 //! - [`cli`]: exit codes, error printing, logs and progress for the binaries.
@@ -30,6 +32,7 @@ pub mod raw_labels;
 pub mod seeded;
 pub mod swap;
 pub mod table;
+pub mod temporal;
 
 pub use error::{DemError, Result};
 pub use format::{Dem, DemCells, Terrain};

@@ -12,6 +12,8 @@ pub fn run(baseline: &str, current: &str, tol: &Tolerances, format: Format) -> a
         ("--height-tolerance", tol.height_cm),
         ("--rough-tolerance", tol.rough_cm),
         ("--gap-tolerance", tol.gap),
+        ("--frame-dh-tolerance", tol.frame_dh_mm),
+        ("--frame-tolerance", tol.frame),
     ] {
         if v.is_nan() || v < 0.0 {
             return Err(cli::usage(format!("{flag} must be a number >= 0")));
@@ -32,12 +34,14 @@ pub fn run(baseline: &str, current: &str, tol: &Tolerances, format: Format) -> a
         anyhow::bail!("{} of {} baseline rows failed: {}", failed.len(), b.len(), failed.join("; "));
     }
     cli::log(format_args!(
-        "{} baseline rows within tolerance (pair error {}, height {} cm, roughness {} cm, gap {})",
+        "{} baseline rows within tolerance (pair error {}, height {} cm, roughness {} cm, gap {}, frame change {} mm, frame shares {})",
         b.len(),
         tol.pair,
         tol.height_cm,
         tol.rough_cm,
-        tol.gap
+        tol.gap,
+        tol.frame_dh_mm,
+        tol.frame
     ));
     Ok(())
 }

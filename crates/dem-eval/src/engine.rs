@@ -6,14 +6,18 @@
 //! the exact median), one terrain byte per sim record, and for the gap a
 //! deterministic sample of at most [`GAP_SAMPLE`] pairs per table row.
 //! Per-record results and `--emit-*` records are written as blocks finish.
+//! The frame columns wait for the other frame of each step
+//! ([`crate::frames`]): in a file in run order, a block's worth.
 //! Each input is checked against the others with a one-line error.
 
-use std::collections::{BTreeSet, HashMap};
+use std::collections::{BTreeMap, BTreeSet, HashMap};
 
+use crate::frames::{PredFrames, RealFrames, Runs};
 use crate::table::{self as validation, RowAcc, Selection, TableRow};
 use dem_core::distribution;
 use dem_core::npy::{self, ByIndex, RecordIndex, CHUNK_RECORDS};
 use dem_core::table::{self, Split};
+use dem_core::temporal::FrameStats;
 use dem_core::{cli, Dem, DemError, Terrain};
 use dem_onnx::apply::AttitudeCheck;
 use rayon::prelude::*;
@@ -49,6 +53,8 @@ pub struct Request {
     pub split: Option<Split>,
     /// Labels CSV of the sim file.
     pub labels_sim: Option<String>,
+    /// Labels of the real file: its runs give the `real_frame_*` columns.
+    pub labels_real: Option<String>,
     /// Where predictions come from.
     pub method: Method,
     /// Records per model call.
@@ -80,19 +86,24 @@ pub struct Evaluation {
     /// The row over every record (None) and each terrain's row.
     rows: std::collections::BTreeMap<Option<Terrain>, RowAcc>,
     gaps: HashMap<Option<Terrain>, f64>,
+    /// Each row's frame statistics of the predictions and of the real records.
+    frames: [BTreeMap<Option<Terrain>, FrameStats>; 2],
 }
 
 impl Evaluation {
-    /// The outcome of rows accumulated elsewhere (`dem-eval merge`).
+    /// The outcome of rows accumulated elsewhere (`dem-eval merge`: the
+    /// records files hold no runs, so no frame columns).
     pub(crate) fn new(rows: std::collections::BTreeMap<Option<Terrain>, RowAcc>, gaps: HashMap<Option<Terrain>, f64>) -> Self {
-        Evaluation { rows, gaps }
+        Evaluation { rows, gaps, frames: Default::default() }
     }
 
     /// The table of `method`: the row over all records, then with
     /// `by_terrain` one per terrain present, in label order.
     pub fn table(&self, method: &str, by_terrain: bool) -> Vec<TableRow> {
-        let row =
-            |key: Option<Terrain>, name: &str| self.rows.get(&key).and_then(|acc| acc.row(method, name, self.gaps.get(&key).copied()));
+        let row = |key: Option<Terrain>, name: &str| {
+            let row = self.rows.get(&key).and_then(|acc| acc.row(method, name, self.gaps.get(&key).copied()))?;
+            Some(row.with_frames(self.frames[0].get(&key), self.frames[1].get(&key)))
+        };
         let mut rows: Vec<TableRow> = row(None, validation::ALL).into_iter().collect();
         if by_terrain {
             rows.extend(Terrain::ALL.into_iter().filter_map(|t| row(Some(t), t.as_str())));
@@ -263,6 +274,8 @@ struct Acc {
     rows: std::collections::BTreeMap<Option<Terrain>, RowAcc>,
     samples: HashMap<Option<Terrain>, GapSample>,
     attitude: AttitudeCheck,
+    frames: PredFrames,
+    real_frames: Option<RealFrames>,
 }
 
 /// Run the evaluation.
@@ -271,7 +284,12 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
         Method::Pred(p) => Some(p),
         _ => None,
     };
-    cli::one_stdin([Some(&q.sim), Some(&q.real), Some(&q.pairs), q.labels_sim.as_ref(), pred].into_iter().flatten().map(String::as_str))?;
+    cli::one_stdin(
+        [Some(&q.sim), Some(&q.real), Some(&q.pairs), q.labels_sim.as_ref(), q.labels_real.as_ref(), pred]
+            .into_iter()
+            .flatten()
+            .map(String::as_str),
+    )?;
     let (pairs, sim_max, real_max) = Pairs::read(&q.pairs, q.split)?;
     if pairs.pairs.is_empty() {
         return Err(table::no_pairs(&q.pairs, q.split, "evaluate").into());
@@ -279,9 +297,18 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
     let mut reals = open_reals(q, &pairs)?;
     real_max.check(&q.pairs, reals.len(), &q.real, "real_index")?;
     let labels = SimLabels::read(q)?;
-    let row_sizes = row_sizes(q, scored_pairs(q, &pairs, &labels)?, &labels);
+    let scored = scored_pairs(q, &pairs, &labels)?;
+    let row_sizes = row_sizes(q, scored, &labels);
     let network = Network::load(q, labels.times.is_some())?;
     let mut acc = Acc::default();
+    let runs = match (&labels.labels, &q.labels_sim) {
+        (Some(l), Some(path)) => {
+            let scored_sims: BTreeSet<u64> = scored.iter().map(|p| p.0).collect();
+            Runs::of(l, labels.first_index, path, |i| scored_sims.contains(&i))
+        }
+        _ => None,
+    };
+    acc.real_frames = q.labels_real.as_deref().map(|path| RealFrames::new(path, reals.len(), scored)).transpose()?.flatten();
     let mut emit = Emit::create(q)?;
     let ctx = BlockCtx {
         q,
@@ -291,6 +318,7 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
         heights: network.heights,
         labels: &labels,
         row_sizes: &row_sizes,
+        runs: runs.as_ref(),
     };
     let n_sim = evaluate_stream(&ctx, &sim_max, &mut reals, &mut emit, &mut acc)?;
     if let (Some(t), Some(path)) = (&labels.terrains, &q.labels_sim) {
@@ -302,12 +330,17 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
         }
     }
     emit.finish()?;
+    let pred_frames = if runs.is_some() { acc.frames.stats() } else { BTreeMap::new() };
+    let real_frames = match &acc.real_frames {
+        Some(rf) => rf.stats(|want| Ok(reals.fetch(want)?), q.by_terrain)?,
+        None => BTreeMap::new(),
+    };
     let gaps = row_gaps(acc.samples, &row_sizes, &mut reals)?;
     // After the run: a refused input still gets exactly one line.
     if let Some(note) = network.model.as_ref().and_then(|m| m.note()) {
         cli::log(note);
     }
-    Ok(Evaluation { rows: acc.rows, gaps })
+    Ok(Evaluation { rows: acc.rows, gaps, frames: [pred_frames, real_frames] })
 }
 
 /// The real file, read by index; held whole only when it is stdin, and
@@ -324,6 +357,8 @@ struct SimLabels {
     terrains: Option<Vec<Terrain>>,
     times: Option<Vec<f64>>,
     first_index: u64,
+    /// The labels, for the runs (`frame_*` columns).
+    labels: Option<Vec<table::Label>>,
 }
 
 impl SimLabels {
@@ -333,6 +368,7 @@ impl SimLabels {
             terrains: labels.as_ref().map(|l| l.iter().map(|l| l.terrain).collect()),
             times: labels.as_deref().map(table::times),
             first_index: q.first_index.unwrap_or(0),
+            labels,
         })
     }
 
@@ -461,6 +497,8 @@ struct BlockCtx<'a> {
     heights: dem_onnx::Heights,
     labels: &'a SimLabels,
     row_sizes: &'a HashMap<Option<Terrain>, u64>,
+    /// The steps of the sim runs whose both frames are scored.
+    runs: Option<&'a Runs>,
 }
 
 /// Evaluate one block of (sim index, sim record, prediction); a model's
@@ -482,6 +520,14 @@ fn evaluate_block(
             // Keyed by the record's index in the whole sim set, as dem-apply
             // keys it: the same draws as `dem-apply | dem-eval --pred`.
             block.par_iter_mut().for_each(|b| r.apply_at(&mut b.2, ctx.q.seed, b.0, ctx.labels.time(b.0)));
+        }
+    }
+    for b in &block {
+        if let Some(runs) = ctx.runs {
+            acc.frames.add(runs, b.0, &b.1, &b.2, |i| ctx.labels.terrain(i), ctx.q.by_terrain);
+        }
+        if let Some(rf) = &mut acc.real_frames {
+            rf.see_sim(b.0, &b.1);
         }
     }
     let (lo, hi) = (block[0].0, block[block.len() - 1].0 + 1);

@@ -37,9 +37,14 @@ pub struct EvalArgs {
     /// Name of the table row [default: identity, or the --pred / --model file stem].
     #[arg(long)]
     name: Option<String>,
-    /// Labels CSV of the sim file: terrain of each record (--emit-records, --by terrain).
+    /// Labels CSV of the sim file: terrain of each record (--emit-records,
+    /// --by terrain); with runs, times and poses, the frame columns.
     #[arg(long = "sim-labels", value_name = "CSV")]
     labels_sim: Option<String>,
+    /// Labels CSV of the real file: its runs, times and poses give the
+    /// real_frame_* columns (the real records of the scored pairs).
+    #[arg(long = "real-labels", value_name = "CSV")]
+    labels_real: Option<String>,
     #[command(flatten)]
     table: TableOut,
     /// Write per-record results here: sim_index,real_index (the best pair),error,terrain,height_cm.
@@ -134,7 +139,7 @@ pub fn run(a: EvalArgs) -> anyhow::Result<()> {
         Method::Pred(p) | Method::Model(p) => Some(p),
         Method::Identity => None,
     };
-    let inputs: Vec<&str> = [a.sim.as_ref(), a.real.as_ref(), a.pairs.as_ref(), a.labels_sim.as_ref(), method_file]
+    let inputs: Vec<&str> = [a.sim.as_ref(), a.real.as_ref(), a.pairs.as_ref(), a.labels_sim.as_ref(), a.labels_real.as_ref(), method_file]
         .into_iter()
         .flatten()
         .map(String::as_str)
@@ -150,6 +155,7 @@ pub fn run(a: EvalArgs) -> anyhow::Result<()> {
         pairs: need(a.pairs, "--pairs")?,
         split: a.split,
         labels_sim: a.labels_sim,
+        labels_real: a.labels_real,
         method,
         records: a.records,
         by_terrain: a.table.by.is_some(),

@@ -10,7 +10,8 @@
 //!   set, tested on measured DEMs of held-out runs).
 //! - [`engine`], [`records`], [`model`]: the evaluation engine (the
 //!   selected records, read in bounded memory), the per-record CSV, and the
-//!   predictions' sources they share.
+//!   predictions' sources they share; [`frames`]: the frame columns (how
+//!   consecutive frames of a run move).
 //! - [`table`]: the validation table itself: its rows (count, lowest,
 //!   highest, mean, median of the pair errors, [`table::ErrorSummary`]; the
 //!   measures that see heights; by terrain), the comparison against a
@@ -19,6 +20,7 @@
 pub mod compare;
 pub mod engine;
 pub mod evaluate;
+pub mod frames;
 pub mod join;
 pub mod merge;
 pub mod model;

@@ -91,8 +91,11 @@ enum Cmd {
     /// absolute difference in pair error units; when height_cm grows by
     /// more than --height-tolerance (cm); when the roughness's distance from
     /// the real one, |rough - real_rough| across or along, grows by more than
-    /// --rough-tolerance (cm); or when gap grows by more than
-    /// --gap-tolerance. A measure the baseline lacks (an older table) is not
+    /// --rough-tolerance (cm); when gap grows by more than --gap-tolerance;
+    /// or when the predictions' frame-to-frame change moves away from the
+    /// real records', |frame_dh_mm - real_frame_dh_mm| by more than
+    /// --frame-dh-tolerance (mm) or |frame - real_frame| of the correlation,
+    /// the flip share or the persistence by more than --frame-tolerance. A measure the baseline lacks (an older table) is not
     /// checked; one CURRENT lacks (no valid cells left) fails. A baseline row
     /// missing from CURRENT fails too. Prints both tables side by side with
     /// the differences (current minus baseline) and the measures that
@@ -121,6 +124,12 @@ enum Cmd {
         /// Largest allowed growth of the gap.
         #[arg(long, default_value_t = table::DEFAULT_GAP_TOLERANCE, value_parser = cli::value::non_negative::<f64>)]
         gap_tolerance: f64,
+        /// Largest allowed growth of |frame_dh_mm - real_frame_dh_mm| (mm).
+        #[arg(long, default_value_t = 1.0, value_parser = cli::value::non_negative::<f64>)]
+        frame_dh_tolerance: f64,
+        /// Largest allowed growth of |frame - real_frame| of frame_rcorr, frame_flip and frame_persist.
+        #[arg(long, default_value_t = 0.05, value_parser = cli::value::non_negative::<f64>)]
+        frame_tolerance: f64,
         /// Output format.
         #[arg(long, value_enum, default_value = "text")]
         format: Format,
@@ -134,13 +143,30 @@ fn main() -> ExitCode {
             rayon::ThreadPoolBuilder::new().num_threads(n as usize).build_global()?;
         }
         match a.cmd {
-            Some(Cmd::Compare { baseline, current, tolerance, height_tolerance, rough_tolerance, gap_tolerance, format }) => {
+            Some(Cmd::Compare {
+                baseline,
+                current,
+                tolerance,
+                height_tolerance,
+                rough_tolerance,
+                gap_tolerance,
+                frame_dh_tolerance,
+                frame_tolerance,
+                format,
+            }) => {
                 dem_core::output::check_outputs(&[&baseline, &current], &["-"])?;
                 // Infinite errors are refused as join refuses them (stdin is read once, by compare).
                 for t in [&baseline, &current].into_iter().filter(|t| *t != "-") {
                     join::check_finite(t, &table::forms::read_table(t)?)?;
                 }
-                let tol = table::Tolerances { pair: tolerance, height_cm: height_tolerance, rough_cm: rough_tolerance, gap: gap_tolerance };
+                let tol = table::Tolerances {
+                    pair: tolerance,
+                    height_cm: height_tolerance,
+                    rough_cm: rough_tolerance,
+                    gap: gap_tolerance,
+                    frame_dh_mm: frame_dh_tolerance,
+                    frame: frame_tolerance,
+                };
                 compare::run(&baseline, &current, &tol, format)
             }
             Some(Cmd::Transfer(t)) => transfer::run(t),

@@ -29,7 +29,16 @@
 //!   the same of the closest real records;
 //! - `gap`: [`dem_core::distribution::gap`] of the row's predictions against its
 //!   real set (the unique real records paired with the row's sim records),
-//!   unpaired; computed by the caller, which holds the records ([`table_with`]).
+//!   unpaired; computed by the caller, which holds the records ([`table_with`]);
+//! - `frame_dh_mm`, `frame_rcorr`, `frame_flip`, `frame_persist`: how the
+//!   predictions of consecutive frames of a run move ([`dem_core::temporal`]:
+//!   mean |h(t+1) - h(t)| in mm over the same ground, the correlation of the
+//!   error against the sim input at t and t+1, the share of cells changing
+//!   validity, P(missing at t+1 | missing at t)), over the steps whose both
+//!   frames are scored; `real_frame_*` the same of the real records of the
+//!   row's pairs, in their own runs (`--real-labels`), their error against
+//!   their sim partner where each has exactly one. Computed by the caller,
+//!   which holds the runs.
 //!
 //! ```
 //! use dem_eval::table::Sum;
@@ -39,11 +48,11 @@
 //! ```
 //!
 //! Tables are written as CSV, `method,terrain,count,lowest,highest,mean,median,`
-//! `height_cm,rough_across_cm,rough_along_cm,real_rough_across_cm,real_rough_along_cm,gap`
-//! (the `terrain` of a row over every record is `all`; a measure without
-//! cells is an empty field), and read back by [`read_table_csv`], which also
-//! reads the old seven-column tables and skips repeated header lines so
-//! tables join with `cat`. [`compare`] matches two tables by (method,
+//! `height_cm,rough_across_cm,rough_along_cm,real_rough_across_cm,real_rough_along_cm,gap,`
+//! then the eight frame columns (the `terrain` of a row over every record
+//! is `all`; a measure without cells is an empty field), and read back by
+//! [`read_table_csv`], which also reads the older seven- and 13-column
+//! tables and skips repeated header lines so tables join with `cat`. [`compare`] matches two tables by (method,
 //! terrain) and marks a row worse when its mean or median grew by more than
 //! an absolute tolerance, or one of the height measures did ([`Tolerances`]).
 //! [`forms`] writes a table or a comparison as text, CSV, JSON or Markdown
@@ -59,6 +68,7 @@ use dem_core::error::{DemError, Result};
 use dem_core::format::{Dem, DemCells, Terrain, COLS, GRID_ROWS};
 use dem_core::metric::dem_error;
 use dem_core::table::{Pair, Split};
+use dem_core::temporal::FrameStats;
 
 /// The `terrain` value of a row over all records.
 pub const ALL: &str = "all";
@@ -247,7 +257,7 @@ impl ErrorSummary {
 }
 
 /// One row of a validation table.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct TableRow {
     /// Method or model name (`identity`, a model's file stem, `--name`).
     pub method: String,
@@ -284,6 +294,31 @@ pub struct TableRow {
     /// against the row's real set.
     #[serde(default)]
     pub gap: Option<f64>,
+    /// The predictions' mean |h(t+1) - h(t)| over the same ground of
+    /// consecutive frames (mm).
+    #[serde(default)]
+    pub frame_dh_mm: Option<f64>,
+    /// Correlation of the predictions' error against sim at t and t+1.
+    #[serde(default)]
+    pub frame_rcorr: Option<f64>,
+    /// Share of the predictions' cells changing validity from frame to frame.
+    #[serde(default)]
+    pub frame_flip: Option<f64>,
+    /// P(missing at t+1 | missing at t) of the predictions.
+    #[serde(default)]
+    pub frame_persist: Option<f64>,
+    /// `frame_dh_mm` of the real records of the row's pairs.
+    #[serde(default)]
+    pub real_frame_dh_mm: Option<f64>,
+    /// `frame_rcorr` of the real records (against their one sim partner).
+    #[serde(default)]
+    pub real_frame_rcorr: Option<f64>,
+    /// `frame_flip` of the real records.
+    #[serde(default)]
+    pub real_frame_flip: Option<f64>,
+    /// `frame_persist` of the real records.
+    #[serde(default)]
+    pub real_frame_persist: Option<f64>,
 }
 
 impl TableRow {
@@ -292,6 +327,35 @@ impl TableRow {
     pub fn rough_offsets(&self) -> [Option<f64>; 2] {
         let off = |a: Option<f64>, b: Option<f64>| Some((a? - b?).abs());
         [off(self.rough_across_cm, self.real_rough_across_cm), off(self.rough_along_cm, self.real_rough_along_cm)]
+    }
+
+    /// |frame - real_frame| of dh (mm), rcorr, flip and persist: how far
+    /// the predictions move from frame to frame unlike the real records.
+    pub fn frame_offsets(&self) -> [Option<f64>; 4] {
+        let off = |a: Option<f64>, b: Option<f64>| Some((a? - b?).abs());
+        [
+            off(self.frame_dh_mm, self.real_frame_dh_mm),
+            off(self.frame_rcorr, self.real_frame_rcorr),
+            off(self.frame_flip, self.real_frame_flip),
+            off(self.frame_persist, self.real_frame_persist),
+        ]
+    }
+
+    /// The row with its frame columns: `pred` of the predictions, `real` of
+    /// the real records.
+    pub fn with_frames(self, pred: Option<&FrameStats>, real: Option<&FrameStats>) -> TableRow {
+        let mm = |s: Option<&FrameStats>| s.and_then(|s| s.dh).map(|v| 1000.0 * v);
+        TableRow {
+            frame_dh_mm: mm(pred),
+            frame_rcorr: pred.and_then(|s| s.rcorr),
+            frame_flip: pred.and_then(|s| s.flip),
+            frame_persist: pred.and_then(|s| s.persist),
+            real_frame_dh_mm: mm(real),
+            real_frame_rcorr: real.and_then(|s| s.rcorr),
+            real_frame_flip: real.and_then(|s| s.flip),
+            real_frame_persist: real.and_then(|s| s.persist),
+            ..self
+        }
     }
 }
 
@@ -347,6 +411,7 @@ impl RowAcc {
             real_rough_across_cm: self.real_rough_across.mean_cm(),
             real_rough_along_cm: self.real_rough_along.mean_cm(),
             gap,
+            ..TableRow::default()
         })
     }
 }
@@ -382,7 +447,7 @@ pub fn table_with(
 }
 
 /// The CSV header of a table.
-pub const TABLE_HEADER: [&str; 13] = [
+pub const TABLE_HEADER: [&str; 21] = [
     "method",
     "terrain",
     "count",
@@ -396,27 +461,45 @@ pub const TABLE_HEADER: [&str; 13] = [
     "real_rough_across_cm",
     "real_rough_along_cm",
     "gap",
+    "frame_dh_mm",
+    "frame_rcorr",
+    "frame_flip",
+    "frame_persist",
+    "real_frame_dh_mm",
+    "real_frame_rcorr",
+    "real_frame_flip",
+    "real_frame_persist",
 ];
 
 /// The header of the tables of dem-eval before the height measures (still read).
 pub const OLD_TABLE_HEADER: [&str; 7] = ["method", "terrain", "count", "lowest", "highest", "mean", "median"];
 
-/// Read a table CSV (`-` for stdin), with [`TABLE_HEADER`] or the older
-/// [`OLD_TABLE_HEADER`] (its rows have no height measures). Header lines
+/// The headers a table CSV may have: [`TABLE_HEADER`], its first 13 columns
+/// (before the frame columns) and [`OLD_TABLE_HEADER`] (still read).
+fn headers() -> [csv::StringRecord; 3] {
+    [
+        csv::StringRecord::from(TABLE_HEADER.to_vec()),
+        csv::StringRecord::from(TABLE_HEADER[..13].to_vec()),
+        csv::StringRecord::from(OLD_TABLE_HEADER.to_vec()),
+    ]
+}
+
+/// Read a table CSV (`-` for stdin), with [`TABLE_HEADER`] or an older
+/// header ([`headers`]: the rows lack the later measures). Header lines
 /// later in the file are skipped and switch the columns, so `cat a.csv
 /// b.csv` is a table, old and new alike; a (method, terrain) key may appear once.
 pub fn read_table_csv(path: &str) -> Result<Vec<TableRow>> {
     let src = dem_core::table::open_input(path)?;
     let bad = |line: u64, reason: String| DemError::Table { path: path.into(), line, reason };
     let mut rdr = csv::ReaderBuilder::new().has_headers(false).flexible(true).trim(csv::Trim::All).from_reader(src);
-    let (new, old) = (csv::StringRecord::from(TABLE_HEADER.to_vec()), csv::StringRecord::from(OLD_TABLE_HEADER.to_vec()));
-    let mut header = &new;
+    let known = headers();
+    let mut header = &known[0];
     let mut rows = Vec::new();
     for (n, rec) in rdr.records().enumerate() {
         let rec = rec.map_err(|e| bad(e.position().map_or(0, |p| p.line()), e.to_string()))?;
         let line = rec.position().map_or(n as u64 + 1, |p| p.line());
-        if rec == new || rec == old {
-            header = if rec == new { &new } else { &old };
+        if let Some(h) = known.iter().find(|h| **h == rec) {
+            header = h;
             continue;
         }
         if n == 0 {
@@ -448,6 +531,15 @@ pub fn check_table(path: &str, rows: Vec<TableRow>) -> Result<Vec<TableRow>> {
         let measures = [r.height_cm, r.rough_across_cm, r.rough_along_cm, r.real_rough_across_cm, r.real_rough_along_cm, r.gap];
         if measures.iter().flatten().any(|v| !v.is_finite() || *v < 0.0) {
             return Err(DemError::input(path, format!("row {}/{}: height measures and gap must be numbers >= 0", r.method, r.terrain)));
+        }
+        let shares = [r.frame_dh_mm, r.frame_flip, r.frame_persist, r.real_frame_dh_mm, r.real_frame_flip, r.real_frame_persist];
+        if shares.iter().flatten().any(|v| !v.is_finite() || *v < 0.0)
+            || [r.frame_rcorr, r.real_frame_rcorr].iter().flatten().any(|v| !(-1.0..=1.0).contains(v))
+        {
+            return Err(DemError::input(
+                path,
+                format!("row {}/{}: frame measures must be numbers >= 0 (correlations in [-1, 1])", r.method, r.terrain),
+            ));
         }
     }
     Ok(rows)
@@ -488,12 +580,30 @@ pub enum Measure {
     RoughAlong,
     /// `gap`.
     Gap,
+    /// |frame_dh_mm - real_frame_dh_mm|.
+    FrameDh,
+    /// |frame_rcorr - real_frame_rcorr|.
+    FrameRcorr,
+    /// |frame_flip - real_frame_flip|.
+    FrameFlip,
+    /// |frame_persist - real_frame_persist|.
+    FramePersist,
 }
 
 impl Measure {
     /// Every measure, in table order.
-    pub const ALL: [Measure; 6] =
-        [Measure::Mean, Measure::Median, Measure::HeightCm, Measure::RoughAcross, Measure::RoughAlong, Measure::Gap];
+    pub const ALL: [Measure; 10] = [
+        Measure::Mean,
+        Measure::Median,
+        Measure::HeightCm,
+        Measure::RoughAcross,
+        Measure::RoughAlong,
+        Measure::Gap,
+        Measure::FrameDh,
+        Measure::FrameRcorr,
+        Measure::FrameFlip,
+        Measure::FramePersist,
+    ];
 
     /// Its name in tables and messages.
     pub fn name(self) -> &'static str {
@@ -504,6 +614,10 @@ impl Measure {
             Measure::RoughAcross => "rough_across",
             Measure::RoughAlong => "rough_along",
             Measure::Gap => "gap",
+            Measure::FrameDh => "frame_dh",
+            Measure::FrameRcorr => "frame_rcorr",
+            Measure::FrameFlip => "frame_flip",
+            Measure::FramePersist => "frame_persist",
         }
     }
 
@@ -518,6 +632,10 @@ impl Measure {
             Measure::RoughAcross => row.rough_offsets()[0],
             Measure::RoughAlong => row.rough_offsets()[1],
             Measure::Gap => row.gap,
+            Measure::FrameDh => row.frame_offsets()[0],
+            Measure::FrameRcorr => row.frame_offsets()[1],
+            Measure::FrameFlip => row.frame_offsets()[2],
+            Measure::FramePersist => row.frame_offsets()[3],
         }
     }
 }
@@ -533,12 +651,17 @@ pub struct Tolerances {
     pub rough_cm: f64,
     /// The gap.
     pub gap: f64,
+    /// |frame_dh - real_frame_dh|, mm.
+    pub frame_dh_mm: f64,
+    /// |frame - real_frame| of the correlation, the flip share and the
+    /// persistence.
+    pub frame: f64,
 }
 
 impl Default for Tolerances {
     /// The defaults of `dem-eval compare`.
     fn default() -> Self {
-        Tolerances { pair: 0.02, height_cm: 0.5, rough_cm: 0.5, gap: DEFAULT_GAP_TOLERANCE }
+        Tolerances { pair: 0.02, height_cm: 0.5, rough_cm: 0.5, gap: DEFAULT_GAP_TOLERANCE, frame_dh_mm: 1.0, frame: 0.05 }
     }
 }
 
@@ -553,6 +676,8 @@ impl Tolerances {
             Measure::HeightCm => self.height_cm,
             Measure::RoughAcross | Measure::RoughAlong => self.rough_cm,
             Measure::Gap => self.gap,
+            Measure::FrameDh => self.frame_dh_mm,
+            Measure::FrameRcorr | Measure::FrameFlip | Measure::FramePersist => self.frame,
         }
     }
 
@@ -653,6 +778,7 @@ mod tests {
             real_rough_across_cm: None,
             real_rough_along_cm: None,
             gap: None,
+            ..TableRow::default()
         }
     }
 
@@ -897,8 +1023,18 @@ mod tests {
         write_table_csv(&p, &rows).unwrap();
         let text = std::fs::read_to_string(&p).unwrap();
         assert!(text.starts_with(&TABLE_HEADER.join(",")), "{text}");
-        assert!(text.contains(",0.4,0.3,,0.1,0.2,0.3,0.4,\n"), "{text}");
+        assert!(text.contains(",0.4,0.3,,0.1,0.2,0.3,0.4,,,,,,,,,\n"), "{text}");
         assert_eq!(read_table_csv(&p).unwrap(), rows);
+        // The 13 columns before the frame columns: those are None.
+        let mid: String = text.lines().map(|l| l.split(',').take(13).collect::<Vec<_>>().join(",") + "\n").collect();
+        std::fs::write(&p, &mid).unwrap();
+        assert_eq!(read_table_csv(&p).unwrap(), rows);
+        // Frame columns round-trip; a correlation outside [-1, 1] is refused.
+        let framed = vec![TableRow { frame_dh_mm: Some(5.1), frame_rcorr: Some(-0.2), real_frame_persist: Some(0.92), ..full("f") }];
+        write_table_csv(&p, &framed).unwrap();
+        assert_eq!(read_table_csv(&p).unwrap(), framed);
+        write_table_csv(&p, &[TableRow { frame_rcorr: Some(1.5), ..full("f") }]).unwrap();
+        assert!(read_table_csv(&p).unwrap_err().to_string().contains("correlations in [-1, 1]"));
         // The old header: the measures are None.
         let old = format!("{}\nold,all,56,0.005,2.6,0.548,0.13\n", OLD_TABLE_HEADER.join(","));
         let q = dir.path().join("old.csv").to_string_lossy().into_owned();
@@ -913,7 +1049,7 @@ mod tests {
         // A row of the wrong width, a negative measure: refused with the line.
         std::fs::write(&q, format!("{old}x,all,1,0,0,0,0,1\n")).unwrap();
         assert!(read_table_csv(&q).unwrap_err().to_string().contains("line 3"));
-        std::fs::write(&q, text.replace(",0.3,0.4,\n", ",0.3,-0.4,\n")).unwrap();
+        std::fs::write(&q, text.replace(",0.3,0.4,2.0,", ",0.3,-0.4,2.0,")).unwrap();
         assert!(read_table_csv(&q).unwrap_err().to_string().contains(">= 0"));
         // JSON of an old table: the measures default to None.
         let js: Vec<TableRow> =
@@ -924,7 +1060,7 @@ mod tests {
     #[test]
     fn compare_fails_on_each_height_measure() {
         let base = [full("a")];
-        let tol = Tolerances { pair: 0.02, height_cm: 0.5, rough_cm: 0.5, gap: 0.3 };
+        let tol = Tolerances { pair: 0.02, height_cm: 0.5, rough_cm: 0.5, gap: 0.3, ..Tolerances::default() };
         let worse = |cur: TableRow| {
             let c = compare(&base, &[cur], &tol);
             assert_eq!(c[0].status == Status::Worse, !c[0].worse.is_empty());

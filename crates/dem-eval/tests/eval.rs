@@ -479,7 +479,8 @@ fn compare_fails_on_a_worse_table_and_passes_on_an_equal_one() {
 fn compare_fails_when_a_height_measure_grows_and_names_it() {
     let dir = tempdir();
     let d = dir.path();
-    let head = dem_eval::table::TABLE_HEADER.join(",");
+    // The columns before the frame columns (a table of an older dem-eval).
+    let head = dem_eval::table::TABLE_HEADER[..13].join(",");
     // Real roughness 0.33 across, 0.45 along; the model's 0.08 and 0.5.
     let write = |name: &str, height: f64, across: f64, gap: f64| {
         let path = arg(d, name);
@@ -540,6 +541,42 @@ fn compare_fails_when_a_height_measure_grows_and_names_it() {
     let o = run("dem-eval", &["compare", &base, &base, "--gap-tolerance=-1"], None);
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("--gap-tolerance"));
+}
+
+/// A row whose frames move unlike the real records' by more than before
+/// fails, naming the frame measure; a baseline without them checks none.
+#[test]
+fn compare_fails_when_frames_move_unlike_the_real_ones() {
+    let dir = tempdir();
+    let d = dir.path();
+    let head = dem_eval::table::TABLE_HEADER.join(",");
+    // The real records: 5.1 mm per frame, correlation 0.7, 1.4 % flips, 0.92 persistence.
+    let write = |name: &str, dh: f64, rcorr: f64, flip: f64| {
+        let path = arg(d, name);
+        std::fs::write(
+            &path,
+            format!("{head}\nm,all,56,0.005,2.6,0.3,0.2,1.5,0.08,0.5,0.33,0.45,3.0,{dh},{rcorr},{flip},0.93,5.1,0.7,0.014,0.92\n"),
+        )
+        .unwrap();
+        path
+    };
+    let base = write("base.csv", 6.0, 0.6, 0.02);
+    ok(&run("dem-eval", &["compare", &base, &write("within.csv", 5.5, 0.68, 0.05)], None));
+    for (cur, what) in [
+        (write("dh.csv", 17.3, 0.6, 0.02), "m/all worse (frame_dh +11.3000 > 1)"),
+        (write("rcorr.csv", 6.0, 0.02, 0.02), "m/all worse (frame_rcorr +0.5800 > 0.05)"),
+        (write("flip.csv", 6.0, 0.6, 0.1), "m/all worse (frame_flip +0.0800 > 0.05)"),
+    ] {
+        let o = run("dem-eval", &["compare", &base, &cur], None);
+        assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+        assert!(stderr(&o).contains(what), "{what}: {}", stderr(&o));
+    }
+    ok(&run("dem-eval", &["compare", &base, &write("dh2.csv", 7.0, 0.6, 0.02), "--frame-dh-tolerance", "2"], None));
+    let older = arg(d, "older.csv");
+    let text = std::fs::read_to_string(&base).unwrap();
+    let cut: String = text.lines().map(|l| l.split(',').take(13).collect::<Vec<_>>().join(",") + "\n").collect();
+    std::fs::write(&older, cut).unwrap();
+    ok(&run("dem-eval", &["compare", &older, &write("dh3.csv", 17.3, 0.0, 0.5)], None));
 }
 
 #[test]
@@ -836,4 +873,129 @@ fn the_contract_s_extremes_are_written_and_read_back() {
     let joined = String::from_utf8(ok(&run("dem-eval", &["join", &csv, &json, "--format", "csv"], None)).to_vec()).unwrap();
     assert_eq!(joined.lines().count(), 3, "{joined}");
     assert!(joined.lines().nth(1).unwrap().starts_with("m,all,6,"), "{joined}");
+}
+
+/// The frame columns against the numpy reference of the four statistics
+/// (`scripts/peers/temporal.py`, its `runs` and `stats`): the predictions'
+/// over the sim runs (a prediction drawing noise and holes afresh every
+/// record, every sim record scored), and the real records' over the real
+/// runs with their true sim partners as the reference; over all records and
+/// over stairs up (the steps whose later frame is of that terrain).
+#[test]
+fn frame_columns_match_the_numpy_reference() {
+    let dir = tempdir();
+    let sensor = arg(dir.path(), "sensor.json");
+    std::fs::write(
+        &sensor,
+        r#"{"effects": [{"effect": "noise", "params": {"sigma0": 0.01, "k": 0.02}}, {"effect": "dropout", "params": {"p": 0.2}}]}"#,
+    )
+    .unwrap();
+    let pred = arg(dir.path(), "pred.npy");
+    ok(&run("dem-sensor", &["apply", "--sensor", &sensor, "--seed", "3", &td("sim.npy"), "-o", &pred], None));
+    let every_sim = arg(dir.path(), "every_sim.csv");
+    let n_sim = npy::read_all(&td("sim.npy")).unwrap().len();
+    let body: String = (0..n_sim).map(|i| format!("{i},{}\n", i % 966)).collect();
+    std::fs::write(&every_sim, format!("sim_index,real_index\n{body}")).unwrap();
+    let (sim, real, sim_labels, pairs, real_labels) =
+        (td("sim.npy"), td("real.npy"), td("sim_labels.csv"), td("pairs.csv"), td("real_labels.csv"));
+    let table = |args: &[&str]| -> Value {
+        let mut a = vec!["--sim", &sim, "--real", &real];
+        a.extend_from_slice(args);
+        a.extend_from_slice(&["--sim-labels", &sim_labels, "--by", "terrain", "--format", "json"]);
+        let out = ok(&run("dem-eval", &a, None)).to_vec();
+        serde_json::from_slice(&out).unwrap()
+    };
+    let pred_rows = table(&["--pairs", &every_sim, "--pred", &pred]);
+    let real_rows = table(&["--pairs", &pairs, "--identity", "--real-labels", &real_labels]);
+    let peers = testkit_peers();
+    let want: Value = serde_json::from_str(&py(
+        dir.path(),
+        &format!(
+            r#"
+import csv, json, sys
+import numpy as np
+sys.path.insert(0, "{peers}")
+import temporal
+def of(labels, x, ref):
+    steps = temporal.runs(labels)
+    terrain = [r["terrain"] for r in csv.DictReader(open(labels))]
+    up = steps[[terrain[b] == "stairs-up" for b in steps[:, 1]]]
+    return [temporal.stats(x, ref, steps), temporal.stats(x, ref, up)]
+sim, real = np.load("{sim}"), np.load("{real}")
+partner = {{int(r["real_index"]): int(r["sim_index"]) for r in csv.DictReader(open("{pairs}"))}}
+sim_at_real = sim[[partner[j] for j in range(len(real))]]
+print(json.dumps({{"pred": of("{sim_labels}", np.load("{pred}"), sim), "real": of("{real_labels}", real, sim_at_real)}}))
+"#,
+            sim = td("sim.npy"),
+            real = td("real.npy"),
+            pairs = td("pairs.csv"),
+            sim_labels = td("sim_labels.csv"),
+            real_labels = td("real_labels.csv"),
+        ),
+    ))
+    .unwrap();
+    for (side, rows, prefix) in [("pred", &pred_rows, "frame"), ("real", &real_rows, "real_frame")] {
+        for (k, terrain) in ["all", "stairs-up"].into_iter().enumerate() {
+            let row = rows.as_array().unwrap().iter().find(|r| r["terrain"] == terrain).unwrap();
+            let w = &want[side][k];
+            let got =
+                |m: &str| row[format!("{prefix}_{m}")].as_f64().unwrap_or_else(|| panic!("{side} {terrain}: no {prefix}_{m} in {row}"));
+            // numpy takes the differences and the mean change in float32.
+            let near = |a: f64, b: f64, tol: f64, what: &str| {
+                assert!((a - b).abs() <= tol * b.abs().max(1.0), "{side} {terrain} {what}: {a} vs numpy {b}")
+            };
+            near(got("dh_mm"), 1000.0 * w["dh"].as_f64().unwrap(), 1e-6, "dh_mm");
+            near(got("flip"), w["flip"].as_f64().unwrap(), 1e-12, "flip");
+            near(got("persist"), w["persist"].as_f64().unwrap(), 1e-12, "persist");
+            near(got("rcorr"), w["rcorr"].as_f64().unwrap(), 1e-6, "rcorr");
+        }
+    }
+    // Fresh noise and holes every record: the error forgets, the holes move.
+    let all = |rows: &Value, m: &str| rows[0][m].as_f64().unwrap();
+    assert!(all(&pred_rows, "frame_rcorr").abs() < 0.1 && all(&real_rows, "real_frame_rcorr") > 0.3, "{pred_rows} {real_rows}");
+    assert!(all(&pred_rows, "frame_flip") > all(&real_rows, "real_frame_flip"));
+}
+
+/// Labels without poses: the frame columns are left out with one line
+/// saying why, the rest of the table as before.
+#[test]
+fn frame_columns_without_poses_are_left_out_saying_why() {
+    let dir = tempdir();
+    let labels = arg(dir.path(), "labels.csv");
+    let text = std::fs::read_to_string(td("sim_labels.csv")).unwrap();
+    let cut: String = text
+        .lines()
+        .map(|l| {
+            let f: Vec<&str> = l.split(',').collect();
+            format!("{},{},{},{}\n", f[0], f[1], f[5], f[6])
+        })
+        .collect();
+    std::fs::write(&labels, cut).unwrap();
+    let o = run(
+        "dem-eval",
+        &[
+            "--sim",
+            &td("sim.npy"),
+            "--real",
+            &td("real.npy"),
+            "--pairs",
+            &td("pairs.csv"),
+            "--identity",
+            "--sim-labels",
+            &labels,
+            "--format",
+            "csv",
+        ],
+        None,
+    );
+    let table = String::from_utf8(ok(&o).to_vec()).unwrap();
+    let err = stderr(&o);
+    assert!(err.contains("frame columns of") && err.contains("left out: the labels give no pose (`x`, `y`, `yaw`)"), "{err}");
+    let row = table.lines().nth(1).unwrap();
+    assert!(row.ends_with(",,,,,,,,"), "no frame columns: {row}");
+}
+
+/// `scripts/peers`, where the numpy references live.
+fn testkit_peers() -> String {
+    dem_testkit::workspace_root().join("scripts/peers").to_string_lossy().into_owned()
 }

@@ -137,6 +137,12 @@ fn measures(r: &TableRow, f: Format) -> Vec<String> {
     let cm = [r.height_cm, r.rough_across_cm, r.rough_along_cm, r.real_rough_across_cm, r.real_rough_along_cm];
     let mut v: Vec<String> = cm.iter().map(|&x| opt(x, 2, false, f)).collect();
     v.push(opt(r.gap, 3, false, f));
+    for (dh, rcorr, flip, persist) in [
+        (r.frame_dh_mm, r.frame_rcorr, r.frame_flip, r.frame_persist),
+        (r.real_frame_dh_mm, r.real_frame_rcorr, r.real_frame_flip, r.real_frame_persist),
+    ] {
+        v.extend([opt(dh, 2, false, f), opt(rcorr, 2, false, f), opt(flip, 3, false, f), opt(persist, 3, false, f)]);
+    }
     v
 }
 
@@ -145,7 +151,8 @@ fn decimals(m: Measure) -> usize {
     match m {
         Measure::Mean | Measure::Median => 4,
         Measure::HeightCm | Measure::RoughAcross | Measure::RoughAlong => 2,
-        Measure::Gap => 3,
+        Measure::Gap | Measure::FrameFlip | Measure::FramePersist => 3,
+        Measure::FrameDh | Measure::FrameRcorr => 2,
     }
 }
 
@@ -196,6 +203,14 @@ struct ComparedJson<'a> {
     /// Growth of |rough_along_cm - real_rough_along_cm|.
     diff_rough_along: Option<f64>,
     diff_gap: Option<f64>,
+    /// Growth of |frame_dh_mm - real_frame_dh_mm|.
+    diff_frame_dh: Option<f64>,
+    /// Growth of |frame_rcorr - real_frame_rcorr|.
+    diff_frame_rcorr: Option<f64>,
+    /// Growth of |frame_flip - real_frame_flip|.
+    diff_frame_flip: Option<f64>,
+    /// Growth of |frame_persist - real_frame_persist|.
+    diff_frame_persist: Option<f64>,
     /// The measures that made the row worse.
     worse: &'a [Measure],
 }
@@ -230,6 +245,10 @@ pub fn write_comparison(path: &str, rows: &[Compared], f: Format) -> Result<()> 
                     diff_rough_across: c.diff(Measure::RoughAcross),
                     diff_rough_along: c.diff(Measure::RoughAlong),
                     diff_gap: c.diff(Measure::Gap),
+                    diff_frame_dh: c.diff(Measure::FrameDh),
+                    diff_frame_rcorr: c.diff(Measure::FrameRcorr),
+                    diff_frame_flip: c.diff(Measure::FrameFlip),
+                    diff_frame_persist: c.diff(Measure::FramePersist),
                     worse: &c.worse,
                 })
                 .collect();
