@@ -32,6 +32,9 @@ pub struct FilterRules {
     /// Keep records at most this many seconds into their run (the labels'
     /// `time`; 0 keeps the first frame of every run).
     pub max_time: Option<f64>,
+    /// Keep records at least this many seconds into their run (past a
+    /// run's startup frames).
+    pub min_time: Option<f64>,
     /// Keep records of these runs (the labels' `sequence`), or with
     /// `except_runs` all other runs'.
     pub runs: Option<Vec<u64>>,
@@ -108,7 +111,7 @@ impl Filter {
                 ));
             }
         }
-        if r.terrains.is_some() || r.drop_other || r.max_time.is_some() || r.runs.is_some() {
+        if r.terrains.is_some() || r.drop_other || r.max_time.is_some() || r.min_time.is_some() || r.runs.is_some() {
             let (path, labels) = r.labels.as_ref().ok_or_else(|| DemError::Usage("terrain, time and run rules need --labels".into()))?;
             let label = &labels[index as usize];
             let wanted = r.terrains.as_ref().is_none_or(|ts| ts.contains(&label.terrain));
@@ -116,13 +119,13 @@ impl Filter {
                 self.counts.terrain += 1;
                 return Ok(false);
             }
-            if let Some(max) = r.max_time {
+            if r.max_time.is_some() || r.min_time.is_some() {
                 let t = label.time.ok_or_else(|| DemError::Table {
                     path: path.clone(),
                     line: index + 2,
                     reason: format!("record {index} has no time, which the time rule reads"),
                 })?;
-                if t > max {
+                if r.max_time.is_some_and(|max| t > max) || r.min_time.is_some_and(|min| t < min) {
                     self.counts.time += 1;
                     return Ok(false);
                 }

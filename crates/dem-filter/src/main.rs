@@ -21,6 +21,7 @@ use dem_filter::{filter_stream, FilterFiles, FilterRules, RowRule};
     after_long_help = "Examples:
   dem-filter --labels l.csv --terrain stairs-up,pallet < sim.npy | dem-render - -o stairs.png
   dem-filter --labels real_labels.csv --max-time 0 real.npy -o first_frames.npy   # each run's first frame
+  dem-filter --labels real_labels.csv --min-time 6 real.npy -o settled.npy --emit-labels settled_labels.csv   # past startup
   dem-filter --labels sim_labels.csv --drop-other --unique --emit-index keep.csv sim.npy -o sim_clean.npy
   dem-filter --index keep.csv --invert sim.npy -o rest.npy     # the complement
   dem-filter --labels real_labels.csv --runs 3,4,5 real.npy -o test.npy --emit-labels test_labels.csv   # held-out runs
@@ -47,6 +48,11 @@ struct Args {
     /// `time`): `--max-time 0` keeps the first frame of every run.
     #[arg(long, value_parser = value::non_negative::<f64>)]
     max_time: Option<f64>,
+    /// Keep records at least this many seconds into their run (the labels'
+    /// `time`): `--min-time 6` leaves out the startup frames of runs whose
+    /// map needs 6 s to see behind the robot.
+    #[arg(long, value_parser = value::non_negative::<f64>)]
+    min_time: Option<f64>,
     /// Keep only the records of these runs (the labels' `sequence`;
     /// comma-separated numbers).
     #[arg(long, value_delimiter = ',')]
@@ -93,8 +99,8 @@ fn main() -> ExitCode {
     cli::run(|| {
         let a: Args = cli::parse();
         let runs_rule = a.runs.is_some() || a.except_runs.is_some();
-        if (a.terrain.is_some() || a.drop_other || a.max_time.is_some() || runs_rule) && a.labels.is_none() {
-            return Err(cli::usage("--terrain, --drop-other, --max-time, --runs and --except-runs need --labels"));
+        if (a.terrain.is_some() || a.drop_other || a.max_time.is_some() || a.min_time.is_some() || runs_rule) && a.labels.is_none() {
+            return Err(cli::usage("--terrain, --drop-other, --max-time, --min-time, --runs and --except-runs need --labels"));
         }
         let inputs: Vec<&str> = [Some(&a.input), a.labels.as_ref(), a.index.as_ref()].into_iter().flatten().map(String::as_str).collect();
         let outputs: Vec<&str> =
@@ -111,6 +117,7 @@ fn main() -> ExitCode {
             terrains: a.terrain,
             drop_other: a.drop_other,
             max_time: a.max_time,
+            min_time: a.min_time,
             except_runs: a.except_runs.is_some(),
             runs: a.runs.or(a.except_runs),
             index,

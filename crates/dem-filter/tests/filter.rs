@@ -96,6 +96,30 @@ fn max_time_keeps_the_first_seconds_of_every_run() {
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
 }
 
+/// --min-time keeps the records at least that far into their run (past the
+/// startup frames); with --max-time, a window of each run.
+#[test]
+fn min_time_leaves_out_the_first_seconds_of_every_run() {
+    let dir = tempdir();
+    let all = table::read_labels(&td("real_labels.csv")).unwrap();
+    for (args, lo, hi) in [(vec!["--min-time", "2"], 2.0, f64::INFINITY), (vec!["--min-time", "1", "--max-time", "3"], 1.0, 3.0)] {
+        let idx = arg(dir.path(), "t.csv");
+        let mut a = vec!["--labels".to_string(), td("real_labels.csv")];
+        a.extend(args.iter().map(|s| s.to_string()));
+        a.extend([td("real.npy"), "-o".into(), arg(dir.path(), "t.npy"), "--emit-index".into(), idx.clone()]);
+        let a: Vec<&str> = a.iter().map(String::as_str).collect();
+        let o = run("dem-filter", &a, None);
+        ok(&o);
+        let want: Vec<u64> = all.iter().filter(|l| (lo..=hi).contains(&l.time.unwrap())).map(|l| l.index).collect();
+        assert!(!want.is_empty() && want.len() < all.len());
+        assert_eq!(table::read_index(&idx).unwrap(), want);
+        assert!(stderr(&o).contains(&format!("{} time", all.len() - want.len())), "{}", stderr(&o));
+    }
+    let o = run("dem-filter", &["--min-time", "2", &td("real.npy")], None);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--min-time"), "{}", stderr(&o));
+}
+
 #[test]
 fn runs_and_except_runs_split_the_stream_by_the_labels_sequence() {
     let dir = tempdir();
