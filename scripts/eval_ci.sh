@@ -3,7 +3,9 @@
 #   prepare testdata/ (dem-filter, dem-pair with a val split)
 #   -> train a tiny generator and export it (dem-train; skipped until it is built)
 #   -> dem-eval on the val split, one CSV row per method (pair error, height
-#      error, roughness, gap: docs/dem-eval.md)
+#      error, roughness, gap: docs/dem-eval.md), and each method again over
+#      testdata's runs (`-runs` rows: the frame columns, how consecutive
+#      frames move against the measured runs)
 #   -> dem-eval compare testdata/eval_baseline.csv against it (exit 1 when worse).
 #
 # Environment (all optional):
@@ -12,9 +14,10 @@
 #   TD=testdata               the data set
 #   BASELINE=testdata/eval_baseline.csv
 #   TOLERANCE=0.02            absolute growth of mean or median allowed
-#   HEIGHT_TOLERANCE, ROUGH_TOLERANCE, GAP_TOLERANCE
-#                             growth of height_cm, |rough - real_rough| (cm) and
-#                             gap allowed [dem-eval compare's defaults]
+#   HEIGHT_TOLERANCE, ROUGH_TOLERANCE, GAP_TOLERANCE, FRAME_DH_TOLERANCE, FRAME_TOLERANCE
+#                             growth of height_cm, |rough - real_rough| (cm),
+#                             gap and the frame measures allowed [dem-eval
+#                             compare's defaults]
 #   MODEL=path.onnx           evaluate this model as the `tiny` row instead of training one
 #   TRAIN_ARGS="..."          dem-train options of the tiny model (see below)
 #   UPDATE_BASELINE=1         write BASELINE from this run instead of comparing
@@ -58,9 +61,20 @@ eval_row() {
     local name=$1 sim=$2
     shift 2
     "$BIN/dem-eval" --sim "$sim" --real "$DATA/real.npy" --pairs "$DATA/pairs.csv" --split val \
-        --sim-labels "$DATA/sim_labels.csv" --name "$(row_label "$name")" --format csv -o "$ROWS/$name.csv" \
+        --sim-labels "$DATA/sim_labels.csv" --real-labels "$DATA/real_labels.csv" --name "$(row_label "$name")" --format csv -o "$ROWS/$name.csv" \
         --emit-records "$ROWS/$name.records.csv" --emit-input "$ROWS/$name.input.npy" \
         --emit-pred "$ROWS/$name.pred.npy" --emit-closest "$ROWS/$name.closest.npy" ${EVAL_BY:+--by "$EVAL_BY"} "$@"
+}
+
+# eval_runs NAME METHOD...: the table row of NAME over testdata's runs as
+# they were driven: every measured pose's sim record (the true pairs), so the
+# frame columns see consecutive frames of each run, against the measured
+# records' own runs.
+eval_runs() {
+    local name=$1
+    shift
+    "$BIN/dem-eval" --sim "$TD/sim.npy" --real "$TD/real.npy" --pairs "$TD/pairs.csv" \
+        --sim-labels "$TD/sim_labels.csv" --real-labels "$TD/real_labels.csv" --name "$name" --format csv -o "$ROWS/$name.csv" "$@"
 }
 
 # train_model NAME SIM REAL PAIRS: train with dem-train ($TRAIN_ARGS), export
@@ -91,12 +105,15 @@ eval_ci_main() {
     local baseline=${BASELINE:-$TD/eval_baseline.csv} rows=(identity) model=${MODEL:-}
     eval_prepare
     eval_row identity "$DATA/sim.npy" --identity
+    eval_runs identity-runs --identity
+    rows+=(identity-runs)
     if [[ -z "$model" && -x "$BIN/dem-train" ]]; then
         model=$(train_model tiny "$DATA/sim.npy" "$DATA/real.npy" "$DATA/pairs.csv")
     fi
     if [[ -n "$model" ]]; then
         eval_row tiny "$DATA/sim.npy" --model "$model"
-        rows+=(tiny)
+        eval_runs tiny-runs --model "$model"
+        rows+=(tiny tiny-runs)
     else
         echo "eval_ci: no $BIN/dem-train and no MODEL: the tiny-model row is not evaluated" >&2
     fi
@@ -109,7 +126,8 @@ eval_ci_main() {
     fi
     "$BIN/dem-eval" compare "$baseline" "$OUT/table.csv" --tolerance "${TOLERANCE:-0.02}" \
         ${HEIGHT_TOLERANCE:+--height-tolerance "$HEIGHT_TOLERANCE"} ${ROUGH_TOLERANCE:+--rough-tolerance "$ROUGH_TOLERANCE"} \
-        ${GAP_TOLERANCE:+--gap-tolerance "$GAP_TOLERANCE"} | tee "$OUT/compare.txt"
+        ${GAP_TOLERANCE:+--gap-tolerance "$GAP_TOLERANCE"} ${FRAME_DH_TOLERANCE:+--frame-dh-tolerance "$FRAME_DH_TOLERANCE"} \
+        ${FRAME_TOLERANCE:+--frame-tolerance "$FRAME_TOLERANCE"} | tee "$OUT/compare.txt"
 }
 
 if [[ "${BASH_SOURCE[0]}" == "$0" ]]; then
