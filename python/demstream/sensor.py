@@ -36,6 +36,29 @@ def draw_uniform_torch(n, k, generator=None, device=None):
     return x.to(torch.float32) / _GRID
 
 
+def _contract(dem):
+    """``dem`` as the contract reads it (docs/format.md), as every tool reads
+    its input: a NaN height is a missing cell (height 0, mask -1), a NaN
+    attitude 0; an infinite value anywhere, or a NaN in a mask, is refused
+    naming the environment (the record of the batch) and the cell."""
+    bad = np.isinf(dem)
+    bad[..., 1] |= np.isnan(dem[..., 1])
+    if bad.any():
+        i, r, c, ch = (int(v) for v in np.argwhere(bad)[0])
+        what = "height" if ch == 0 else ("attitude mask" if r == 20 else "mask")
+        raise ValueError(
+            f"environment {i}: {dem[i, r, c, ch]} in the {what} at row {r}, column {c}, channel {ch} "
+            "(the contract allows no infinite value, and NaN only as a height)"
+        )
+    if np.isnan(dem).any():
+        dem = dem.copy()
+        holes = np.isnan(dem[:, :20, :, 0])
+        dem[:, :20, :, 1][holes] = -1.0
+        dem[:, :20, :, 0][holes] = 0.0
+        dem[:, 20, :, 0][np.isnan(dem[:, 20, :, 0])] = 0.0
+    return dem
+
+
 class VirtualSensor:
     """An exported virtual sensor run by onnxruntime on batches of DEMs.
 
@@ -71,6 +94,7 @@ class VirtualSensor:
         dem = np.ascontiguousarray(dem, dtype=np.float32)
         if dem.ndim != 4 or dem.shape[1:] != (21, 5, 2):
             raise ValueError(f"dem has shape {dem.shape}; need (N, 21, 5, 2)")
+        dem = _contract(dem)
         n = dem.shape[0]
         feeds = {"dem": dem}
         if "uniform" in self.inputs:
@@ -82,5 +106,8 @@ class VirtualSensor:
             feeds["uniform"] = uniform
         if "time" in self.inputs:
             t = np.full(n, np.nan, np.float32) if time is None else np.ascontiguousarray(time, dtype=np.float32).reshape(n)
+            bad = np.flatnonzero(np.isinf(t))
+            if bad.size:
+                raise ValueError(f"environment {bad[0]}: time {t[bad[0]]} (a time is seconds into the run, or NaN when unknown)")
             feeds["time"] = t
         return self.session.run(["dem_out"], feeds)[0]

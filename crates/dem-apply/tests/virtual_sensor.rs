@@ -283,3 +283,39 @@ fn a_sensor_model_alone_runs_in_dem_apply_as_in_dem_sensor() {
         assert!(std::fs::read(&files[a]).unwrap() == std::fs::read(&files[b]).unwrap(), "{} and {} differ", files[a], files[b]);
     }
 }
+
+/// In the loop the contract holds as in the tools: an infinite height (or
+/// time) is refused naming the environment and the cell, where it would
+/// reach the policy as an infinite output; a NaN height is a missing cell.
+#[test]
+fn the_virtual_sensor_refuses_an_infinite_height_naming_the_environment() {
+    let dir = tempdir();
+    let model = arg(dir.path(), "gy.onnx");
+    export(&model, &Stored { residual: Some(SensorModel::from_json(RESIDUAL).unwrap()), heights: Heights::Input });
+    let said = py(
+        dir.path(),
+        &format!(
+            r#"
+import numpy as np
+from demstream.sensor import VirtualSensor
+s = VirtualSensor("{model}")
+dem = np.load("{sim}")[:8].copy()
+for where, value, time in [((5, 3, 2, 0), np.inf, None), ((2, 7, 0, 1), np.nan, None), ((0, 0, 0, 0), 0.0, np.array([0, 0, np.inf, 0, 0, 0, 0, 0]))]:
+    d = dem.copy(); d[where] = value
+    try:
+        s(d, time=time, rng=np.random.default_rng(0)); print("passed")
+    except ValueError as e:
+        print(e)
+d = dem.copy(); d[4, 6, 1, 0] = np.nan
+out = s(d, rng=np.random.default_rng(0))
+print(bool(np.isfinite(out).all()))
+"#,
+            sim = td("sim.npy"),
+        ),
+    );
+    let lines: Vec<&str> = said.lines().collect();
+    assert_eq!(lines[0], "environment 5: inf in the height at row 3, column 2, channel 0 (the contract allows no infinite value, and NaN only as a height)");
+    assert!(lines[1].starts_with("environment 2: nan in the mask at row 7, column 0"), "{said}");
+    assert!(lines[2].starts_with("environment 2: time inf"), "{said}");
+    assert_eq!(lines[3], "True", "a NaN height is a missing cell, not a NaN output: {said}");
+}
