@@ -314,7 +314,10 @@ print(bool(np.isfinite(out).all()))
         ),
     );
     let lines: Vec<&str> = said.lines().collect();
-    assert_eq!(lines[0], "environment 5: inf in the height at row 3, column 2, channel 0 (the contract allows no infinite value, and NaN only as a height)");
+    assert_eq!(
+        lines[0],
+        "environment 5: inf in the height at row 3, column 2, channel 0 (the contract allows no infinite value, and NaN only as a height)"
+    );
     assert!(lines[1].starts_with("environment 2: nan in the mask at row 7, column 0"), "{said}");
     assert!(lines[2].starts_with("environment 2: time inf"), "{said}");
     assert_eq!(lines[3], "True", "a NaN height is a missing cell, not a NaN output: {said}");

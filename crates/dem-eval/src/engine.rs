@@ -91,10 +91,13 @@ pub struct Evaluation {
 }
 
 impl Evaluation {
-    /// The outcome of rows accumulated elsewhere (`dem-eval merge`: the
-    /// records files hold no runs, so no frame columns).
-    pub(crate) fn new(rows: std::collections::BTreeMap<Option<Terrain>, RowAcc>, gaps: HashMap<Option<Terrain>, f64>) -> Self {
-        Evaluation { rows, gaps, frames: Default::default() }
+    /// The outcome of rows accumulated elsewhere (`dem-eval merge`).
+    pub(crate) fn new(
+        rows: std::collections::BTreeMap<Option<Terrain>, RowAcc>,
+        gaps: HashMap<Option<Terrain>, f64>,
+        frames: [BTreeMap<Option<Terrain>, FrameStats>; 2],
+    ) -> Self {
+        Evaluation { rows, gaps, frames }
     }
 
     /// The table of `method`: the row over all records, then with

@@ -72,7 +72,8 @@ enum Cmd {
       --first-index {first_index} --real real.npy --pairs pairs.csv --split val --model gy.onnx \\
       --emit-records {shard}.rec.csv --emit-pred {shard}.pred.npy -o /dev/null :::: shards.csv
   dem-cat part-*.npy.pred.npy | dem-eval merge part-*.npy.rec.csv --name gy --by terrain \\
-      --emitted-pred - --real real.npy --pairs pairs.csv --split val --format csv")]
+      --emitted-pred - --real real.npy --pairs pairs.csv --split val --format csv \\
+      --sim-labels sim_labels.csv --sim sim.npy")]
     Merge(merge::MergeArgs),
     /// Join tables (CSV or JSON written by dem-eval) into one: the rows in
     /// order under one header, in any --format. A (method, terrain) row may

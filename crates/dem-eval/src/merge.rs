@@ -14,7 +14,10 @@ use dem_core::{cli, DemError, Terrain};
 
 use crate::engine::{row_gaps, Evaluation, GapSample, Pairs};
 use crate::evaluate::TableOut;
+use crate::frames::{PredFrames, RealFrames, Runs};
 use dem_core::npy::ByIndex;
+use dem_core::table;
+use dem_core::temporal::FrameStats;
 
 /// The arguments of `dem-eval merge`.
 #[derive(ClapArgs)]
@@ -37,6 +40,16 @@ pub struct MergeArgs {
     /// Pairs CSV of the evaluation (for the gap: every partner of a sim is in its row's real set).
     #[arg(long, requires = "emitted_pred")]
     pairs: Option<String>,
+    /// Labels CSV of the whole sim set (the shards' --sim-labels joined):
+    /// with --sim, its runs give the frame columns as one run gives them.
+    #[arg(long = "sim-labels", value_name = "CSV", requires_all = ["emitted_pred", "sim"])]
+    labels_sim: Option<String>,
+    /// The whole sim NPY (each prediction's input, for frame_rcorr).
+    #[arg(long, requires = "labels_sim")]
+    sim: Option<String>,
+    /// Labels CSV of the real file: the real_frame_* columns.
+    #[arg(long = "real-labels", value_name = "CSV", requires_all = ["emitted_pred", "sim"])]
+    labels_real: Option<String>,
     /// The split the shards evaluated.
     #[arg(long, value_enum, requires = "pairs")]
     split: Option<Split>,
@@ -77,12 +90,17 @@ fn keys(r: &RecordResult, by_terrain: bool) -> Vec<Option<Terrain>> {
     k
 }
 
+/// What the emitted predictions give: each row's gap and frame columns.
+type FromPreds = (HashMap<Option<Terrain>, f64>, [BTreeMap<Option<Terrain>, FrameStats>; 2]);
+
 /// The gap of every row: the emitted predictions sampled as one run samples
-/// them, against the real partners the pairs give the rows' sims.
-fn gaps(a: &MergeArgs, recs: &[RecordResult]) -> anyhow::Result<HashMap<Option<Terrain>, f64>> {
+/// them, against the real partners the pairs give the rows' sims; with the
+/// sim labels and the sims, the frame columns, fed the records in the order
+/// one run feeds them.
+fn gaps(a: &MergeArgs, recs: &[RecordResult]) -> anyhow::Result<FromPreds> {
     let (Some(pred_path), Some(real), Some(pairs_path)) = (&a.emitted_pred, &a.real, &a.pairs) else {
         cli::log("gap not computed: give --emitted-pred (the shards' --emit-pred joined), --real and --pairs");
-        return Ok(HashMap::new());
+        return Ok(Default::default());
     };
     let (pairs, _, real_max) = Pairs::read(pairs_path, a.split)?;
     let sims: Vec<u64> = pairs.pairs.chunk_by(|x, y| x.0 == y.0).map(|g| g[0].0).collect();
@@ -110,9 +128,24 @@ fn gaps(a: &MergeArgs, recs: &[RecordResult]) -> anyhow::Result<HashMap<Option<T
             *row_pairs.entry(key).or_default() += n;
         }
     }
+    let by_terrain = a.table.by.is_some();
+    let scored: BTreeSet<u64> = recs.iter().map(|r| r.sim_index).collect();
+    let terrain: HashMap<u64, Option<Terrain>> =
+        recs.iter().map(|r| (r.sim_index, r.terrain.as_deref().and_then(|t| t.parse().ok()))).collect();
+    let runs = match &a.labels_sim {
+        Some(path) => Runs::of(&table::read_labels(path)?, 0, path, |i| scored.contains(&i)),
+        None => None,
+    };
+    let mut real_frames = a.labels_real.as_deref().map(|path| RealFrames::new(path, n_real, &pairs.pairs)).transpose()?.flatten();
+    let mut sims = a.sim.as_deref().map(|p| ByIndex::open(p, |i| scored.contains(&i))).transpose()?;
+    let mut frames = PredFrames::default();
     let mut samples: HashMap<Option<Terrain>, GapSample> = HashMap::new();
     let mut rows = recs.iter();
     let n_pred = npy::open(pred_path)?.for_each_chunk(CHUNK_RECORDS, |_, chunk| {
+        let mut inputs = match &mut sims {
+            Some(s) => s.fetch(&rows.clone().take(chunk.len()).map(|r| r.sim_index).collect())?,
+            None => HashMap::new(),
+        };
         for pred in chunk.iter() {
             let Some(r) = rows.next() else {
                 return Err(DemError::input(
@@ -120,6 +153,14 @@ fn gaps(a: &MergeArgs, recs: &[RecordResult]) -> anyhow::Result<HashMap<Option<T
                     format!("has more records than the {} rows of the records files", recs.len()),
                 ));
             };
+            if let Some(sim) = inputs.remove(&r.sim_index) {
+                if let Some(runs) = &runs {
+                    frames.add(runs, r.sim_index, &sim, pred, |i| terrain.get(&i).copied().flatten(), by_terrain);
+                }
+                if let Some(rf) = &mut real_frames {
+                    rf.see_sim(r.sim_index, &sim);
+                }
+            }
             for key in keys(r, a.table.by.is_some()) {
                 let partners = pairs.within(r.sim_index..r.sim_index + 1).iter().map(|p| p.1);
                 samples.entry(key).or_default().add(r.sim_index, pred, partners, row_pairs.get(&key).copied().unwrap_or(0));
@@ -134,13 +175,22 @@ fn gaps(a: &MergeArgs, recs: &[RecordResult]) -> anyhow::Result<HashMap<Option<T
         )
         .into());
     }
-    row_gaps(samples, &row_pairs, &mut reals)
+    let pred_frames = if runs.is_some() { frames.stats() } else { BTreeMap::new() };
+    let real_frames = match &real_frames {
+        Some(rf) => rf.stats(|want| Ok(reals.fetch(want)?), by_terrain)?,
+        None => BTreeMap::new(),
+    };
+    Ok((row_gaps(samples, &row_pairs, &mut reals)?, [pred_frames, real_frames]))
 }
 
 /// Merge as `a` asks and write the table.
 pub fn run(a: MergeArgs) -> anyhow::Result<()> {
-    let inputs: Vec<&str> =
-        a.records.iter().chain([&a.emitted_pred, &a.real, &a.pairs].into_iter().flatten()).map(String::as_str).collect();
+    let inputs: Vec<&str> = a
+        .records
+        .iter()
+        .chain([&a.emitted_pred, &a.real, &a.pairs, &a.labels_sim, &a.sim, &a.labels_real].into_iter().flatten())
+        .map(String::as_str)
+        .collect();
     cli::one_stdin(inputs.iter().copied())?;
     dem_core::output::check_outputs(&inputs, &[a.table.output.as_str()])?;
     let recs = read_all(&a.records)?;
@@ -175,7 +225,7 @@ pub fn run(a: MergeArgs) -> anyhow::Result<()> {
     }
     // A gap that is not a number (heights near float32's limit overflow its
     // statistics) is left out, as a table reader would refuse it.
-    let mut gaps = gaps(&a, &recs)?;
+    let (mut gaps, frames) = gaps(&a, &recs)?;
     gaps.retain(|key, g| {
         let keep = g.is_finite();
         if !keep {
@@ -186,5 +236,5 @@ pub fn run(a: MergeArgs) -> anyhow::Result<()> {
         }
         keep
     });
-    a.table.write(&Evaluation::new(rows, gaps), &a.name)
+    a.table.write(&Evaluation::new(rows, gaps, frames), &a.name)
 }

@@ -202,7 +202,8 @@ fn expanded_pairs_are_one_record_per_pair_at_the_partner_s_time() {
     let gap = |args: &[&str]| -> f64 {
         let o = run("dem-eval", &[args, &["--identity", "--format", "csv"]].concat(), None);
         let t = String::from_utf8(ok(&o).to_vec()).unwrap();
-        t.lines().nth(1).unwrap().rsplit(',').next().unwrap().parse().unwrap()
+        let col = t.lines().next().unwrap().split(',').position(|c| c == "gap").unwrap();
+        t.lines().nth(1).unwrap().split(',').nth(col).unwrap().parse().unwrap()
     };
     let whole = gap(&["--sim", &td("sim.npy"), "--real", &td("real.npy"), "--pairs", &pairs, "--split", "val"]);
     let expanded = gap(&["--sim", &f("sim.npy"), "--real", &f("real.npy"), "--pairs", &f("pairs.csv")]);

@@ -233,13 +233,14 @@ fn dem_synth_by_run_ranges_equals_the_whole_world() {
 /// dem-eval over shards: each shard scored with `--first-index`, then
 /// `dem-eval merge` of the per-record results (and, for the gap, the
 /// predictions joined) gives the table of one run on the whole, byte for
-/// byte, by terrain, for a model and for Identity.
+/// byte, by terrain (the frame columns too, from the whole set's labels),
+/// for a model and for Identity.
 #[test]
 fn dem_eval_shard_tables_merge_into_the_whole() {
     let dir = tempdir();
     let d = dir.path();
     let model = dem_testkit::onnx_one_node(d, "tanh.onnx", "Tanh");
-    let (sim, real, labels) = (td("sim.npy"), td("real.npy"), td("sim_labels.csv"));
+    let (sim, real, labels, real_labels) = (td("sim.npy"), td("real.npy"), td("sim_labels.csv"), td("real_labels.csv"));
     // testdata's pairs name sims 0..965: shards of 400 give three with
     // pairs and five without (an empty records file must merge too). Every
     // third sim gets a second partner, so the gap's pairs repeat records on
@@ -266,6 +267,8 @@ fn dem_eval_shard_tables_merge_into_the_whole() {
                 &pairs,
                 "--sim-labels",
                 labels,
+                "--real-labels",
+                &real_labels,
                 "--by",
                 "terrain",
                 "--name",
@@ -294,15 +297,20 @@ fn dem_eval_shard_tables_merge_into_the_whole() {
         let mut m: Vec<&str> = vec!["merge", "--name", "m", "--by", "terrain", "--format", "csv"];
         m.extend(recs.iter().map(String::as_str));
         m.extend(["--emitted-pred", "-", "--real", &real, "--pairs", &pairs]);
+        // The frame columns: the whole set's runs and sims, as one run has them.
+        m.extend(["--sim-labels", &labels, "--sim", &sim, "--real-labels", &real_labels]);
         let merged = ok(&run("dem-eval", &m, Some(joined.clone()))).to_vec();
         assert!(String::from_utf8_lossy(&whole).lines().count() >= 4, "{}", String::from_utf8_lossy(&whole));
+        assert!(!String::from_utf8_lossy(&whole).lines().nth(1).unwrap().ends_with(",,,,,,,,"), "frame columns in the whole's table");
         assert_eq!(String::from_utf8_lossy(&merged), String::from_utf8_lossy(&whole), "{method:?}: merged shards differ from the whole");
         // Without the predictions: the same table without the gap, and a note.
-        let o = run("dem-eval", &m[..m.len() - 6], None);
+        let o = run("dem-eval", &m[..m.len() - 12], None);
         let no_gap = String::from_utf8_lossy(ok(&o)).into_owned();
         assert!(stderr(&o).contains("gap not computed"), "{}", stderr(&o));
+        let first = |l: &str| l.split(',').take(12).collect::<Vec<_>>().join(",");
         for (a, b) in no_gap.lines().zip(String::from_utf8_lossy(&whole).lines()).skip(1) {
-            assert_eq!(a, &b[..b.rfind(',').unwrap() + 1], "no gap: the other columns are the same");
+            assert_eq!(first(a), first(b), "no gap: the other columns are the same");
+            assert!(a.ends_with(",,,,,,,,,"), "no gap and no frame columns: {a}");
         }
         // Shards out of order, or one missing: refused, one line, exit 2.
         let mut swapped = m.clone();
