@@ -69,13 +69,12 @@ impl Runs {
 pub(crate) struct PredFrames {
     /// (sim, prediction) of a frame and how many of its steps still wait.
     waiting: HashMap<u64, (Dem, Dem, usize)>,
-    done: BTreeSet<usize>,
     sums: BTreeMap<Option<Terrain>, FrameSums>,
 }
 
 impl PredFrames {
-    /// Add scored record `i` (its sim input and its prediction); `terrain`
-    /// gives each record's terrain.
+    /// Add scored record `i` (its sim input and its prediction), each
+    /// scored record once; `terrain` gives each record's terrain.
     pub(crate) fn add(&mut self, runs: &Runs, i: u64, sim: &Dem, pred: &Dem, terrain: impl Fn(u64) -> Option<Terrain>, by_terrain: bool) {
         let mut waits = 0;
         for &k in runs.of_record(i) {
@@ -85,9 +84,6 @@ impl PredFrames {
                 waits += 1;
                 continue;
             };
-            if !self.done.insert(k) {
-                continue;
-            }
             let (a, b) = if s.from as u64 == i { ((sim, pred), (&*osim, &*opred)) } else { ((&*osim, &*opred), (sim, pred)) };
             for key in keys(terrain(s.to as u64), by_terrain) {
                 self.sums.entry(key).or_default().add((a.1, b.1), Some((a.0, b.0)), s.shift, 0..GRID_ROWS);
