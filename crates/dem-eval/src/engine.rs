@@ -12,7 +12,7 @@
 
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 
-use crate::frames::{PredFrames, RealFrames, Runs};
+use crate::frames::{row_keys, PredFrames, RealFrames, Runs};
 use crate::table::{self as validation, RowAcc, Selection, TableRow};
 use dem_core::distribution;
 use dem_core::npy::{self, ByIndex, RecordIndex, CHUNK_RECORDS};
@@ -552,11 +552,7 @@ fn evaluate_block(
                 w.write(std::slice::from_ref(d))?;
             }
         }
-        let mut keys = vec![None];
-        if ctx.q.by_terrain {
-            keys.push(ctx.labels.terrain(b.0));
-        }
-        for key in keys {
+        for key in row_keys(ctx.labels.terrain(b.0), ctx.q.by_terrain) {
             acc.rows.entry(key).or_default().add(r);
             let size = ctx.row_sizes.get(&key).copied().unwrap_or(0);
             acc.samples.entry(key).or_default().add(b.0, &b.2, sub[&b.0].iter().copied(), size);

@@ -13,8 +13,9 @@ use dem_core::format::{Dem, Terrain, GRID_ROWS};
 use dem_core::temporal::{self, FrameStats, FrameSums, Step};
 use dem_core::{cli, table};
 
-/// The rows of a table a step counts in: all, and its later frame's terrain.
-fn keys(terrain: Option<Terrain>, by_terrain: bool) -> Vec<Option<Terrain>> {
+/// The rows of a table a record (or a step, by its later frame) counts in:
+/// the row over all records, and with `by_terrain` its terrain's.
+pub(crate) fn row_keys(terrain: Option<Terrain>, by_terrain: bool) -> Vec<Option<Terrain>> {
     if by_terrain {
         vec![None, terrain]
     } else {
@@ -85,7 +86,7 @@ impl PredFrames {
                 continue;
             };
             let (a, b) = if s.from as u64 == i { ((sim, pred), (&*osim, &*opred)) } else { ((&*osim, &*opred), (sim, pred)) };
-            for key in keys(terrain(s.to as u64), by_terrain) {
+            for key in row_keys(terrain(s.to as u64), by_terrain) {
                 self.sums.entry(key).or_default().add((a.1, b.1), Some((a.0, b.0)), s.shift, 0..GRID_ROWS);
             }
             *left -= 1;
@@ -165,7 +166,7 @@ impl RealFrames {
                 let (a, b) = (&real[&(s.from as u64)], &real[&(s.to as u64)]);
                 let sim = |r: usize| self.partner.get(&(r as u64)).and_then(|i| self.sims.get(i));
                 let reference = sim(s.from).zip(sim(s.to));
-                for key in keys(self.terrain.get(s.to).copied(), by_terrain) {
+                for key in row_keys(self.terrain.get(s.to).copied(), by_terrain) {
                     sums.entry(key).or_default().add((a, b), reference, s.shift, 0..GRID_ROWS);
                 }
             }

@@ -14,7 +14,7 @@ use dem_core::{cli, DemError, Terrain};
 
 use crate::engine::{row_gaps, Evaluation, GapSample, Pairs};
 use crate::evaluate::TableOut;
-use crate::frames::{PredFrames, RealFrames, Runs};
+use crate::frames::{row_keys, PredFrames, RealFrames, Runs};
 use dem_core::npy::ByIndex;
 use dem_core::table;
 use dem_core::temporal::FrameStats;
@@ -81,13 +81,14 @@ fn read_all(paths: &[String]) -> anyhow::Result<Vec<RecordResult>> {
     Ok(all)
 }
 
+/// A record's terrain, as its records file names it.
+fn terrain_of(r: &RecordResult) -> Option<Terrain> {
+    r.terrain.as_deref().and_then(|t| t.parse().ok())
+}
+
 /// The table rows a record belongs to.
 fn keys(r: &RecordResult, by_terrain: bool) -> Vec<Option<Terrain>> {
-    let mut k = vec![None];
-    if by_terrain {
-        k.push(r.terrain.as_deref().and_then(|t| t.parse().ok()));
-    }
-    k
+    row_keys(terrain_of(r), by_terrain)
 }
 
 /// What the emitted predictions give: each row's gap and frame columns.
@@ -130,8 +131,7 @@ fn gaps(a: &MergeArgs, recs: &[RecordResult]) -> anyhow::Result<FromPreds> {
     }
     let by_terrain = a.table.by.is_some();
     let scored: BTreeSet<u64> = recs.iter().map(|r| r.sim_index).collect();
-    let terrain: HashMap<u64, Option<Terrain>> =
-        recs.iter().map(|r| (r.sim_index, r.terrain.as_deref().and_then(|t| t.parse().ok()))).collect();
+    let terrain: HashMap<u64, Option<Terrain>> = recs.iter().map(|r| (r.sim_index, terrain_of(r))).collect();
     let runs = match &a.labels_sim {
         Some(path) => Runs::of(&table::read_labels(path)?, 0, path, |i| scored.contains(&i)),
         None => None,
@@ -198,7 +198,7 @@ pub fn run(a: MergeArgs) -> anyhow::Result<()> {
         return Err(cli::usage("the records files hold no records"));
     }
     if a.table.by.is_some() {
-        if let Some(r) = recs.iter().find(|r| r.terrain.as_deref().and_then(|t| t.parse::<Terrain>().ok()).is_none()) {
+        if let Some(r) = recs.iter().find(|r| terrain_of(r).is_none()) {
             return Err(cli::usage(format!(
                 "--by terrain: sim record {} has no terrain in its records file (run the shards with --sim-labels)",
                 r.sim_index
