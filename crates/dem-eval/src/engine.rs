@@ -299,15 +299,17 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
     }
     let mut reals = open_reals(q, &pairs)?;
     real_max.check(&q.pairs, reals.len(), &q.real, "real_index")?;
-    let labels = SimLabels::read(q)?;
+    let mut labels = SimLabels::read(q)?;
     let scored = scored_pairs(q, &pairs, &labels)?;
     let row_sizes = row_sizes(q, scored, &labels);
     let network = Network::load(q, labels.times.is_some())?;
     let mut acc = Acc::default();
-    let runs = match (&labels.labels, &q.labels_sim) {
+    // The whole labels only until the runs are made: the stream keeps a
+    // terrain byte and a time per record, and the steps.
+    let runs = match (labels.labels.take(), &q.labels_sim) {
         (Some(l), Some(path)) => {
             let scored_sims: BTreeSet<u64> = scored.iter().map(|p| p.0).collect();
-            Runs::of(l, labels.first_index, path, |i| scored_sims.contains(&i))
+            Runs::of(&l, labels.first_index, path, |i| scored_sims.contains(&i))
         }
         _ => None,
     };
@@ -360,7 +362,7 @@ struct SimLabels {
     terrains: Option<Vec<Terrain>>,
     times: Option<Vec<f64>>,
     first_index: u64,
-    /// The labels, for the runs (`frame_*` columns).
+    /// The labels, until the runs (`frame_*` columns) are made of them.
     labels: Option<Vec<table::Label>>,
 }
 
