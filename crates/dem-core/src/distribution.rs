@@ -22,6 +22,7 @@
 //! | `edge-2cm`, `edge-steep`, `edge-10cm` | fraction of steps `abs(h[r+1,c] - h[r,c])` (row pairs 0..18) above 0.02, 0.05, 0.1 m: sharp edges against ramps | 0.01 |
 //! | `steps` | fraction of all neighbour pairs whose difference falls in each bin of [`STEP_BINS`] (0.1-1-3-10-30-100 mm; 5 numbers) | 0.01 |
 //! | `riser-foot`, `riser-top`, `drop-lip`, `drop-floor` (paired only) | over the whole grid, on the cells beside a step of more than [`JUMP`] along x in the sim record (the foot, row r + 1 higher, and top, row r - 1 lower, of a riser; the lip, row r + 1 lower, and floor, row r - 1 higher, of a drop), with T = D sign(h_sim[n] - h_sim) the residual toward the other surface: mean T / 4, mean abs(T) / 4 (so 0.005 m is one scale), and the fractions of cells with T > 2 cm and T < -2 cm | 0.02 |
+//! | `frame-flip`, `frame-dh`, `frame-rcorr` (with the runs' steps, [`frame_terms`]) | per row of the later frame, over consecutive frames of a run matched on the ground ([`crate::temporal`]): share of cells changing validity; mean abs(h(t+1) - h(t)); paired: lag-1 correlation of D, unpaired: of the change h(t+1) - h(t) with the next change | 0.005, 0.002 m, 0.1 |
 //!
 //! The gap between sets A (model(sim)) and B (real) is the sum over terms
 //! of the mean over their components of ln(1 + z^2), z = (a - b) / scale;
@@ -58,6 +59,7 @@ use std::ops::Range;
 use rayon::prelude::*;
 
 use crate::format::{row_center_x, Dem, DemCells, COLS, GRID_ROWS};
+use crate::temporal::{chains, FrameSums, Step};
 
 /// Height drop (m) behind which a missing cell counts as in a shadow.
 pub const SHADOW_DROP: f64 = 0.08;
@@ -566,6 +568,13 @@ impl Stats {
         }
     }
 
+    /// These statistics with the frame terms of the same records
+    /// ([`frame_terms`]) after them.
+    pub fn with_frames(mut self, frames: Vec<Term>) -> Stats {
+        self.terms.extend(frames);
+        self
+    }
+
     /// These statistics moved by the difference between two summaries of
     /// one model's output, `to - from`, component by component where both
     /// have [`MIN_SUPPORT`] samples (elsewhere unchanged; supports are
@@ -588,6 +597,55 @@ impl Stats {
         }
         out
     }
+}
+
+/// Scales of the frame terms ([`frame_terms`]): half a point of cells
+/// changing validity, 2 mm of change, 0.1 of correlation (a quarter of
+/// measured maps' flip and change, the tolerance a sensor model must meet
+/// in time). The persistence of missing cells is no term: with the
+/// missing rate m per row and the flip rate f it is about 1 - f / (2 m),
+/// so the two terms carry it, and taken on the missing cells alone it
+/// would count a row where one side misses none twice.
+pub const FRAME_SCALES: [(&str, f64); 3] = [("frame-flip", 0.005), ("frame-dh", 0.002), ("frame-rcorr", 0.1)];
+
+/// The frame terms of `x` over the runs' `steps` (positions in `x`), per
+/// row of the later frame: with `reference` (paired: record i's sim), the
+/// lag-1 correlation is of the error against it; without, of the change
+/// with the next change ([`FrameSums::add_change`]). Terms of one set's
+/// statistics are added to them ([`Stats::with_frames`]), so a model that
+/// flickers where measured maps hold still has a gap to close.
+pub fn frame_terms(x: &[Dem], reference: Option<&[Dem]>, steps: &[Step]) -> Vec<Term> {
+    let sums: Vec<FrameSums> = (0..GRID_ROWS)
+        .into_par_iter()
+        .map(|r| {
+            let mut sums = FrameSums::default();
+            for s in steps {
+                sums.add((&x[s.from], &x[s.to]), reference.map(|q| (&q[s.from], &q[s.to])), s.shift, r..r + 1);
+            }
+            if reference.is_none() {
+                for (s1, s2) in chains(steps) {
+                    sums.add_change((&x[s1.from], &x[s1.to], &x[s2.to]), (s1.shift, s2.shift), r..r + 1);
+                }
+            }
+            sums
+        })
+        .collect();
+    let stats: Vec<_> = sums.iter().map(FrameSums::stats).collect();
+    let supports: [Vec<usize>; 3] = [
+        sums.iter().map(|s| s.cells).collect(),
+        sums.iter().map(|s| s.both).collect(),
+        sums.iter().zip(&stats).map(|(s, st)| if st.rcorr.is_some() { s.n } else { 0 }).collect(),
+    ];
+    let values: [Vec<f64>; 3] = [
+        stats.iter().map(|s| s.flip.unwrap_or(0.0)).collect(),
+        stats.iter().map(|s| s.dh.unwrap_or(0.0)).collect(),
+        stats.iter().map(|s| s.rcorr.unwrap_or(0.0)).collect(),
+    ];
+    FRAME_SCALES
+        .iter()
+        .zip(values.into_iter().zip(supports))
+        .map(|(&(name, scale), (values, support))| Term { name, values, support, scale })
+        .collect()
 }
 
 /// Per-term contributions to the gap between `a` (model) and `b` (real):

@@ -38,7 +38,7 @@ pub const MAX_STEP_RATIO: f64 = 1.5;
 
 /// Two consecutive frames of a run: record indices and the whole cells the
 /// robot moved forward between them.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct Step {
     /// The earlier frame.
     pub from: usize,
@@ -66,7 +66,9 @@ pub fn steps(labels: &[Label]) -> Result<Vec<Step>, String> {
     let Some(&period) = dts.get(dts.len() / 10) else { return Ok(Vec::new()) };
     Ok(consecutive
         .into_iter()
-        .filter(|(a, b)| b.1 - a.1 <= MAX_STEP_RATIO * period)
+        // The same time twice (a record repeated, as a terrain-mix draw
+        // repeats one) is no motion of the sensor.
+        .filter(|(a, b)| b.1 > a.1 && b.1 - a.1 <= MAX_STEP_RATIO * period)
         .filter_map(|(a, b)| {
             let ((xa, ya, wa), (xb, yb, _)) = (a.3, b.3);
             let forward = (xb - xa) * wa.cos() + (yb - ya) * wa.sin();
@@ -74,6 +76,23 @@ pub fn steps(labels: &[Label]) -> Result<Vec<Step>, String> {
             (shift.abs() <= MAX_SHIFT).then_some(Step { from: a.2, to: b.2, shift })
         })
         .collect())
+}
+
+/// The steps of `steps` between records that are both in `idx` (indices
+/// ascending or not, each once), renumbered to their positions in `idx`:
+/// the steps of a subset taken with [`crate::distribution`]'s statistics
+/// of the same subset.
+pub fn within(steps: &[Step], idx: &[usize]) -> Vec<Step> {
+    let position: std::collections::HashMap<usize, usize> = idx.iter().enumerate().map(|(p, &i)| (i, p)).collect();
+    steps.iter().filter_map(|s| Some(Step { from: *position.get(&s.from)?, to: *position.get(&s.to)?, shift: s.shift })).collect()
+}
+
+/// Two steps one after the other (the first's later frame is the second's
+/// earlier one): three frames of a run, for the correlation of the change
+/// with the next change.
+pub fn chains(steps: &[Step]) -> Vec<(Step, Step)> {
+    let by_from: std::collections::HashMap<usize, Step> = steps.iter().map(|s| (s.from, *s)).collect();
+    steps.iter().filter_map(|a| Some((*a, *by_from.get(&a.to)?))).collect()
 }
 
 /// The sums behind [`FrameStats`]; sums of parts add up to the whole.
@@ -131,6 +150,33 @@ impl FrameSums {
                     for (m, v) in self.moments.iter_mut().zip([ea, eb, ea * ea, eb * eb, ea * eb]) {
                         *m += v;
                     }
+                }
+            }
+        }
+    }
+
+    /// Add the lag-1 moments of the change along the chain `(a, b, c)`
+    /// (steps `s1` from a to b, `s2` from b to c): over the ground the three
+    /// frames share, the changes b - a and c - b, cells valid in all three.
+    /// Fills the moments [`FrameStats::rcorr`] is made of, where no
+    /// reference gives an error (the change of a fresh draw every frame
+    /// correlates at -0.5 with the next; a map that holds its estimate, near 0).
+    pub fn add_change(&mut self, (a, b, c): (&Dem, &Dem, &Dem), (s1, s2): (i64, i64), rows: Range<usize>) {
+        for r in rows {
+            let (rb, ra) = (r as i64 + s2, r as i64 + s2 + s1);
+            if !(0..GRID_ROWS as i64).contains(&rb) || !(0..GRID_ROWS as i64).contains(&ra) {
+                continue;
+            }
+            let (ra, rb) = (ra as usize, rb as usize);
+            for col in 0..COLS {
+                if !(a.is_valid(ra, col) && b.is_valid(rb, col) && c.is_valid(r, col)) {
+                    continue;
+                }
+                let (ha, hb, hc) = (f64::from(a.height(ra, col)), f64::from(b.height(rb, col)), f64::from(c.height(r, col)));
+                let (d1, d2) = (hb - ha, hc - hb);
+                self.n += 1;
+                for (m, v) in self.moments.iter_mut().zip([d1, d2, d1 * d1, d2 * d2, d1 * d2]) {
+                    *m += v;
                 }
             }
         }
@@ -200,6 +246,17 @@ pub fn frame_stats(x: &[Dem], reference: Option<&[Dem]>, steps: &[Step], rows: R
     sums.stats()
 }
 
+/// The lag-1 correlation of the change h(t+1) - h(t) of `x` with the next
+/// change, over the chains of `steps` ([`FrameSums::add_change`]), over
+/// the last frame's rows `rows`: where no reference gives an error.
+pub fn change_rcorr(x: &[Dem], steps: &[Step], rows: Range<usize>) -> Option<f64> {
+    let mut sums = FrameSums::default();
+    for (s1, s2) in chains(steps) {
+        sums.add_change((&x[s1.from], &x[s1.to], &x[s2.to]), (s1.shift, s2.shift), rows.clone());
+    }
+    sums.stats().rcorr
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -264,5 +321,40 @@ mod tests {
             sums.add((&frames[st.from], &frames[st.to]), None, st.shift, 0..GRID_ROWS);
         }
         assert_eq!(a.merged(&b).stats(), s);
+    }
+
+    /// Noise drawn afresh every frame changes by b - a, then by c - b:
+    /// the two changes correlate at -0.5; chains follow the steps, a subset
+    /// keeps the steps within it, renumbered.
+    #[test]
+    fn fresh_noise_changes_back_the_next_frame() {
+        let mut state = 12345u64;
+        let mut noise = || {
+            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((state >> 33) as f32 / (1u64 << 31) as f32) - 0.5
+        };
+        let frames: Vec<Dem> = (0..400)
+            .map(|_| {
+                let mut d = empty_dem();
+                for r in 0..GRID_ROWS {
+                    for c in 0..COLS {
+                        d.set_valid(r, c, 0.01 * noise());
+                    }
+                }
+                d
+            })
+            .collect();
+        let steps: Vec<Step> = (0..399).map(|t| Step { from: t, to: t + 1, shift: 1 }).collect();
+        let chained = chains(&steps);
+        assert_eq!(chained.len(), 398);
+        assert!(chained.iter().all(|(a, b)| a.to == b.from));
+        let mut sums = FrameSums::default();
+        for (s1, s2) in &chained {
+            sums.add_change((&frames[s1.from], &frames[s1.to], &frames[s2.to]), (s1.shift, s2.shift), 0..GRID_ROWS);
+        }
+        let r = sums.stats().rcorr.unwrap();
+        assert!((r + 0.5).abs() < 0.02, "{r}");
+        let sub = within(&steps, &[5, 9, 6, 7]);
+        assert_eq!(sub, vec![Step { from: 0, to: 2, shift: 1 }, Step { from: 2, to: 3, shift: 1 }]);
     }
 }

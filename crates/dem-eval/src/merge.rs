@@ -53,6 +53,10 @@ pub struct MergeArgs {
     /// The split the shards evaluated.
     #[arg(long, value_enum, requires = "pairs")]
     split: Option<Split>,
+    /// Do not warn when --sim misses clearly more cells than --real (the
+    /// sign of swapped inputs, as `dem-eval` warns).
+    #[arg(long)]
+    no_swap_check: bool,
     #[command(flatten)]
     table: TableOut,
 }
@@ -193,6 +197,9 @@ pub fn run(a: MergeArgs) -> anyhow::Result<()> {
         .collect();
     cli::one_stdin(inputs.iter().copied())?;
     dem_core::output::check_outputs(&inputs, &[a.table.output.as_str()])?;
+    if let (Some(sim), Some(real)) = (&a.sim, &a.real) {
+        dem_core::swap::check_files(sim, real, a.no_swap_check);
+    }
     let recs = read_all(&a.records)?;
     if recs.is_empty() {
         return Err(cli::usage("the records files hold no records"));

@@ -11,7 +11,7 @@ use rand::seq::index::sample;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
-use dem_core::distribution::{self, gap, Stats};
+use dem_core::distribution::{gap, Stats};
 use dem_core::format::Dem;
 use dem_sensor::effects::EffectSpec;
 use dem_sensor::SensorModel;
@@ -19,8 +19,9 @@ use dem_sensor::SensorModel;
 use crate::fit;
 use crate::held_out::HeldOut;
 use crate::load::{pick, GapConfig, Sets};
-use crate::measurement::measure_at;
+use crate::measurement::{measure_at, summarise};
 use crate::sampling::{draw_floor, real_halves, sampling_floor, sim_halves};
+use dem_core::temporal::{within, Step};
 
 /// One run's comparison of model(sim) with real.
 pub(crate) struct Comparison<'a> {
@@ -30,20 +31,23 @@ pub(crate) struct Comparison<'a> {
     pub paired: bool,
     /// Each sim record's time in its run, when the labels give it.
     pub times: Option<&'a [f64]>,
+    /// The steps of the sim records' runs, when the frame terms count.
+    pub steps: Option<&'a [Step]>,
     /// Statistics of real (residuals against sim when paired).
     pub real: Stats,
     /// Unpaired, the sampling floor of two halves of real
     /// ([`sampling_floor`]); 0 paired.
     pub split_floor: f64,
-    /// Sim-side records of each half with real's statistics on it
-    /// ([`comparison_halves`]).
-    halves: Vec<(Vec<usize>, Stats)>,
+    /// Sim-side records of each half, with their steps when the frame
+    /// terms count, and real's statistics on it ([`comparison_halves`]).
+    halves: Vec<Half>,
     /// The same halves for re-fits held out ([`Self::held_out`]), made
     /// when a step first falls below the floor: most runs never do.
     held_out: OnceLock<HeldOut>,
     /// The records the candidates are fitted on.
     fit_sim: Vec<Dem>,
     fit_times: Option<Vec<f64>>,
+    fit_steps: Option<Vec<Step>>,
     /// Real's statistics on the fitting subsample (all of real unpaired).
     fit_real: Stats,
     /// Unpaired, and the fitting subsample is not all of sim.
@@ -66,26 +70,30 @@ impl<'a> Comparison<'a> {
     /// The comparison of `sets` as `cfg` asks for it.
     pub fn new(cfg: &'a GapConfig, sets: &'a Sets) -> Comparison<'a> {
         let paired = sets.paired;
-        let real = distribution::stats(&sets.real, paired.then_some(&sets.sim[..]));
+        let real = summarise(&sets.real, paired.then_some(&sets.sim[..]), sets.real_steps.as_deref());
         let split_floor = if paired { 0.0 } else { sampling_floor(sets) };
         let times = sets.sim_time.as_deref();
+        let steps = sets.sim_steps.as_deref();
         let halves = comparison_halves(sets);
         let idx = fitting_subsample(cfg, sets.sim.len());
         let fit_sim = pick(&sets.sim, &idx);
         let fit_times = times.map(|t| pick(t, &idx));
-        let fit_real = if paired { distribution::stats(&pick(&sets.real, &idx), Some(&fit_sim)) } else { real.clone() };
+        let fit_steps = steps.map(|s| within(s, &idx));
+        let fit_real = if paired { summarise(&pick(&sets.real, &idx), Some(&fit_sim), fit_steps.as_deref()) } else { real.clone() };
         let subsampled = !paired && idx.len() < sets.sim.len();
         Comparison {
             cfg,
             sets,
             paired,
             times,
+            steps,
             real,
             split_floor,
             halves,
             held_out: OnceLock::new(),
             fit_sim,
             fit_times,
+            fit_steps,
             fit_real,
             subsampled,
         }
@@ -93,7 +101,7 @@ impl<'a> Comparison<'a> {
 
     /// model(sim) on all records with the draws of `seed`, and its statistics.
     pub fn measure(&self, model: &SensorModel, seed: u64) -> (Vec<Dem>, Stats) {
-        measure_at(model, &self.sets.sim, self.times, self.paired, seed)
+        measure_at(model, &self.sets.sim, self.times, self.steps, self.paired, seed)
     }
 
     /// The gap of model(sim) with the draws of `seed` on all records.
@@ -104,7 +112,7 @@ impl<'a> Comparison<'a> {
     /// The sampling floor of `model`: the larger of the split's and the
     /// model's own draws'.
     pub fn floor_of(&self, model: &SensorModel) -> f64 {
-        self.split_floor.max(draw_floor(model, &self.sets.sim, self.times, self.paired, self.cfg.seed))
+        self.split_floor.max(draw_floor(model, &self.sets.sim, self.times, self.steps, self.paired, self.cfg.seed))
     }
 
     /// Whether `gap`, of `model`, is below the sampling floor: paired, the
@@ -127,16 +135,16 @@ impl<'a> Comparison<'a> {
     pub fn half_stats(&self, out: &[Dem]) -> Vec<Stats> {
         self.halves
             .iter()
-            .map(|(s, _)| {
-                let sim_half = self.paired.then(|| pick(&self.sets.sim, s));
-                distribution::stats(&pick(out, s), sim_half.as_deref())
+            .map(|h| {
+                let sim_half = self.paired.then(|| pick(&self.sets.sim, &h.sim));
+                summarise(&pick(out, &h.sim), sim_half.as_deref(), h.steps.as_deref())
             })
             .collect()
     }
 
     /// The gap on each half, of statistics per half from [`Self::half_stats`].
     pub fn half_gaps(&self, per_half: &[Stats]) -> Vec<f64> {
-        self.halves.iter().zip(per_half).map(|((_, r), s)| gap(s, r)).collect()
+        self.halves.iter().zip(per_half).map(|(h, s)| gap(s, &h.real)).collect()
     }
 
     /// What the candidates are fitted against with `model` in place, whose
@@ -157,7 +165,14 @@ impl<'a> Comparison<'a> {
 
     /// The fitting subsample against `real` ([`Self::fitting_real`]).
     pub fn target<'s>(&'s self, real: &'s Stats) -> fit::Target<'s> {
-        fit::Target { sim: &self.fit_sim, times: self.fit_times.as_deref(), paired: self.paired, real, seed: self.cfg.seed }
+        fit::Target {
+            sim: &self.fit_sim,
+            times: self.fit_times.as_deref(),
+            steps: self.fit_steps.as_deref(),
+            paired: self.paired,
+            real,
+            seed: self.cfg.seed,
+        }
     }
 }
 
@@ -168,7 +183,8 @@ impl<'a> Comparison<'a> {
 /// to split); in both modes they tell a named effect from a close rival
 /// ([`crate::Tie`]). Paired, sim record i is real record i's pair, and the
 /// halves are real's (whole runs when labelled).
-fn comparison_halves(sets: &Sets) -> Vec<(Vec<usize>, Stats)> {
+fn comparison_halves(sets: &Sets) -> Vec<Half> {
+    let steps_in = |steps: &Option<Vec<Step>>, idx: &[usize]| steps.as_deref().map(|s| within(s, idx));
     if sets.real.len() < 100 {
         Vec::new()
     } else if sets.paired {
@@ -176,8 +192,9 @@ fn comparison_halves(sets: &Sets) -> Vec<(Vec<usize>, Stats)> {
             .into_iter()
             .filter(|h| !h.is_empty())
             .map(|h| {
-                let st = distribution::stats(&pick(&sets.real, &h), Some(&pick(&sets.sim, &h)));
-                (h, st)
+                let steps = steps_in(&sets.real_steps, &h);
+                let real = summarise(&pick(&sets.real, &h), Some(&pick(&sets.sim, &h)), steps.as_deref());
+                Half { sim: h, steps, real }
             })
             .collect()
     } else {
@@ -185,8 +202,24 @@ fn comparison_halves(sets: &Sets) -> Vec<(Vec<usize>, Stats)> {
         if sh.iter().any(Vec::is_empty) {
             sh = [(0..sets.sim.len()).collect(), (0..sets.sim.len()).collect()];
         }
-        sh.into_iter().zip(real_halves(sets)).map(|(s, r)| (s, distribution::stats(&pick(&sets.real, &r), None))).collect()
+        sh.into_iter()
+            .zip(real_halves(sets))
+            .map(|(s, r)| {
+                let real = summarise(&pick(&sets.real, &r), None, steps_in(&sets.real_steps, &r).as_deref());
+                Half { steps: steps_in(&sets.sim_steps, &s), sim: s, real }
+            })
+            .collect()
     }
+}
+
+/// One half of the comparison ([`comparison_halves`]).
+pub(crate) struct Half {
+    /// Its sim-side records.
+    pub sim: Vec<usize>,
+    /// Their runs' steps (positions in `sim`), when the frame terms count.
+    pub steps: Option<Vec<Step>>,
+    /// Real's statistics on it.
+    pub real: Stats,
 }
 
 /// The records the candidates are fitted on, of `n` sim records: a seeded

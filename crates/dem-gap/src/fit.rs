@@ -14,6 +14,12 @@ use dem_sensor::effects::{EffectSpec, Fov, Limit, Range, Startup};
 use dem_sensor::{Effect, SensorModel};
 
 use dem_core::distribution::{gap, hides_too_much, stats_made, Stats};
+use dem_core::temporal::Step;
+
+use crate::measurement::summarise;
+
+/// Records per parallel chunk when a fit makes all its outputs at once.
+const CHUNK: usize = 256;
 
 mod prefix;
 
@@ -35,6 +41,9 @@ pub struct Target<'a> {
     pub sim: &'a [Dem],
     /// Each sim record's time in its run (labels), when known.
     pub times: Option<&'a [f64]>,
+    /// The runs' steps between the sim records (positions in `sim`), when
+    /// known: the frame terms then count.
+    pub steps: Option<&'a [Step]>,
     /// True when `sim[i]` is paired with the i-th real record of `real`.
     pub paired: bool,
     /// Statistics of the real records.
@@ -55,10 +64,11 @@ impl Target<'_> {
     /// ([`SensorModel::uniforms_of`] of a model with `model`'s effect
     /// names: the streams depend on the names, not the parameters). Each
     /// chunk is made and summarised in turn ([`stats_made`]), so no copy of
-    /// all the records is made.
+    /// all the records is made; with steps, the frame terms need all of
+    /// them at once.
     fn stats_after(&self, from: &[Dem], model: &SensorModel, drawn: Option<&[f32]>) -> Stats {
         let k = model.draws();
-        stats_made(from.len(), self.paired.then_some(self.sim), |range| {
+        let make = |range: std::ops::Range<usize>| {
             let mut u = vec![0.0f32; k];
             let mut out = from[range.clone()].to_vec();
             for (d, i) in out.iter_mut().zip(range) {
@@ -72,7 +82,18 @@ impl Target<'_> {
                 }
             }
             out
-        })
+        };
+        let paired_sim = self.paired.then_some(self.sim);
+        match self.steps {
+            None => stats_made(from.len(), paired_sim, make),
+            Some(steps) => {
+                let out: Vec<Dem> = (0..from.len().div_ceil(CHUNK))
+                    .into_par_iter()
+                    .flat_map_iter(|c| make(c * CHUNK..((c + 1) * CHUNK).min(from.len())))
+                    .collect();
+                summarise(&out, paired_sim, Some(steps))
+            }
+        }
     }
 
     /// Gap of model(sim) against real; infinite for a model that hides far

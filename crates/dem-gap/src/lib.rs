@@ -5,7 +5,9 @@
 //! ([`run`], in [`search`], one function a step):
 //! 1. **measure** model(sim) against real with [`dem_core::distribution`]
 //!    ([`comparison`]): missing-cell rates, shadows, residual or height
-//!    means and spreads, edge profiles, height steps, per row; one gap
+//!    means and spreads, edge profiles, height steps, per row, and, with
+//!    the runs in the labels, how consecutive frames move (the frame
+//!    terms); one gap
 //!    number ([`gap`]) that compares distributions and is 0 when they
 //!    match. With pairs, heights are residuals against the paired sim
 //!    record; without, the records' own distributions are compared.
@@ -72,6 +74,13 @@ pub(crate) use sampling::other_draws;
 /// Run the measure-name-add loop on loaded sets; `log` gets progress lines,
 /// `tick` is called after each candidate fit (for a progress bar).
 pub fn run(cfg: &GapConfig, sets: &Sets, log: &dyn Fn(String), tick: &dyn Fn()) -> Outcome {
+    match (&sets.frames_left_out, &sets.sim_steps, &sets.real_steps) {
+        (Some(why), _, _) => log(format!("frame terms left out: {why}")),
+        (None, Some(s), Some(r)) => {
+            log(format!("frame terms over the runs' consecutive frames: {} sim-side steps, {} real-side", s.len(), r.len()))
+        }
+        _ => {}
+    }
     let c = comparison::Comparison::new(cfg, sets);
     let (start, state) = search::measure_start(&c, log);
     let mut found = search::name_effects(&c, state, log, tick);

@@ -10,7 +10,8 @@ use rand_chacha::ChaCha8Rng;
 
 use dem_core::error::{DemError, Result};
 use dem_core::format::{Dem, Terrain};
-use dem_core::table::Split;
+use dem_core::table::{Label, Split};
+use dem_core::temporal::{self, Step};
 use dem_core::{npy, table};
 use dem_sensor::SensorModel;
 
@@ -88,6 +89,16 @@ pub struct Sets {
     /// Unpaired over the records of pairs: each record once per pair it is
     /// in, so both sides share the pairs' terrain mix.
     pub over_pairs: bool,
+    /// The runs' steps between sim-side records (positions in `sim`), when
+    /// both sides' labels give runs in time with poses: the frame terms of
+    /// model(sim) ([`dem_core::distribution::frame_terms`]).
+    pub sim_steps: Option<Vec<Step>>,
+    /// The steps between real-side records (positions in `real`); paired
+    /// and over pairs, the steps both sides' labels agree on, the same as
+    /// `sim_steps`.
+    pub real_steps: Option<Vec<Step>>,
+    /// Why the frame terms are left out, when they are.
+    pub frames_left_out: Option<String>,
     /// Why the two sides' terrain mixes are not known to match, when they
     /// are not (unpaired, without both label files or not drawn to one
     /// mix); None paired, over pairs or drawn to one mix.
@@ -102,6 +113,9 @@ struct RecordLabels {
     time: Option<Vec<f64>>,
     /// Run (`sequence`), when every label has one.
     runs: Option<Vec<u64>>,
+    /// The labels themselves (their runs' steps are taken after the
+    /// records are picked).
+    labels: Vec<Label>,
 }
 
 /// Terrain, time and run of each of the `n` records labelled at `path`.
@@ -113,7 +127,7 @@ fn read_record_labels(path: &Option<String>, n: usize) -> Result<Option<RecordLa
     }
     let time = l.iter().any(|l| l.time.is_some()).then(|| table::times(&l));
     let runs = l.iter().map(|l| l.sequence).collect::<Option<Vec<u64>>>();
-    Ok(Some(RecordLabels { terrain: l.into_iter().map(|l| l.terrain).collect(), time, runs }))
+    Ok(Some(RecordLabels { terrain: l.iter().map(|l| l.terrain).collect(), time, runs, labels: l }))
 }
 
 /// One side's records with what its labels say of each.
@@ -122,13 +136,14 @@ struct Side {
     terrain: Option<Vec<Terrain>>,
     time: Option<Vec<f64>>,
     runs: Option<Vec<u64>>,
+    labels: Option<Vec<Label>>,
 }
 
 impl Side {
     fn new(records: Vec<Dem>, labels: Option<RecordLabels>) -> Side {
         match labels {
-            Some(l) => Side { records, terrain: Some(l.terrain), time: l.time, runs: l.runs },
-            None => Side { records, terrain: None, time: None, runs: None },
+            Some(l) => Side { records, terrain: Some(l.terrain), time: l.time, runs: l.runs, labels: Some(l.labels) },
+            None => Side { records, terrain: None, time: None, runs: None, labels: None },
         }
     }
 
@@ -139,6 +154,44 @@ impl Side {
             terrain: self.terrain.as_ref().map(|t| pick(t, idx)),
             time: self.time.as_ref().map(|t| pick(t, idx)),
             runs: self.runs.as_ref().map(|r| pick(r, idx)),
+            labels: self.labels.as_ref().map(|l| idx.iter().map(|&i| l[i].clone()).collect()),
+        }
+    }
+
+    /// The steps of this side's runs, or why there are none.
+    fn steps(&self, side: &str) -> std::result::Result<Vec<Step>, String> {
+        let labels = self.labels.as_ref().ok_or_else(|| format!("no {side} labels, so its runs are not known"))?;
+        let steps = temporal::steps(labels).map_err(|why| format!("{side}: {why}"))?;
+        if steps.is_empty() {
+            return Err(format!("the {side} labels' runs hold no consecutive frames"));
+        }
+        Ok(steps)
+    }
+}
+
+/// The steps of each side, each its own (unpaired), or why there are none.
+fn steps_apart(sim: &Side, real: &Side) -> std::result::Result<(Vec<Step>, Vec<Step>), String> {
+    Ok((sim.steps("sim")?, real.steps("real")?))
+}
+
+/// The steps both aligned sides agree on (paired, over pairs: position i of
+/// one is position i of the other), or why there are none.
+fn steps_together(sim: &Side, real: &Side) -> std::result::Result<Vec<Step>, String> {
+    let (s, r) = steps_apart(sim, real)?;
+    let r: std::collections::HashSet<Step> = r.into_iter().collect();
+    let both: Vec<Step> = s.into_iter().filter(|st| r.contains(st)).collect();
+    if both.is_empty() {
+        return Err("no consecutive frames of the sim runs are consecutive frames of the real runs at the pairs' positions".into());
+    }
+    Ok(both)
+}
+
+impl Sets {
+    /// These sets with the steps of `steps` (or why they are left out).
+    fn with_steps(self, steps: std::result::Result<(Vec<Step>, Vec<Step>), String>) -> Sets {
+        match steps {
+            Ok((s, r)) => Sets { sim_steps: Some(s), real_steps: Some(r), frames_left_out: None, ..self },
+            Err(why) => Sets { sim_steps: None, real_steps: None, frames_left_out: Some(why), ..self },
         }
     }
 }
@@ -158,7 +211,8 @@ pub fn load(cfg: &GapConfig) -> Result<Sets> {
     let Some(pp) = &cfg.pairs else { return Ok(unpaired_sets(cfg, sim, real)) };
     let (si, ri) = pair_indices(cfg.split, pp, n_sim, n_real)?;
     let (sim, real) = (sim.pick(&si), real.pick(&ri));
-    Ok(if cfg.over_pairs { over_pairs_sets(sim, real) } else { paired_sets(sim, real) })
+    let steps = steps_together(&sim, &real).map(|s| (s.clone(), s));
+    Ok(if cfg.over_pairs { over_pairs_sets(sim, real) } else { paired_sets(sim, real) }.with_steps(steps))
 }
 
 /// The sim and real record of each pair of `cfg` (of its split, when one
@@ -209,7 +263,8 @@ fn unpaired_sets(cfg: &GapConfig, mut sim: Side, real: Side) -> Sets {
         (Some(_), Some(_)) => Some("the sim records were not drawn to the real set's terrain mix (--no-match-terrain-mix)"),
         _ => Some("without both label files (--sim-labels, --real-labels) the two sets' terrain mixes cannot be matched"),
     };
-    Sets { terrain_mix: mix, unmatched_mix, ..Sets::unpaired(sim, real) }
+    let steps = steps_apart(&sim, &real);
+    Sets { terrain_mix: mix, unmatched_mix, ..Sets::unpaired(sim, real) }.with_steps(steps)
 }
 
 impl Sets {
@@ -228,6 +283,9 @@ impl Sets {
             terrain_mix: None,
             over_pairs: false,
             unmatched_mix: None,
+            sim_steps: None,
+            real_steps: None,
+            frames_left_out: None,
         }
     }
 }
@@ -256,6 +314,9 @@ fn paired_sets(sim: Side, real: Side) -> Sets {
         terrain_mix: None,
         over_pairs: false,
         unmatched_mix: None,
+        sim_steps: None,
+        real_steps: None,
+        frames_left_out: None,
     }
 }
 

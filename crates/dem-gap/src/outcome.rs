@@ -3,14 +3,15 @@
 //! sampling floor, what it leaves unexplained and where, per terrain and
 //! against the start. [`crate::report`] writes it out.
 
-use dem_core::distribution::{self, gap, Stats};
-use dem_core::format::Terrain;
+use dem_core::distribution::{gap, Stats};
+use dem_core::format::{Dem, Terrain, GRID_ROWS};
 use dem_core::metric;
+use dem_core::temporal::{change_rcorr, frame_stats, within, FrameStats};
 use dem_sensor::{Effect, SensorModel};
 
 use crate::comparison::Comparison;
 use crate::load::{pick, Sets};
-use crate::measurement::{measure, measure_at};
+use crate::measurement::{measure_at, summarise};
 use crate::sampling::{real_halves, two_draws, unseen_draws};
 use crate::{mix, unexplained};
 
@@ -119,6 +120,10 @@ pub struct TerrainRow {
     pub edges: [f64; 3],
     /// Gap of the start and of the final model on this terrain.
     pub gap: [f64; 2],
+    /// With the runs' steps: how consecutive frames move (over all rows;
+    /// the correlation unpaired of the change with the next change): sim,
+    /// model(sim), real.
+    pub frames: Option<[FrameStats; 3]>,
 }
 
 /// What a run found.
@@ -282,7 +287,7 @@ fn leftover(c: &Comparison, model: &SensorModel, gap_final: f64, start: &Start, 
     let (sets, paired) = (c.sets, c.paired);
     // The final model's two draws, once: the draw floor (as `draw_floor`
     // takes it) and what the model leaves unexplained, where.
-    let [(out_a, stats_a), (out_b, stats_b)] = two_draws(model, &sets.sim, c.times, paired, c.cfg.seed);
+    let [(out_a, stats_a), (out_b, stats_b)] = two_draws(model, &sets.sim, c.times, c.steps, paired, c.cfg.seed);
     let floor = if *model == c.cfg.start { start.floor } else { c.split_floor.max(gap(&stats_a, &stats_b)) };
     drop((stats_a, stats_b));
     let real_h = (!paired && sets.real.len() >= 100).then(|| real_halves(sets));
@@ -302,6 +307,7 @@ fn leftover(c: &Comparison, model: &SensorModel, gap_final: f64, start: &Start, 
         floor,
         gap_initial: start.gap,
         steps: steps.iter().map(|s| (s.effect.name().to_string(), s.gap_before, s.gap_after)).collect(),
+        frames: sets.sim_steps.as_deref().zip(sets.real_steps.as_deref()),
     });
     drop(out_b);
     log(unexplained.summary());
@@ -324,11 +330,24 @@ fn per_terrain(sets: &Sets, start: &SensorModel, model: &SensorModel, seed: u64)
         let sim = pick(&sets.sim, &si);
         let real = pick(&sets.real, &ri);
         let times = sets.sim_time.as_ref().map(|t| pick(t, &si));
-        let rs = distribution::stats(&real, sets.paired.then_some(&sim[..]));
-        let (_, s0) = measure_at(start, &sim, times.as_deref(), sets.paired, seed);
-        let (_, s1) = measure_at(model, &sim, times.as_deref(), sets.paired, seed);
-        let (_, sr) = measure(&SensorModel::default(), &sim, sets.paired, seed);
+        let (sim_steps, real_steps) = (sets.sim_steps.as_ref().map(|s| within(s, &si)), sets.real_steps.as_ref().map(|s| within(s, &ri)));
+        let (sim_steps, real_steps) = (sim_steps.as_deref(), real_steps.as_deref());
+        let rs = summarise(&real, sets.paired.then_some(&sim[..]), real_steps);
+        let (_, s0) = measure_at(start, &sim, times.as_deref(), sim_steps, sets.paired, seed);
+        let (out, s1) = measure_at(model, &sim, times.as_deref(), sim_steps, sets.paired, seed);
+        let (_, sr) = measure_at(&SensorModel::default(), &sim, None, sim_steps, sets.paired, seed);
         let three = |name: &str, n: usize| [&sr, &s1, &rs].map(|s| s.mean_over(name, 0..n));
+        let frames = sim_steps.zip(real_steps).map(|(ss, rs_steps)| {
+            let reference = sets.paired.then_some(&sim[..]);
+            let of = |x: &[Dem], steps: &[dem_core::temporal::Step]| {
+                let mut f = frame_stats(x, reference, steps, 0..GRID_ROWS);
+                if reference.is_none() {
+                    f.rcorr = change_rcorr(x, steps, 0..GRID_ROWS);
+                }
+                f
+            };
+            [of(&sim, ss), of(&out, ss), of(&real, rs_steps)]
+        });
         rows.push(TerrainRow {
             terrain: t,
             records: ri.len(),
@@ -337,6 +356,7 @@ fn per_terrain(sets: &Sets, start: &SensorModel, model: &SensorModel, seed: u64)
             spread: three("spread-sd", 20),
             edges: three("edge-2cm", 19),
             gap: [gap(&s0, &rs), gap(&s1, &rs)],
+            frames,
         });
     }
     rows

@@ -639,5 +639,32 @@ fn terrains_md(s: &mut String, o: &Outcome) {
                 t.gap[1]
             );
         }
+        frames_md(s, o);
+    }
+}
+
+/// The frame statistics per terrain, when the runs' steps counted.
+fn frames_md(s: &mut String, o: &Outcome) {
+    if o.terrains.iter().all(|t| t.frames.is_none()) {
+        return;
+    }
+    let rcorr = if o.paired { "lag-1 correlation of the residual" } else { "lag-1 correlation of the change" };
+    let _ = writeln!(
+        s,
+        "\n### Per terrain, in time\n\nConsecutive frames of the runs, the same ground matched by the motion between them. Each cell: sim / model(sim) / real (`-`: nothing to take it on, as persistence where a side misses no cell).\n\n| terrain | cells changing validity | P(missing at t+1 \\| missing at t) | mean \\|h(t+1) - h(t)\\| (mm) | {rcorr} |\n|---|---|---|---|---|"
+    );
+    let f =
+        |v: [Option<f64>; 3], k: f64, d: usize| v.map(|x| x.map_or_else(|| "-".to_string(), |x| format!("{:.*}", d, k * x))).join(" / ");
+    for t in &o.terrains {
+        let Some(fr) = t.frames else { continue };
+        let _ = writeln!(
+            s,
+            "| {} | {} % | {} | {} | {} |",
+            t.terrain,
+            f(fr.map(|x| x.flip), 100.0, 1),
+            f(fr.map(|x| x.persist), 1.0, 2),
+            f(fr.map(|x| x.dh), 1000.0, 1),
+            f(fr.map(|x| x.rcorr), 1.0, 2)
+        );
     }
 }

@@ -5,12 +5,13 @@
 //! size that a named effect's gain must hold on; the seeds of the draws
 //! that a fit did not see (`other_draws`, `unseen_draws`) are here too.
 
-use dem_core::distribution::{self, gap, Stats};
+use dem_core::distribution::{gap, Stats};
 use dem_core::format::{Dem, Terrain};
 use dem_sensor::SensorModel;
 
 use crate::load::{pick, Sets};
-use crate::measurement::measure_at;
+use crate::measurement::{measure_at, summarise};
+use dem_core::temporal::{within, Step};
 
 /// Records per block of [`real_halves`]: neighbouring frames of a run
 /// look alike, so they go to the same half.
@@ -102,12 +103,9 @@ pub fn sampling_floor(sets: &Sets) -> f64 {
     }
     let [a, b] = real_halves(sets);
     let side = |idx: &[usize]| {
-        let r = pick(&sets.real, idx);
-        if sets.paired {
-            distribution::stats(&r, Some(&pick(&sets.sim, idx)))
-        } else {
-            distribution::stats(&r, None)
-        }
+        let sim = sets.paired.then(|| pick(&sets.sim, idx));
+        let steps = sets.real_steps.as_deref().map(|s| within(s, idx));
+        summarise(&pick(&sets.real, idx), sim.as_deref(), steps.as_deref())
     };
     let split = gap(&side(&a), &side(&b));
     split * (1.0 / sets.sim.len() as f64 + 1.0 / n as f64) / (4.0 / n as f64)
@@ -115,15 +113,22 @@ pub fn sampling_floor(sets: &Sets) -> f64 {
 
 /// The gap a perfect model would still show from its own random draws:
 /// model(sim) with the run's seed against model(sim) with another seed.
-pub fn draw_floor(model: &SensorModel, sim: &[Dem], times: Option<&[f64]>, paired: bool, seed: u64) -> f64 {
-    let [(_, a), (_, b)] = two_draws(model, sim, times, paired, seed);
+pub fn draw_floor(model: &SensorModel, sim: &[Dem], times: Option<&[f64]>, steps: Option<&[Step]>, paired: bool, seed: u64) -> f64 {
+    let [(_, a), (_, b)] = two_draws(model, sim, times, steps, paired, seed);
     gap(&a, &b)
 }
 
 /// model(sim) and its statistics with the draws of `seed` and of
 /// `other_draws`: the two outputs [`draw_floor`] compares.
-pub fn two_draws(model: &SensorModel, sim: &[Dem], times: Option<&[f64]>, paired: bool, seed: u64) -> [(Vec<Dem>, Stats); 2] {
-    [measure_at(model, sim, times, paired, seed), measure_at(model, sim, times, paired, other_draws(seed))]
+pub fn two_draws(
+    model: &SensorModel,
+    sim: &[Dem],
+    times: Option<&[f64]>,
+    steps: Option<&[Step]>,
+    paired: bool,
+    seed: u64,
+) -> [(Vec<Dem>, Stats); 2] {
+    [measure_at(model, sim, times, steps, paired, seed), measure_at(model, sim, times, steps, paired, other_draws(seed))]
 }
 
 /// The seed of a model's second set of random draws: the draw floor and

@@ -21,8 +21,12 @@
 //!   log2(F_2 / F), and floor(n) = gap at n = N (F / gap)^(1 / a).
 //! - **Missing cells per band and terrain** ([`BandRow`]).
 
-use dem_core::distribution::{self, Stats, MIN_SUPPORT, UNSUPPORTED_Z};
+use dem_core::distribution::{Stats, MIN_SUPPORT, UNSUPPORTED_Z};
 use dem_core::format::{row_center_x, Dem, DemCells, Terrain, COLS, GRID_ROWS};
+use dem_core::temporal::{within, Step};
+
+use crate::load::pick;
+use crate::measurement::summarise;
 
 /// A step that removes less than this share of the gap before it is weak:
 /// it is not the explanation of that gap.
@@ -324,7 +328,9 @@ fn total(c: &[(&'static str, Vec<f64>)]) -> f64 {
 /// Compare model(sim) (`out_a`, `out_b`: two draws) against real on the
 /// records `si` (sim side) and `ri` (real side; paired: the same), seen
 /// through `view`. `halves`: real's sampling halves (unpaired), whose parts
-/// in `ri` give the split floor.
+/// in `ri` give the split floor. `steps`: the runs' steps of the sim and
+/// the real side (positions in `sim` and `real`), when the frame terms
+/// count.
 #[allow(clippy::too_many_arguments)]
 pub fn compare(
     out_a: &[Dem],
@@ -336,17 +342,27 @@ pub fn compare(
     ri: &[usize],
     halves: Option<&[Vec<usize>; 2]>,
     view: &dyn Fn(&Dem) -> Dem,
+    steps: Option<(&[Step], &[Step])>,
 ) -> Compared {
     let take = |v: &[Dem], idx: &[usize]| -> Vec<Dem> { idx.iter().map(|&i| view(&v[i])).collect() };
     let sims = paired.then(|| take(sim, si));
-    let st = |v: &[Dem], idx: &[usize]| distribution::stats(&take(v, idx), sims.as_deref());
-    let (a, b, r) = (st(out_a, si), st(out_b, si), st(real, ri));
+    let st = |v: &[Dem], idx: &[usize], side: Option<&[Step]>| {
+        let steps = side.map(|s| within(s, idx));
+        // Paired, the sims are the records `si`, as `idx` is.
+        summarise(&take(v, idx), sims.as_deref(), steps.as_deref())
+    };
+    let (sim_steps, real_steps) = (steps.map(|s| s.0), steps.map(|s| s.1));
+    let (a, b, r) = (st(out_a, si, sim_steps), st(out_b, si, sim_steps), st(real, ri, real_steps));
     let gap = gap_components(&a, &r);
     let mut floor = gap_components(&a, &b);
+    let summarise_real = |idx: &[usize]| {
+        let steps = real_steps.map(|s| within(s, idx));
+        summarise(&take(real, idx), None, steps.as_deref())
+    };
     if let (false, Some(h)) = (paired, halves) {
         let parts: Vec<Vec<usize>> = h.iter().map(|h| ri.iter().copied().filter(|i| h.binary_search(i).is_ok()).collect()).collect();
         if parts.iter().all(|p| p.len() >= 20) {
-            let (ha, hb) = (st(real, &parts[0]), st(real, &parts[1]));
+            let (ha, hb) = (summarise_real(&parts[0]), summarise_real(&parts[1]));
             let scale = (1.0 / si.len() as f64 + 1.0 / ri.len() as f64) / (1.0 / parts[0].len() as f64 + 1.0 / parts[1].len() as f64);
             let mut split = gap_components(&ha, &hb);
             split.iter_mut().for_each(|(_, v)| v.iter_mut().for_each(|x| *x *= scale));
@@ -382,13 +398,16 @@ pub struct Inputs<'a> {
     pub gap_initial: f64,
     /// Steps: (effect, gap before, gap after).
     pub steps: Vec<(String, f64, f64)>,
+    /// The runs' steps of the sim and the real side, when the frame terms
+    /// count.
+    pub frames: Option<(&'a [Step], &'a [Step])>,
 }
 
 /// What the final model leaves, where ([`Unexplained`]).
 pub fn analyse(i: &Inputs) -> Unexplained {
     let all_s: Vec<usize> = (0..i.sim.len()).collect();
     let all_r: Vec<usize> = (0..i.real.len()).collect();
-    let whole = compare(i.out_a, i.out_b, i.sim, i.real, i.paired, &all_s, &all_r, i.halves, &|d| *d);
+    let whole = compare(i.out_a, i.out_b, i.sim, i.real, i.paired, &all_s, &all_r, i.halves, &|d| *d, i.frames);
     let mut by_statistic: Vec<Part> = whole.terms().into_iter().map(|(n, g, f)| Part::new(n, g, f)).collect();
     set_shares(&mut by_statistic);
     by_statistic.sort_by(|a, b| b.excess.total_cmp(&a.excess));
@@ -401,7 +420,7 @@ pub fn analyse(i: &Inputs) -> Unexplained {
     let mut by_side: Vec<Part> = [("left", true), ("right", false)]
         .into_iter()
         .map(|(n, left)| {
-            let c = compare(i.out_a, i.out_b, i.sim, i.real, i.paired, &all_s, &all_r, i.halves, &|d| side_view(d, left));
+            let c = compare(i.out_a, i.out_b, i.sim, i.real, i.paired, &all_s, &all_r, i.halves, &|d| side_view(d, left), None);
             Part::new(n, c.gap(), c.floor())
         })
         .collect();
@@ -473,7 +492,7 @@ fn by_terrain(i: &Inputs) -> (Vec<Part>, Vec<(String, Vec<f64>)>) {
         if si.len() < 20 || ri.len() < 20 {
             continue;
         }
-        let c = compare(i.out_a, i.out_b, i.sim, i.real, i.paired, &si, &ri, i.halves, &|d| *d);
+        let c = compare(i.out_a, i.out_b, i.sim, i.real, i.paired, &si, &ri, i.halves, &|d| *d, i.frames);
         let mut p = Part::new(t.as_str(), c.gap(), c.floor());
         p.records = ri.len();
         p.top = (p.excess > 0.0).then(|| c.top());
@@ -610,8 +629,9 @@ pub fn floor_on(
     let sim: Vec<Dem> = si.iter().map(|&k| sets.sim[k]).collect();
     let times: Option<Vec<f64>> = sets.sim_time.as_ref().map(|t| si.iter().map(|&k| t[k]).collect());
     let paired = sets.paired;
-    let (_, a) = crate::measure_at(model, &sim, times.as_deref(), paired, seed);
-    let (_, b) = crate::measure_at(model, &sim, times.as_deref(), paired, crate::other_draws(seed));
+    let steps = sets.sim_steps.as_deref().map(|s| within(s, si));
+    let (_, a) = crate::measure_at(model, &sim, times.as_deref(), steps.as_deref(), paired, seed);
+    let (_, b) = crate::measure_at(model, &sim, times.as_deref(), steps.as_deref(), paired, crate::other_draws(seed));
     let draw = raw_components(&a, &b);
     if paired || ri.len() < 100 {
         return draw;
@@ -622,7 +642,11 @@ pub fn floor_on(
     if ha.is_empty() || hb.is_empty() {
         return draw;
     }
-    let st = |h: &[usize]| distribution::stats(&h.iter().map(|&k| sets.real[ri[k]]).collect::<Vec<_>>(), None);
+    let st = |h: &[usize]| {
+        let idx: Vec<usize> = h.iter().map(|&k| ri[k]).collect();
+        let steps = sets.real_steps.as_deref().map(|s| within(s, &idx));
+        summarise(&pick(&sets.real, &idx), None, steps.as_deref())
+    };
     let scale = (1.0 / si.len() as f64 + 1.0 / ri.len() as f64) / (1.0 / ha.len() as f64 + 1.0 / hb.len() as f64);
     // The split's gap scaled to the sizes, component by component, as the
     // reported floor scales its sum.
@@ -840,7 +864,7 @@ mod tests {
         let sim = flat(300, |_, _, _| false);
         let real = flat(300, |k, r, c| r >= 12 && c <= 1 && k % 2 == 0);
         let idx: Vec<usize> = (0..300).collect();
-        let gap_of = |left: bool| compare(&sim, &sim, &sim, &real, false, &idx, &idx, None, &|d| side_view(d, left)).gap();
+        let gap_of = |left: bool| compare(&sim, &sim, &sim, &real, false, &idx, &idx, None, &|d| side_view(d, left), None).gap();
         assert!(gap_of(true) > 1.0 && gap_of(false) < 1e-9, "{} {}", gap_of(true), gap_of(false));
     }
 

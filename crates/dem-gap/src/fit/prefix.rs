@@ -112,7 +112,7 @@ mod tests {
         );
         for paired in [true, false] {
             let real = stats(&real_recs, paired.then_some(sim.as_slice()));
-            let target = Target { sim: &sim, times: None, paired, real: &real, seed: 3 };
+            let target = Target { sim: &sim, times: None, steps: None, paired, real: &real, seed: 3 };
             let base = SensorModel::new(vec![
                 Effect::Occlusion(Occlusion { h: 0.5, x0: 0.1 }),
                 Effect::Smoothing(Smoothing { w: 0.6 }),
