@@ -890,4 +890,53 @@ mod tests {
         assert!(gap_terms(&s_together, &s_apart).iter().all(|(name, _)| !name.contains("coherence")));
         assert!(stats(&together, None).step_coherence.is_none(), "unpaired has no residuals");
     }
+
+    /// The frame terms per row are the frame statistics of that row alone
+    /// ([`crate::temporal::frame_stats`]), with each statistic's samples as
+    /// support; unpaired, the correlation is the change's.
+    #[test]
+    fn frame_terms_are_the_frame_statistics_row_by_row() {
+        use crate::temporal::{change_rcorr, frame_stats, Step};
+        let frames: Vec<Dem> = (0..60)
+            .map(|t| {
+                let mut d = empty_dem();
+                for r in 0..GRID_ROWS {
+                    for c in 0..COLS {
+                        if (t * 3 + r * 7 + c) % 11 != 0 {
+                            d.set_valid(r, c, 0.01 * (((t * 13 + r * 5 + c * 3) % 17) as f32));
+                        }
+                    }
+                }
+                d
+            })
+            .collect();
+        let reference: Vec<Dem> = frames
+            .iter()
+            .map(|d| {
+                let mut q = *d;
+                for r in 0..GRID_ROWS {
+                    for c in 0..COLS {
+                        q.set_valid(r, c, 0.0);
+                    }
+                }
+                q
+            })
+            .collect();
+        let steps: Vec<Step> = (0..59).filter(|t| t % 10 != 9).map(|t| Step { from: t, to: t + 1, shift: (t % 3) as i64 }).collect();
+        for paired in [true, false] {
+            let reference = paired.then_some(&reference[..]);
+            let terms = frame_terms(&frames, reference, &steps);
+            let names: Vec<&str> = terms.iter().map(|t| t.name).collect();
+            assert_eq!(names, FRAME_SCALES.map(|t| t.0));
+            for r in 0..GRID_ROWS {
+                let s = frame_stats(&frames, reference, &steps, r..r + 1);
+                let rcorr = if paired { s.rcorr } else { change_rcorr(&frames, &steps, r..r + 1) };
+                assert_eq!(terms[0].values[r], s.flip.unwrap_or(0.0), "row {r}");
+                assert_eq!(terms[1].values[r], s.dh.unwrap_or(0.0), "row {r}");
+                assert_eq!(terms[2].values[r], rcorr.unwrap_or(0.0), "row {r}");
+                assert_eq!(terms[0].support[r], s.cells, "row {r}");
+                assert_eq!(terms[2].support[r] > 0, rcorr.is_some(), "row {r}");
+            }
+        }
+    }
 }

@@ -20,7 +20,7 @@ use crate::fit;
 use crate::held_out::HeldOut;
 use crate::load::{pick, GapConfig, Sets};
 use crate::measurement::{measure_at, summarise};
-use crate::sampling::{draw_floor, real_halves, sampling_floor, sim_halves};
+use crate::sampling::{draw_floor, real_halves, sampling_floor, sim_halves, Half};
 use dem_core::temporal::{within, Step};
 
 /// One run's comparison of model(sim) with real.
@@ -212,16 +212,6 @@ fn comparison_halves(sets: &Sets) -> Vec<Half> {
     }
 }
 
-/// One half of the comparison ([`comparison_halves`]).
-pub(crate) struct Half {
-    /// Its sim-side records.
-    pub sim: Vec<usize>,
-    /// Their runs' steps (positions in `sim`), when the frame terms count.
-    pub steps: Option<Vec<Step>>,
-    /// Real's statistics on it.
-    pub real: Stats,
-}
-
 /// The records the candidates are fitted on, of `n` sim records: a seeded
 /// subsample of `cfg.fit_records`, ascending (all records when few).
 fn fitting_subsample(cfg: &GapConfig, n: usize) -> Vec<usize> {
@@ -235,6 +225,7 @@ fn fitting_subsample(cfg: &GapConfig, n: usize) -> Vec<usize> {
 mod tests {
     use super::*;
     use crate::measurement::measure;
+    use dem_core::distribution;
     use dem_core::format::{empty_dem, DemCells};
     use dem_core::metric;
     use dem_sensor::effects::Noise;

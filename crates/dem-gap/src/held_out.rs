@@ -25,9 +25,10 @@ use dem_sensor::effects::EffectSpec;
 use dem_sensor::evidence::share_removed;
 use dem_sensor::SensorModel;
 
+use crate::fit;
 use crate::load::{pick, Sets};
 use crate::measurement::summarise;
-use crate::{comparison, fit};
+use crate::sampling::Half as ComparedHalf;
 
 /// One half of the comparison as the held-out check uses it.
 struct Half {
@@ -59,7 +60,7 @@ impl HeldOut {
     /// The halves `halves` (sim-side records, real's statistics on each,
     /// as [`crate::comparison`] deals them) of `sets`; the fitting records
     /// of each a seeded subsample of `fit_records / 2`.
-    pub fn new(sets: &Sets, halves: &[comparison::Half], fit_records: usize, seed: u64) -> HeldOut {
+    pub fn new(sets: &Sets, halves: &[ComparedHalf], fit_records: usize, seed: u64) -> HeldOut {
         let paired = sets.paired;
         let times = sets.sim_time.as_deref();
         let halves = halves

@@ -54,16 +54,28 @@ mod tests {
     #[test]
     fn a_sensor_that_flickers_where_the_map_holds_still_has_a_gap_in_time() {
         let ground = |g: usize| 0.03 * ((g * 7919 % 13) as f32 / 13.0);
-        let held_error = |g: usize, c: usize| 0.006 * (((g * 31 + c * 17) * 2654435761usize % 1000) as f32 / 500.0 - 1.0);
+        let noise = SensorModel::new(vec![Effect::Noise(Noise { sigma0: 0.0035, k: 0.0 })]);
+        // Real's error of each ground strip, drawn once by the same noise:
+        // strip g of run k is index k * 50 + g.
+        let mut strips: Vec<Dem> = (0..20 * 50)
+            .map(|i| {
+                let mut d = empty_dem();
+                for c in 0..COLS {
+                    d.set_valid(0, c, ground(i));
+                }
+                d
+            })
+            .collect();
+        noise.apply_all(&mut strips, 7, 0);
         let (mut sim, mut real, mut steps) = (Vec::new(), Vec::new(), Vec::new());
         for run in 0..20 {
             for t in 0..30 {
                 let (mut s, mut r) = (empty_dem(), empty_dem());
                 for row in 0..GRID_ROWS {
-                    let g = run * 1000 + t + row;
+                    let g = run * 50 + t + row;
                     for c in 0..COLS {
                         s.set_valid(row, c, ground(g));
-                        r.set_valid(row, c, ground(g) + held_error(g, c));
+                        r.set_valid(row, c, strips[g].height(0, c));
                     }
                 }
                 if t > 0 {
@@ -73,7 +85,6 @@ mod tests {
                 real.push(r);
             }
         }
-        let noise = SensorModel::new(vec![Effect::Noise(Noise { sigma0: 0.0035, k: 0.0 })]);
         let frame_names: Vec<&str> = FRAME_SCALES.iter().map(|t| t.0).collect();
         for paired in [true, false] {
             let by_frames = |with: Option<&[Step]>| {

@@ -154,6 +154,17 @@ pub fn below_floor(gap: f64, floor: f64) -> String {
     )
 }
 
+/// One half of a comparison (`comparison_halves`): sim half k against
+/// real half k.
+pub(crate) struct Half {
+    /// Its sim-side records.
+    pub sim: Vec<usize>,
+    /// Their runs' steps (positions in `sim`), when the frame terms count.
+    pub steps: Option<Vec<Step>>,
+    /// Real's statistics on it.
+    pub real: Stats,
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

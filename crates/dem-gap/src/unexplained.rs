@@ -826,6 +826,7 @@ pub fn row_xs() -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use dem_core::distribution;
     use dem_core::format::empty_dem;
 
     fn flat(n: usize, hole: impl Fn(usize, usize, usize) -> bool) -> Vec<Dem> {
