@@ -93,9 +93,9 @@ pub struct Sets {
     /// both sides' labels give runs in time with poses: the frame terms of
     /// model(sim) ([`dem_core::distribution::frame_terms`]).
     pub sim_steps: Option<Vec<Step>>,
-    /// The steps between real-side records (positions in `real`); paired
-    /// and over pairs, the steps both sides' labels agree on, the same as
-    /// `sim_steps`.
+    /// The steps between real-side records (positions in `real`); paired,
+    /// the steps both sides' labels agree on, the same as `sim_steps`
+    /// (over pairs there are none).
     pub real_steps: Option<Vec<Step>>,
     /// Why the frame terms are left out, when they are.
     pub frames_left_out: Option<String>,
@@ -211,8 +211,14 @@ pub fn load(cfg: &GapConfig) -> Result<Sets> {
     let Some(pp) = &cfg.pairs else { return Ok(unpaired_sets(cfg, sim, real)) };
     let (si, ri) = pair_indices(cfg.split, pp, n_sim, n_real)?;
     let (sim, real) = (sim.pick(&si), real.pick(&ri));
+    if cfg.over_pairs {
+        // Each record once per pair it is in: dem-eval's gap, whose frame
+        // columns give how the frames move.
+        let why = "over pairs each record counts once per pair, as dem-eval's gap (its frame columns give the frames)";
+        return Ok(over_pairs_sets(sim, real).with_steps(Err(why.to_string())));
+    }
     let steps = steps_together(&sim, &real).map(|s| (s.clone(), s));
-    Ok(if cfg.over_pairs { over_pairs_sets(sim, real) } else { paired_sets(sim, real) }.with_steps(steps))
+    Ok(paired_sets(sim, real).with_steps(steps))
 }
 
 /// The sim and real record of each pair of `cfg` (of its split, when one

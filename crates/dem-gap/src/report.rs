@@ -10,6 +10,7 @@
 //!                            "gains_halves": [g1, g2], "named_gains_halves": [n1, n2]}]}],
 //!  "refits": [{"effect": NAME, "params_named": {...}, "params": {...}, "gap_before": x, "gap_after": y, "at_edge": [...]}],
 //!  "gap_initial": x, "gap_final": y, "gap_final_unseen": z,
+//!  "gap_terms": [{"term": NAME, "start": x, "final": y}],
 //!  "sampling_floor": f, "sampling_floor_initial": f0, ...,
 //!  "unexplained": {"gap", "floor", "excess", "share", "of_initial", "location": {"statistic", "row_band", "side", "terrain"},
 //!                  "by_statistic": [...], "by_row_band": [...], "by_side": [...], "by_terrain": [...], "by_row": [...],
@@ -86,6 +87,8 @@ pub fn report_json(o: &Outcome) -> Value {
         .collect();
     json!({"steps": steps, "refits": refits, "gap_initial": o.gap_initial, "gap_final": o.gap_final,
         "gap_final_unseen": o.gap_final_unseen, "sampling_floor": o.floor, "sampling_floor_initial": o.floor_initial,
+        "gap_terms": gap_terms(&o.stats[1], &o.stats[3]).into_iter().zip(gap_terms(&o.stats[2], &o.stats[3]))
+            .map(|((term, start), (_, end))| json!({"term": term, "start": start, "final": end})).collect::<Vec<_>>(),
         "sim_records": o.sizes.0, "real_records": o.sizes.1, "over_pairs": o.over_pairs,
         "terrain_mix": o.terrain_mix.map(|(kept, of)| json!({"drawn": kept, "from": of})),
         "unexplained": unexplained_json(&o.unexplained),
