@@ -524,6 +524,7 @@ fn the_report_has_the_schema_pictures_and_a_usable_model() {
             "gap_final",
             "gap_final_unseen",
             "gap_initial",
+            "gap_terms",
             "missing_by_band",
             "over_pairs",
             "real_records",
