@@ -12,6 +12,7 @@
 #   STAGES="occlusion noise" bash scripts/gap_demo.sh   # a subset
 #   MODES=paired bash scripts/gap_demo.sh                 # paired cases only
 #   REUSE_DATA=1 ...    # keep OUT's data-* of an earlier run (same SEED, RUNS, SYNTH_ARGS)
+#   FRAME_TERMS=1 ...   # put how consecutive frames move in the gap (dem-gap's default)
 set -euo pipefail
 BIN=${BIN:-target/release}
 OUT=${OUT:-out}
@@ -21,6 +22,9 @@ RUNS=${RUNS:-20}
 EXACT_RUNS=${EXACT_RUNS:-60}
 SYNTH_ARGS=${SYNTH_ARGS:-}
 GAP_ARGS=${GAP_ARGS:-}
+# The tables of docs/results.md compare frame by frame: the frame terms
+# (how consecutive frames move) only with FRAME_TERMS=1.
+[[ -n ${FRAME_TERMS:-} ]] || GAP_ARGS="--no-frame-terms $GAP_ARGS"
 STAGES=${STAGES:-"fov occlusion smoothing noise dropout holes drift latency extrinsic vibration"}
 MODES=${MODES:-"paired unpaired"}
 for m in $MODES; do

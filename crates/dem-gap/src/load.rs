@@ -60,6 +60,10 @@ pub struct GapConfig {
     /// When no candidate holds up alone, try the best ones again with the
     /// named effects re-fitted beside them (`joint`).
     pub joint_refit: bool,
+    /// Put how consecutive frames move in the gap when both label files
+    /// give runs in time with poses (the frame terms); the command line's
+    /// default.
+    pub frame_terms: bool,
 }
 
 /// The compared sets: model side (sim) and real side, aligned when paired.
@@ -208,7 +212,15 @@ pub fn load(cfg: &GapConfig) -> Result<Sets> {
     let (n_sim, n_real) = (sim.len(), real.len());
     let sim = Side::new(sim, read_record_labels(&cfg.labels_sim, n_sim)?);
     let real = Side::new(real, read_record_labels(&cfg.labels_real, n_real)?);
-    let Some(pp) = &cfg.pairs else { return Ok(unpaired_sets(cfg, sim, real)) };
+    let sets = match &cfg.pairs {
+        None => unpaired_sets(cfg, sim, real),
+        Some(pp) => paired_or_over_pairs(cfg, pp, sim, real, (n_sim, n_real))?,
+    };
+    Ok(if cfg.frame_terms { sets } else { sets.with_steps(Err("--no-frame-terms".into())) })
+}
+
+/// The sets of `cfg`'s pairs at `pp`: per position, or over pairs.
+fn paired_or_over_pairs(cfg: &GapConfig, pp: &str, sim: Side, real: Side, (n_sim, n_real): (usize, usize)) -> Result<Sets> {
     let (si, ri) = pair_indices(cfg.split, pp, n_sim, n_real)?;
     let (sim, real) = (sim.pick(&si), real.pick(&ri));
     if cfg.over_pairs {

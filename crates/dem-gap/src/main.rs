@@ -111,6 +111,11 @@ struct Args {
     /// added passes the same checks as the others.
     #[arg(long)]
     joint_refit: bool,
+    /// Leave the frame terms out of the gap (how consecutive frames of a
+    /// run move, from both label files' runs and poses): compare frame by
+    /// frame only.
+    #[arg(long)]
+    no_frame_terms: bool,
     /// Worker threads (default: all cores).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
     threads: Option<u32>,
@@ -176,6 +181,7 @@ fn main() -> ExitCode {
             split: a.split,
             over_pairs: a.unpaired,
             joint_refit: a.joint_refit,
+            frame_terms: !a.no_frame_terms,
         };
         let t = std::time::Instant::now();
         let sets = gap::load(&cfg)?;
