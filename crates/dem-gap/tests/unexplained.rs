@@ -96,7 +96,8 @@ fn a_one_sided_smudge_far_ahead_is_unexplained_and_located() {
     let dir = tempdir();
     let (sim, labels, pairs) = setup(dir.path());
     let real = hide(dir.path(), &sim, &labels, &["smudge:c0=0,c1=1,x0=0.7,p=0.6"]);
-    let missing = ["missing", "missing-pair", "jump-missing", "row-missing", "shadow"];
+    // Holes drawn anew every record flip from frame to frame too.
+    let missing = ["missing", "missing-pair", "jump-missing", "row-missing", "shadow", "frame-flip"];
     for (mode, extra) in [("paired", vec!["--pairs", pairs.as_str()]), ("unpaired", vec![])] {
         let mut args = vec!["--sim", sim.as_str(), "--real", real.as_str(), "--sim-labels", &labels, "--real-labels", &labels];
         args.extend(extra);
@@ -117,7 +118,20 @@ fn a_height_offset_on_one_terrain_is_unexplained_and_located() {
     let dir = tempdir();
     let (sim, labels, pairs) = setup(dir.path());
     let real = hide(dir.path(), &sim, &labels, &["offset:terrain=stairs-down,x0=0,x1=0.5,dz=0.04"]);
-    let heights = ["height", "edge-2cm", "edge-steep", "steps", "spread-sd", "spread-q50", "spread-q90", "spread-q99", "level-pairs"];
+    // An offset kept over the run keeps the error from frame to frame.
+    let heights = [
+        "height",
+        "edge-2cm",
+        "edge-steep",
+        "steps",
+        "spread-sd",
+        "spread-q50",
+        "spread-q90",
+        "spread-q99",
+        "level-pairs",
+        "frame-dh",
+        "frame-rcorr",
+    ];
     let args = ["--sim", sim.as_str(), "--real", real.as_str(), "--pairs", &pairs, "--sim-labels", &labels, "--real-labels", &labels];
     let (r, md, err) = gap(dir.path(), &args, "paired");
     located(&r, &md, &err, &heights, "near", "both", Some("stairs-down"));
@@ -131,7 +145,8 @@ fn holes_far_ahead_on_one_terrain_are_unexplained_and_located() {
     let dir = tempdir();
     let (sim, labels, pairs) = setup(dir.path());
     let real = hide(dir.path(), &sim, &labels, &["holes:terrain=pallet,x0=0.9,p=0.5"]);
-    let missing = ["missing", "missing-pair", "jump-missing", "row-missing", "shadow"];
+    // Holes drawn anew every record flip from frame to frame too.
+    let missing = ["missing", "missing-pair", "jump-missing", "row-missing", "shadow", "frame-flip"];
     let args = ["--sim", sim.as_str(), "--real", real.as_str(), "--pairs", &pairs, "--sim-labels", &labels, "--real-labels", &labels];
     let (r, md, err) = gap(dir.path(), &args, "paired");
     located(&r, &md, &err, &missing, "far", "both", Some("pallet"));
