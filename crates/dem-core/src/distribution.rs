@@ -615,6 +615,7 @@ pub const FRAME_SCALES: [(&str, f64); 3] = [("frame-flip", 0.005), ("frame-dh", 
 /// statistics are added to them ([`Stats::with_frames`]), so a model that
 /// flickers where measured maps hold still has a gap to close.
 pub fn frame_terms(x: &[Dem], reference: Option<&[Dem]>, steps: &[Step]) -> Vec<Term> {
+    let chained = if reference.is_none() { chains(steps) } else { Vec::new() };
     let sums: Vec<FrameSums> = (0..GRID_ROWS)
         .into_par_iter()
         .map(|r| {
@@ -622,11 +623,7 @@ pub fn frame_terms(x: &[Dem], reference: Option<&[Dem]>, steps: &[Step]) -> Vec<
             for s in steps {
                 sums.add((&x[s.from], &x[s.to]), reference.map(|q| (&q[s.from], &q[s.to])), s.shift, r..r + 1);
             }
-            if reference.is_none() {
-                for (s1, s2) in chains(steps) {
-                    sums.add_change((&x[s1.from], &x[s1.to], &x[s2.to]), (s1.shift, s2.shift), r..r + 1);
-                }
-            }
+            sums.add_changes(x, &chained, r..r + 1);
             sums
         })
         .collect();

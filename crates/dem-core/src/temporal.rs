@@ -182,6 +182,13 @@ impl FrameSums {
         }
     }
 
+    /// [`Self::add_change`] along every chain of `chains` (of `x`'s steps).
+    pub fn add_changes(&mut self, x: &[Dem], chains: &[(Step, Step)], rows: Range<usize>) {
+        for (s1, s2) in chains {
+            self.add_change((&x[s1.from], &x[s1.to], &x[s2.to]), (s1.shift, s2.shift), rows.clone());
+        }
+    }
+
     /// The sums of `self` and `o` together.
     pub fn merged(mut self, o: &FrameSums) -> FrameSums {
         self.steps += o.steps;
@@ -251,9 +258,7 @@ pub fn frame_stats(x: &[Dem], reference: Option<&[Dem]>, steps: &[Step], rows: R
 /// the last frame's rows `rows`: where no reference gives an error.
 pub fn change_rcorr(x: &[Dem], steps: &[Step], rows: Range<usize>) -> Option<f64> {
     let mut sums = FrameSums::default();
-    for (s1, s2) in chains(steps) {
-        sums.add_change((&x[s1.from], &x[s1.to], &x[s2.to]), (s1.shift, s2.shift), rows.clone());
-    }
+    sums.add_changes(x, &chains(steps), rows);
     sums.stats().rcorr
 }
 

@@ -21,7 +21,7 @@ use crate::held_out::HeldOut;
 use crate::load::{pick, GapConfig, Sets};
 use crate::measurement::{measure_at, summarise};
 use crate::sampling::{draw_floor, real_halves, sampling_floor, sim_halves, Half};
-use dem_core::temporal::{within, Step};
+use dem_core::temporal::Step;
 
 /// One run's comparison of model(sim) with real.
 pub(crate) struct Comparison<'a> {
@@ -78,7 +78,7 @@ impl<'a> Comparison<'a> {
         let idx = fitting_subsample(cfg, sets.sim.len());
         let fit_sim = pick(&sets.sim, &idx);
         let fit_times = times.map(|t| pick(t, &idx));
-        let fit_steps = steps.map(|s| within(s, &idx));
+        let fit_steps = sets.sim_steps_in(&idx);
         let fit_real = if paired { summarise(&pick(&sets.real, &idx), Some(&fit_sim), fit_steps.as_deref()) } else { real.clone() };
         let subsampled = !paired && idx.len() < sets.sim.len();
         Comparison {
@@ -184,7 +184,6 @@ impl<'a> Comparison<'a> {
 /// ([`crate::Tie`]). Paired, sim record i is real record i's pair, and the
 /// halves are real's (whole runs when labelled).
 fn comparison_halves(sets: &Sets) -> Vec<Half> {
-    let steps_in = |steps: &Option<Vec<Step>>, idx: &[usize]| steps.as_deref().map(|s| within(s, idx));
     if sets.real.len() < 100 {
         Vec::new()
     } else if sets.paired {
@@ -192,7 +191,7 @@ fn comparison_halves(sets: &Sets) -> Vec<Half> {
             .into_iter()
             .filter(|h| !h.is_empty())
             .map(|h| {
-                let steps = steps_in(&sets.real_steps, &h);
+                let steps = sets.real_steps_in(&h);
                 let real = summarise(&pick(&sets.real, &h), Some(&pick(&sets.sim, &h)), steps.as_deref());
                 Half { sim: h, steps, real }
             })
@@ -205,8 +204,8 @@ fn comparison_halves(sets: &Sets) -> Vec<Half> {
         sh.into_iter()
             .zip(real_halves(sets))
             .map(|(s, r)| {
-                let real = summarise(&pick(&sets.real, &r), None, steps_in(&sets.real_steps, &r).as_deref());
-                Half { steps: steps_in(&sets.sim_steps, &s), sim: s, real }
+                let real = summarise(&pick(&sets.real, &r), None, sets.real_steps_in(&r).as_deref());
+                Half { steps: sets.sim_steps_in(&s), sim: s, real }
             })
             .collect()
     }

@@ -20,7 +20,7 @@ use rand_chacha::ChaCha8Rng;
 
 use dem_core::distribution::{gap, Stats};
 use dem_core::format::Dem;
-use dem_core::temporal::{within, Step};
+use dem_core::temporal::Step;
 use dem_sensor::effects::EffectSpec;
 use dem_sensor::evidence::share_removed;
 use dem_sensor::SensorModel;
@@ -70,7 +70,7 @@ impl HeldOut {
                 let (idx, real) = (&h.sim, &h.real);
                 let sub = subsample(idx, (fit_records / 2).max(1), seed ^ (k as u64 + 1));
                 let fit_sim = pick(&sets.sim, &sub);
-                let fit_steps = sets.sim_steps.as_deref().map(|s| within(s, &sub));
+                let fit_steps = sets.sim_steps_in(&sub);
                 let fit_real = if paired { summarise(&pick(&sets.real, &sub), Some(&fit_sim), fit_steps.as_deref()) } else { real.clone() };
                 Half {
                     sim: pick(&sets.sim, idx),

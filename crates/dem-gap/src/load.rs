@@ -191,6 +191,17 @@ fn steps_together(sim: &Side, real: &Side) -> std::result::Result<Vec<Step>, Str
 }
 
 impl Sets {
+    /// The sim-side steps between the records `idx`, renumbered to their
+    /// positions in `idx` ([`temporal::within`]), when the frame terms count.
+    pub fn sim_steps_in(&self, idx: &[usize]) -> Option<Vec<Step>> {
+        self.sim_steps.as_deref().map(|s| temporal::within(s, idx))
+    }
+
+    /// The real-side steps between the records `idx`, likewise.
+    pub fn real_steps_in(&self, idx: &[usize]) -> Option<Vec<Step>> {
+        self.real_steps.as_deref().map(|s| temporal::within(s, idx))
+    }
+
     /// These sets with the steps of `steps` (or why they are left out).
     fn with_steps(self, steps: std::result::Result<(Vec<Step>, Vec<Step>), String>) -> Sets {
         match steps {

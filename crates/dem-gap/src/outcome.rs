@@ -6,7 +6,7 @@
 use dem_core::distribution::{gap, Stats};
 use dem_core::format::{Dem, Terrain, GRID_ROWS};
 use dem_core::metric;
-use dem_core::temporal::{change_rcorr, frame_stats, within, FrameStats};
+use dem_core::temporal::{change_rcorr, frame_stats, FrameStats};
 use dem_sensor::{Effect, SensorModel};
 
 use crate::comparison::Comparison;
@@ -330,7 +330,7 @@ fn per_terrain(sets: &Sets, start: &SensorModel, model: &SensorModel, seed: u64)
         let sim = pick(&sets.sim, &si);
         let real = pick(&sets.real, &ri);
         let times = sets.sim_time.as_ref().map(|t| pick(t, &si));
-        let (sim_steps, real_steps) = (sets.sim_steps.as_ref().map(|s| within(s, &si)), sets.real_steps.as_ref().map(|s| within(s, &ri)));
+        let (sim_steps, real_steps) = (sets.sim_steps_in(&si), sets.real_steps_in(&ri));
         let (sim_steps, real_steps) = (sim_steps.as_deref(), real_steps.as_deref());
         let rs = summarise(&real, sets.paired.then_some(&sim[..]), real_steps);
         let (_, s0) = measure_at(start, &sim, times.as_deref(), sim_steps, sets.paired, seed);

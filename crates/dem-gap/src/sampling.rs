@@ -11,7 +11,7 @@ use dem_sensor::SensorModel;
 
 use crate::load::{pick, Sets};
 use crate::measurement::{measure_at, summarise};
-use dem_core::temporal::{within, Step};
+use dem_core::temporal::Step;
 
 /// Records per block of [`real_halves`]: neighbouring frames of a run
 /// look alike, so they go to the same half.
@@ -104,7 +104,7 @@ pub fn sampling_floor(sets: &Sets) -> f64 {
     let [a, b] = real_halves(sets);
     let side = |idx: &[usize]| {
         let sim = sets.paired.then(|| pick(&sets.sim, idx));
-        let steps = sets.real_steps.as_deref().map(|s| within(s, idx));
+        let steps = sets.real_steps_in(idx);
         summarise(&pick(&sets.real, idx), sim.as_deref(), steps.as_deref())
     };
     let split = gap(&side(&a), &side(&b));

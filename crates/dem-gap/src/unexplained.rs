@@ -355,14 +355,10 @@ pub fn compare(
     let (a, b, r) = (st(out_a, si, sim_steps), st(out_b, si, sim_steps), st(real, ri, real_steps));
     let gap = gap_components(&a, &r);
     let mut floor = gap_components(&a, &b);
-    let summarise_real = |idx: &[usize]| {
-        let steps = real_steps.map(|s| within(s, idx));
-        summarise(&take(real, idx), None, steps.as_deref())
-    };
     if let (false, Some(h)) = (paired, halves) {
         let parts: Vec<Vec<usize>> = h.iter().map(|h| ri.iter().copied().filter(|i| h.binary_search(i).is_ok()).collect()).collect();
         if parts.iter().all(|p| p.len() >= 20) {
-            let (ha, hb) = (summarise_real(&parts[0]), summarise_real(&parts[1]));
+            let (ha, hb) = (st(real, &parts[0], real_steps), st(real, &parts[1], real_steps));
             let scale = (1.0 / si.len() as f64 + 1.0 / ri.len() as f64) / (1.0 / parts[0].len() as f64 + 1.0 / parts[1].len() as f64);
             let mut split = gap_components(&ha, &hb);
             split.iter_mut().for_each(|(_, v)| v.iter_mut().for_each(|x| *x *= scale));
@@ -629,7 +625,7 @@ pub fn floor_on(
     let sim: Vec<Dem> = si.iter().map(|&k| sets.sim[k]).collect();
     let times: Option<Vec<f64>> = sets.sim_time.as_ref().map(|t| si.iter().map(|&k| t[k]).collect());
     let paired = sets.paired;
-    let steps = sets.sim_steps.as_deref().map(|s| within(s, si));
+    let steps = sets.sim_steps_in(si);
     let (_, a) = crate::measure_at(model, &sim, times.as_deref(), steps.as_deref(), paired, seed);
     let (_, b) = crate::measure_at(model, &sim, times.as_deref(), steps.as_deref(), paired, crate::other_draws(seed));
     let draw = raw_components(&a, &b);
@@ -644,7 +640,7 @@ pub fn floor_on(
     }
     let st = |h: &[usize]| {
         let idx: Vec<usize> = h.iter().map(|&k| ri[k]).collect();
-        let steps = sets.real_steps.as_deref().map(|s| within(s, &idx));
+        let steps = sets.real_steps_in(&idx);
         summarise(&pick(&sets.real, &idx), None, steps.as_deref())
     };
     let scale = (1.0 / si.len() as f64 + 1.0 / ri.len() as f64) / (1.0 / ha.len() as f64 + 1.0 / hb.len() as f64);
