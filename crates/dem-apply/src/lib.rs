@@ -86,18 +86,21 @@ pub fn stored(path: &str) -> Result<Stored, DemError> {
 pub fn run(c: &Config, model: &OnnxModel, progress: impl FnMut(u64)) -> Result<Report, DemError> {
     let file = stored(&c.model)?;
     let tail = Stored { residual: if c.network_only { None } else { file.residual.clone() }, heights: c.heights.unwrap_or(file.heights) };
-    let times = match &c.labels {
-        Some(p) => Some((p.as_str(), table::times(&table::read_labels(p)?))),
+    let moments = match &c.labels {
+        Some(p) => Some((p.as_str(), dem_sensor::moments(&table::read_labels(p)?))),
         None => None,
     };
     let mut notes = Vec::new();
     if let Some(r) = &tail.residual {
-        if times.is_none() && r.uses_time() {
+        if moments.is_none() && r.uses_time() {
             notes.push(
                 "note: the model's residual has `startup` but no --labels gave the records' times: \
                  startup frames are drawn at its rate p instead of by time"
                     .to_string(),
             );
+        }
+        if let Some(why) = dem_sensor::runs_unknown(r, moments.as_ref().map(|(_, m)| m.as_slice())) {
+            notes.push(format!("note: the model's residual: {why}"));
         }
     }
     if c.emit_uniform.is_some() && (c.sample_masks || tail != file) {
@@ -118,11 +121,10 @@ pub fn run(c: &Config, model: &OnnxModel, progress: impl FnMut(u64)) -> Result<R
         if let Some(s) = &sample {
             s.draw(inp, out, first);
         }
-        let t = dem_sensor::chunk_times(times.as_ref().map(|(p, t)| (*p, t.as_slice())), first, out.len())?;
-        let u = residual.uniforms_of(c.seed, c.first_index + first, out.len());
+        let m = dem_sensor::chunk_moments(moments.as_ref().map(|(p, m)| (*p, m.as_slice())), first, out.len())?;
+        let u = residual.uniforms_of(c.seed, c.first_index + first, out.len(), m);
         out.par_iter_mut().zip(inp).enumerate().for_each(|(i, (y, x))| {
-            let time = t.and_then(|t| t.get(i).copied()).filter(|t| t.is_finite());
-            tail.finish(x, y, &u[i * k..(i + 1) * k], time);
+            tail.finish(x, y, &u[i * k..(i + 1) * k], dem_sensor::moment_at(m, i).known_time());
         });
         if let Some(w) = &emit {
             let mut w = w.lock().expect("one writer");
@@ -134,7 +136,7 @@ pub fn run(c: &Config, model: &OnnxModel, progress: impl FnMut(u64)) -> Result<R
         }
         Ok(())
     };
-    let labels_cover = |records: u64| dem_sensor::labels_cover(times.as_ref().map(|(p, t)| (*p, t.len())), records);
+    let labels_cover = |records: u64| dem_sensor::labels_cover(moments.as_ref().map(|(p, m)| (*p, m.len())), records);
     let any = sample.is_some() || tail.has_tail();
     let after = After { finish: any.then_some(&finish as _), at_end: Some(&labels_cover) };
     let stats = apply(model, &c.input, &c.output, c.batch, c.strict, after, progress)?;

@@ -302,7 +302,7 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
     let mut labels = SimLabels::read(q)?;
     let scored = scored_pairs(q, &pairs, &labels)?;
     let row_sizes = row_sizes(q, scored, &labels);
-    let network = Network::load(q, labels.times.is_some())?;
+    let network = Network::load(q, labels.moments.as_deref())?;
     let mut acc = Acc::default();
     // The whole labels only until the runs are made: the stream keeps a
     // terrain byte and a time per record, and the steps.
@@ -356,11 +356,11 @@ fn open_reals(q: &Request, pairs: &Pairs) -> anyhow::Result<ByIndex> {
 }
 
 /// What the engine keeps of the sim file's labels: one terrain byte and one
-/// time per record. Labels are the sim file's own, so a shard's are indexed
+/// moment (run and time) per record. Labels are the sim file's own, so a shard's are indexed
 /// from its first record.
 struct SimLabels {
     terrains: Option<Vec<Terrain>>,
-    times: Option<Vec<f64>>,
+    moments: Option<Vec<dem_sensor::Moment>>,
     first_index: u64,
     /// The labels, until the runs (`frame_*` columns) are made of them.
     labels: Option<Vec<table::Label>>,
@@ -371,7 +371,7 @@ impl SimLabels {
         let labels = q.labels_sim.as_deref().map(table::read_labels).transpose()?;
         Ok(SimLabels {
             terrains: labels.as_ref().map(|l| l.iter().map(|l| l.terrain).collect()),
-            times: labels.as_deref().map(table::times),
+            moments: labels.as_deref().map(dem_sensor::moments),
             first_index: q.first_index.unwrap_or(0),
             labels,
         })
@@ -381,8 +381,8 @@ impl SimLabels {
         self.terrains.as_ref().and_then(|t| t.get((i - self.first_index) as usize)).copied()
     }
 
-    fn time(&self, i: u64) -> Option<f64> {
-        self.times.as_ref().and_then(|t| t.get((i - self.first_index) as usize)).copied().filter(|t| t.is_finite())
+    fn moment(&self, i: u64) -> dem_sensor::Moment {
+        dem_sensor::moment_at(self.moments.as_deref(), (i - self.first_index) as usize)
     }
 }
 
@@ -422,15 +422,18 @@ struct Network {
 }
 
 impl Network {
-    fn load(q: &Request, has_times: bool) -> anyhow::Result<Network> {
+    fn load(q: &Request, moments: Option<&[dem_sensor::Moment]>) -> anyhow::Result<Network> {
         let Method::Model(path) = &q.method else {
             return Ok(Network { model: None, residual: None, heights: dem_onnx::Heights::Network });
         };
         let model = Some(dem_onnx::OnnxModel::load(path)?);
         let stored = dem_apply::stored(path)?;
         let residual = stored.residual.filter(|_| !q.network_only);
-        if residual.as_ref().is_some_and(|r| r.uses_time()) && !has_times {
+        if residual.as_ref().is_some_and(|r| r.uses_time()) && moments.is_none() {
             cli::log("note: the model's residual has `startup` but no --sim-labels gave the records' times: startup frames are drawn at its rate p instead of by time");
+        }
+        if let Some(why) = residual.as_ref().and_then(|r| dem_sensor::runs_unknown(r, moments)) {
+            cli::log(format_args!("note: the model's residual: {why}"));
         }
         Ok(Network { model, residual, heights: stored.heights })
     }
@@ -524,7 +527,7 @@ fn evaluate_block(
         if let Some(r) = ctx.residual {
             // Keyed by the record's index in the whole sim set, as dem-apply
             // keys it: the same draws as `dem-apply | dem-eval --pred`.
-            block.par_iter_mut().for_each(|b| r.apply_at(&mut b.2, ctx.q.seed, b.0, ctx.labels.time(b.0)));
+            block.par_iter_mut().for_each(|b| r.apply_at(&mut b.2, ctx.q.seed, b.0, ctx.labels.moment(b.0)));
         }
     }
     for b in &block {

@@ -22,6 +22,7 @@ use crate::load::{pick, GapConfig, Sets};
 use crate::measurement::{measure_at, summarise};
 use crate::sampling::{draw_floor, real_halves, sampling_floor, sim_halves, Half};
 use dem_core::temporal::Step;
+use dem_sensor::Moment;
 
 /// One run's comparison of model(sim) with real.
 pub(crate) struct Comparison<'a> {
@@ -30,7 +31,7 @@ pub(crate) struct Comparison<'a> {
     /// Compared per position.
     pub paired: bool,
     /// Each sim record's time in its run, when the labels give it.
-    pub times: Option<&'a [f64]>,
+    pub moments: Option<&'a [Moment]>,
     /// The steps of the sim records' runs, when the frame terms count.
     pub steps: Option<&'a [Step]>,
     /// Statistics of real (residuals against sim when paired).
@@ -46,7 +47,7 @@ pub(crate) struct Comparison<'a> {
     held_out: OnceLock<HeldOut>,
     /// The records the candidates are fitted on.
     fit_sim: Vec<Dem>,
-    fit_times: Option<Vec<f64>>,
+    fit_moments: Option<Vec<Moment>>,
     fit_steps: Option<Vec<Step>>,
     /// Real's statistics on the fitting subsample (all of real unpaired).
     fit_real: Stats,
@@ -72,12 +73,12 @@ impl<'a> Comparison<'a> {
         let paired = sets.paired;
         let real = summarise(&sets.real, paired.then_some(&sets.sim[..]), sets.real_steps.as_deref());
         let split_floor = if paired { 0.0 } else { sampling_floor(sets) };
-        let times = sets.sim_time.as_deref();
+        let moments = sets.sim_moments.as_deref();
         let steps = sets.sim_steps.as_deref();
         let halves = comparison_halves(sets);
         let idx = fitting_subsample(cfg, sets.sim.len());
         let fit_sim = pick(&sets.sim, &idx);
-        let fit_times = times.map(|t| pick(t, &idx));
+        let fit_moments = moments.map(|t| pick(t, &idx));
         let fit_steps = sets.sim_steps_in(&idx);
         let fit_real = if paired { summarise(&pick(&sets.real, &idx), Some(&fit_sim), fit_steps.as_deref()) } else { real.clone() };
         let subsampled = !paired && idx.len() < sets.sim.len();
@@ -85,14 +86,14 @@ impl<'a> Comparison<'a> {
             cfg,
             sets,
             paired,
-            times,
+            moments,
             steps,
             real,
             split_floor,
             halves,
             held_out: OnceLock::new(),
             fit_sim,
-            fit_times,
+            fit_moments,
             fit_steps,
             fit_real,
             subsampled,
@@ -101,7 +102,7 @@ impl<'a> Comparison<'a> {
 
     /// model(sim) on all records with the draws of `seed`, and its statistics.
     pub fn measure(&self, model: &SensorModel, seed: u64) -> (Vec<Dem>, Stats) {
-        measure_at(model, &self.sets.sim, self.times, self.steps, self.paired, seed)
+        measure_at(model, &self.sets.sim, self.moments, self.steps, self.paired, seed)
     }
 
     /// The gap of model(sim) with the draws of `seed` on all records.
@@ -112,7 +113,7 @@ impl<'a> Comparison<'a> {
     /// The sampling floor of `model`: the larger of the split's and the
     /// model's own draws'.
     pub fn floor_of(&self, model: &SensorModel) -> f64 {
-        self.split_floor.max(draw_floor(model, &self.sets.sim, self.times, self.steps, self.paired, self.cfg.seed))
+        self.split_floor.max(draw_floor(model, &self.sets.sim, self.moments, self.steps, self.paired, self.cfg.seed))
     }
 
     /// Whether `gap`, of `model`, is below the sampling floor: paired, the
@@ -167,7 +168,7 @@ impl<'a> Comparison<'a> {
     pub fn target<'s>(&'s self, real: &'s Stats) -> fit::Target<'s> {
         fit::Target {
             sim: &self.fit_sim,
-            times: self.fit_times.as_deref(),
+            moments: self.fit_moments.as_deref(),
             steps: self.fit_steps.as_deref(),
             paired: self.paired,
             real,

@@ -17,6 +17,7 @@ use dem_core::distribution::{gap, hides_too_much, stats_made, Stats};
 use dem_core::temporal::Step;
 
 use crate::measurement::summarise;
+use dem_sensor::Moment;
 
 /// Records per parallel chunk when a fit makes all its outputs at once.
 const CHUNK: usize = 256;
@@ -40,7 +41,7 @@ pub struct Target<'a> {
     /// Sim records to push through the model.
     pub sim: &'a [Dem],
     /// Each sim record's time in its run (labels), when known.
-    pub times: Option<&'a [f64]>,
+    pub moments: Option<&'a [Moment]>,
     /// The runs' steps between the sim records (positions in `sim`), when
     /// known: the frame terms then count.
     pub steps: Option<&'a [Step]>,
@@ -72,12 +73,12 @@ impl Target<'_> {
             let mut u = vec![0.0f32; k];
             let mut out = from[range.clone()].to_vec();
             for (d, i) in out.iter_mut().zip(range) {
-                let time = self.times.and_then(|t| t.get(i).copied());
+                let moment = dem_sensor::moment_at(self.moments, i);
                 match drawn {
-                    Some(all) => model.apply_drawn(d, &all[i * k..(i + 1) * k], time),
+                    Some(all) => model.apply_drawn(d, &all[i * k..(i + 1) * k], moment.known_time()),
                     None => {
-                        model.uniforms(self.seed, i as u64, &mut u);
-                        model.apply_drawn(d, &u, time);
+                        model.uniforms(self.seed, i as u64, moment, &mut u);
+                        model.apply_drawn(d, &u, moment.known_time());
                     }
                 }
             }
@@ -137,7 +138,7 @@ pub fn fit(spec: &EffectSpec, base: &SensorModel, target: &Target) -> Option<Fit
     // startup: with times, fit x0 and v (p follows from the times); without,
     // x0 and p (v unknown: 0).
     let fixed: Vec<Option<f64>> = match name {
-        "startup" if target.times.is_some() => vec![None, None, Some(0.0)],
+        "startup" if dem_sensor::any_time(target.moments) => vec![None, None, Some(0.0)],
         "startup" => vec![None, Some(0.0), None],
         _ => vec![None; ranges.len()],
     };
@@ -173,11 +174,11 @@ pub fn fit(spec: &EffectSpec, base: &SensorModel, target: &Target) -> Option<Fit
         .filter(|&i| (u[i] <= EDGE && !lim[i].natural_lo) || (u[i] >= 1.0 - EDGE && !lim[i].natural_hi))
         .map(|i| spec.params[i].name)
         .collect();
-    if let (Effect::Startup(Startup { x0, v, .. }), Some(times)) = (effect, target.times) {
+    if let (Effect::Startup(Startup { x0, v, .. }), Some(moments)) = (effect, target.moments) {
         // The share of records that are startup frames, from the times: the
         // model then also works on records without times.
-        let blind = times.iter().filter(|&&t| t.is_finite() && x0 - v * t > -0.55).count();
-        let p = blind as f64 / times.len().max(1) as f64;
+        let blind = moments.iter().filter_map(Moment::known_time).filter(|&t| x0 - v * t > -0.55).count();
+        let p = blind as f64 / moments.len().max(1) as f64;
         effect = Effect::Startup(Startup { x0, v, p: (p * 1e4).round() / 1e4 });
     }
     Some(Fitted { effect, gap: g, at_edge, widened })

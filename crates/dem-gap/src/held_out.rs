@@ -29,19 +29,20 @@ use crate::fit;
 use crate::load::{pick, Sets};
 use crate::measurement::summarise;
 use crate::sampling::Half as ComparedHalf;
+use dem_sensor::Moment;
 
 /// One half of the comparison as the held-out check uses it.
 struct Half {
     /// The half's sim records, their times, and real's statistics on the
     /// half (residuals against these sim records when paired).
     sim: Vec<Dem>,
-    times: Option<Vec<f64>>,
+    moments: Option<Vec<Moment>>,
     steps: Option<Vec<Step>>,
     real: Stats,
     /// The records the effect is re-fitted on: at most half the run's
     /// fitting subsample, so the two re-fits cost about one candidate's.
     fit_sim: Vec<Dem>,
-    fit_times: Option<Vec<f64>>,
+    fit_moments: Option<Vec<Moment>>,
     fit_steps: Option<Vec<Step>>,
     /// Real's statistics on the fitting records' pairs (paired), or on
     /// the half (unpaired: moved by what the subsample does, as the run's
@@ -62,7 +63,7 @@ impl HeldOut {
     /// of each a seeded subsample of `fit_records / 2`.
     pub fn new(sets: &Sets, halves: &[ComparedHalf], fit_records: usize, seed: u64) -> HeldOut {
         let paired = sets.paired;
-        let times = sets.sim_time.as_deref();
+        let moments = sets.sim_moments.as_deref();
         let halves = halves
             .iter()
             .enumerate()
@@ -74,10 +75,10 @@ impl HeldOut {
                 let fit_real = if paired { summarise(&pick(&sets.real, &sub), Some(&fit_sim), fit_steps.as_deref()) } else { real.clone() };
                 Half {
                     sim: pick(&sets.sim, idx),
-                    times: times.map(|t| pick(t, idx)),
+                    moments: moments.map(|t| pick(t, idx)),
                     steps: h.steps.clone(),
                     real: real.clone(),
-                    fit_times: times.map(|t| pick(t, &sub)),
+                    fit_moments: moments.map(|t| pick(t, &sub)),
                     fit_steps,
                     fit_sim,
                     fit_real,
@@ -90,7 +91,7 @@ impl HeldOut {
     /// Statistics of `model` on each half's records, what the gains of a
     /// step's candidates are measured from ([`Self::shares`]).
     pub fn base(&self, model: &SensorModel) -> Vec<Stats> {
-        self.halves.iter().map(|h| self.target(&h.sim, h.times.as_deref(), h.steps.as_deref(), &h.real).model_stats(model)).collect()
+        self.halves.iter().map(|h| self.target(&h.sim, h.moments.as_deref(), h.steps.as_deref(), &h.real).model_stats(model)).collect()
     }
 
     /// `spec` re-fitted on top of `model` on each half's fitting records,
@@ -106,9 +107,9 @@ impl HeldOut {
             .map(|k| {
                 let (fit_on, other) = (&self.halves[k], &self.halves[1 - k]);
                 let real = self.fit_real(fit_on, model, &base[k]);
-                let target = self.target(&fit_on.fit_sim, fit_on.fit_times.as_deref(), fit_on.fit_steps.as_deref(), &real);
+                let target = self.target(&fit_on.fit_sim, fit_on.fit_moments.as_deref(), fit_on.fit_steps.as_deref(), &real);
                 let Some(f) = fit::fit(spec, model, &target) else { return f64::NEG_INFINITY };
-                let held_out = self.target(&other.sim, other.times.as_deref(), other.steps.as_deref(), &other.real);
+                let held_out = self.target(&other.sim, other.moments.as_deref(), other.steps.as_deref(), &other.real);
                 share_removed(gap(&base[1 - k], &other.real), held_out.gap(&model.with(f.effect)))
             })
             .collect()
@@ -122,12 +123,12 @@ impl HeldOut {
         if self.paired || h.fit_sim.len() == h.sim.len() {
             return Cow::Borrowed(&h.fit_real);
         }
-        let sub = self.target(&h.fit_sim, h.fit_times.as_deref(), h.fit_steps.as_deref(), &h.fit_real).model_stats(model);
+        let sub = self.target(&h.fit_sim, h.fit_moments.as_deref(), h.fit_steps.as_deref(), &h.fit_real).model_stats(model);
         Cow::Owned(h.fit_real.shifted(all, &sub))
     }
 
-    fn target<'s>(&self, sim: &'s [Dem], times: Option<&'s [f64]>, steps: Option<&'s [Step]>, real: &'s Stats) -> fit::Target<'s> {
-        fit::Target { sim, times, steps, paired: self.paired, real, seed: self.seed }
+    fn target<'s>(&self, sim: &'s [Dem], moments: Option<&'s [Moment]>, steps: Option<&'s [Step]>, real: &'s Stats) -> fit::Target<'s> {
+        fit::Target { sim, moments, steps, paired: self.paired, real, seed: self.seed }
     }
 }
 

@@ -13,7 +13,7 @@ use dem_core::format::{Dem, Terrain};
 use dem_core::table::{Label, Split};
 use dem_core::temporal::{self, Step};
 use dem_core::{npy, table};
-use dem_sensor::SensorModel;
+use dem_sensor::{Moment, SensorModel};
 
 /// Everything one run needs.
 #[derive(Debug, Clone)]
@@ -78,9 +78,9 @@ pub struct Sets {
     pub sim_terrain: Option<Vec<Terrain>>,
     /// Terrain of each real-side record, when known.
     pub real_terrain: Option<Vec<Terrain>>,
-    /// Time in its run of each sim-side record (labels; NaN where not
-    /// given), when the sim labels carry times.
-    pub sim_time: Option<Vec<f64>>,
+    /// Each sim-side record's run and time in it (labels), when the sim
+    /// labels give either: the draws a run keeps and `startup`'s times.
+    pub sim_moments: Option<Vec<Moment>>,
     /// Run (labels' `sequence`) of each real record, when every real label
     /// has one: the sampling halves (unpaired) and the halves that order a
     /// named effect and its rival (both modes) deal whole runs.
@@ -113,8 +113,8 @@ pub struct Sets {
 struct RecordLabels {
     /// Terrain of each record.
     terrain: Vec<Terrain>,
-    /// Time in its run (NaN where not given), when any label has one.
-    time: Option<Vec<f64>>,
+    /// Run and time in it, when any label gives one.
+    moments: Option<Vec<Moment>>,
     /// Run (`sequence`), when every label has one.
     runs: Option<Vec<u64>>,
     /// The labels themselves (their runs' steps are taken after the
@@ -129,16 +129,16 @@ fn read_record_labels(path: &Option<String>, n: usize) -> Result<Option<RecordLa
     if l.len() != n {
         return Err(DemError::input(p, format!("{} labels for {n} records", l.len())));
     }
-    let time = l.iter().any(|l| l.time.is_some()).then(|| table::times(&l));
+    let moments = l.iter().any(|l| l.time.is_some() || l.sequence.is_some()).then(|| dem_sensor::moments(&l));
     let runs = l.iter().map(|l| l.sequence).collect::<Option<Vec<u64>>>();
-    Ok(Some(RecordLabels { terrain: l.iter().map(|l| l.terrain).collect(), time, runs, labels: l }))
+    Ok(Some(RecordLabels { terrain: l.iter().map(|l| l.terrain).collect(), moments, runs, labels: l }))
 }
 
 /// One side's records with what its labels say of each.
 struct Side {
     records: Vec<Dem>,
     terrain: Option<Vec<Terrain>>,
-    time: Option<Vec<f64>>,
+    moments: Option<Vec<Moment>>,
     runs: Option<Vec<u64>>,
     labels: Option<Vec<Label>>,
 }
@@ -146,8 +146,8 @@ struct Side {
 impl Side {
     fn new(records: Vec<Dem>, labels: Option<RecordLabels>) -> Side {
         match labels {
-            Some(l) => Side { records, terrain: Some(l.terrain), time: l.time, runs: l.runs, labels: Some(l.labels) },
-            None => Side { records, terrain: None, time: None, runs: None, labels: None },
+            Some(l) => Side { records, terrain: Some(l.terrain), moments: l.moments, runs: l.runs, labels: Some(l.labels) },
+            None => Side { records, terrain: None, moments: None, runs: None, labels: None },
         }
     }
 
@@ -156,7 +156,7 @@ impl Side {
         Side {
             records: pick(&self.records, idx),
             terrain: self.terrain.as_ref().map(|t| pick(t, idx)),
-            time: self.time.as_ref().map(|t| pick(t, idx)),
+            moments: self.moments.as_ref().map(|m| pick(m, idx)),
             runs: self.runs.as_ref().map(|r| pick(r, idx)),
             labels: self.labels.as_ref().map(|l| idx.iter().map(|&i| l[i].clone()).collect()),
         }
@@ -306,7 +306,7 @@ impl Sets {
             paired: false,
             sim_terrain: sim.terrain,
             real_terrain: real.terrain,
-            sim_time: sim.time,
+            sim_moments: sim.moments,
             real_runs: real.runs,
             sim_runs: sim.runs,
             terrain_mix: None,
@@ -337,7 +337,7 @@ fn paired_sets(sim: Side, real: Side) -> Sets {
         paired: true,
         sim_terrain: terrain.clone(),
         real_terrain: terrain,
-        sim_time: sim.time,
+        sim_moments: sim.moments,
         real_runs: real.runs,
         sim_runs: None,
         terrain_mix: None,

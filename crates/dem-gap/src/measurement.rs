@@ -5,6 +5,7 @@
 use dem_core::distribution::{self, Stats};
 use dem_core::format::Dem;
 use dem_core::temporal::Step;
+use dem_sensor::Moment;
 use dem_sensor::SensorModel;
 
 /// Apply `model` to `sim` and summarise (residuals against `sim` when paired).
@@ -17,13 +18,13 @@ pub fn measure(model: &SensorModel, sim: &[Dem], paired: bool, seed: u64) -> (Ve
 pub fn measure_at(
     model: &SensorModel,
     sim: &[Dem],
-    times: Option<&[f64]>,
+    moments: Option<&[Moment]>,
     steps: Option<&[Step]>,
     paired: bool,
     seed: u64,
 ) -> (Vec<Dem>, Stats) {
     let mut out = sim.to_vec();
-    model.apply_all_at(&mut out, seed, 0, times);
+    model.apply_all_at(&mut out, seed, 0, moments);
     let s = summarise(&out, paired.then_some(sim), steps);
     (out, s)
 }

@@ -287,7 +287,7 @@ fn leftover(c: &Comparison, model: &SensorModel, gap_final: f64, start: &Start, 
     let (sets, paired) = (c.sets, c.paired);
     // The final model's two draws, once: the draw floor (as `draw_floor`
     // takes it) and what the model leaves unexplained, where.
-    let [(out_a, stats_a), (out_b, stats_b)] = two_draws(model, &sets.sim, c.times, c.steps, paired, c.cfg.seed);
+    let [(out_a, stats_a), (out_b, stats_b)] = two_draws(model, &sets.sim, c.moments, c.steps, paired, c.cfg.seed);
     let floor = if *model == c.cfg.start { start.floor } else { c.split_floor.max(gap(&stats_a, &stats_b)) };
     drop((stats_a, stats_b));
     let real_h = (!paired && sets.real.len() >= 100).then(|| real_halves(sets));
@@ -311,8 +311,14 @@ fn leftover(c: &Comparison, model: &SensorModel, gap_final: f64, start: &Start, 
     });
     drop(out_b);
     log(unexplained.summary());
-    let missing_bands =
-        unexplained::missing_bands(&sets.sim, &out_a, &sets.real, both_terrains, sets.sim_time.is_some(), gap_final < floor);
+    let missing_bands = unexplained::missing_bands(
+        &sets.sim,
+        &out_a,
+        &sets.real,
+        both_terrains,
+        dem_sensor::any_time(sets.sim_moments.as_deref()),
+        gap_final < floor,
+    );
     Leftover { floor, unexplained, missing_bands }
 }
 
@@ -329,12 +335,12 @@ fn per_terrain(sets: &Sets, start: &SensorModel, model: &SensorModel, seed: u64)
         }
         let sim = pick(&sets.sim, &si);
         let real = pick(&sets.real, &ri);
-        let times = sets.sim_time.as_ref().map(|t| pick(t, &si));
+        let moments = sets.sim_moments.as_ref().map(|t| pick(t, &si));
         let (sim_steps, real_steps) = (sets.sim_steps_in(&si), sets.real_steps_in(&ri));
         let (sim_steps, real_steps) = (sim_steps.as_deref(), real_steps.as_deref());
         let rs = summarise(&real, sets.paired.then_some(&sim[..]), real_steps);
-        let (_, s0) = measure_at(start, &sim, times.as_deref(), sim_steps, sets.paired, seed);
-        let (out, s1) = measure_at(model, &sim, times.as_deref(), sim_steps, sets.paired, seed);
+        let (_, s0) = measure_at(start, &sim, moments.as_deref(), sim_steps, sets.paired, seed);
+        let (out, s1) = measure_at(model, &sim, moments.as_deref(), sim_steps, sets.paired, seed);
         let (_, sr) = measure_at(&SensorModel::default(), &sim, None, sim_steps, sets.paired, seed);
         let three = |name: &str, n: usize| [&sr, &s1, &rs].map(|s| s.mean_over(name, 0..n));
         let frames = sim_steps.zip(real_steps).map(|(ss, rs_steps)| {

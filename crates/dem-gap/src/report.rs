@@ -188,7 +188,7 @@ fn pictures(dir: &str, o: &Outcome, sets: &Sets, start: &dem_sensor::SensorModel
         idx.iter()
             .map(|&i| {
                 let mut d = all[i];
-                m.apply_at(&mut d, seed, i as u64, sets.sim_time.as_ref().and_then(|t| t.get(i).copied()).filter(|t| t.is_finite()));
+                m.apply_at(&mut d, seed, i as u64, dem_sensor::moment_at(sets.sim_moments.as_deref(), i));
                 all[i] = d;
                 d
             })

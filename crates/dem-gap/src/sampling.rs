@@ -12,6 +12,7 @@ use dem_sensor::SensorModel;
 use crate::load::{pick, Sets};
 use crate::measurement::{measure_at, summarise};
 use dem_core::temporal::Step;
+use dem_sensor::Moment;
 
 /// Records per block of [`real_halves`]: neighbouring frames of a run
 /// look alike, so they go to the same half.
@@ -113,8 +114,8 @@ pub fn sampling_floor(sets: &Sets) -> f64 {
 
 /// The gap a perfect model would still show from its own random draws:
 /// model(sim) with the run's seed against model(sim) with another seed.
-pub fn draw_floor(model: &SensorModel, sim: &[Dem], times: Option<&[f64]>, steps: Option<&[Step]>, paired: bool, seed: u64) -> f64 {
-    let [(_, a), (_, b)] = two_draws(model, sim, times, steps, paired, seed);
+pub fn draw_floor(model: &SensorModel, sim: &[Dem], moments: Option<&[Moment]>, steps: Option<&[Step]>, paired: bool, seed: u64) -> f64 {
+    let [(_, a), (_, b)] = two_draws(model, sim, moments, steps, paired, seed);
     gap(&a, &b)
 }
 
@@ -123,12 +124,12 @@ pub fn draw_floor(model: &SensorModel, sim: &[Dem], times: Option<&[f64]>, steps
 pub fn two_draws(
     model: &SensorModel,
     sim: &[Dem],
-    times: Option<&[f64]>,
+    moments: Option<&[Moment]>,
     steps: Option<&[Step]>,
     paired: bool,
     seed: u64,
 ) -> [(Vec<Dem>, Stats); 2] {
-    [measure_at(model, sim, times, steps, paired, seed), measure_at(model, sim, times, steps, paired, other_draws(seed))]
+    [measure_at(model, sim, moments, steps, paired, seed), measure_at(model, sim, moments, steps, paired, other_draws(seed))]
 }
 
 /// The seed of a model's second set of random draws: the draw floor and

@@ -623,11 +623,11 @@ pub fn floor_on(
     min_runs: usize,
 ) -> Vec<Vec<f64>> {
     let sim: Vec<Dem> = si.iter().map(|&k| sets.sim[k]).collect();
-    let times: Option<Vec<f64>> = sets.sim_time.as_ref().map(|t| si.iter().map(|&k| t[k]).collect());
+    let moments: Option<Vec<dem_sensor::Moment>> = sets.sim_moments.as_ref().map(|m| si.iter().map(|&k| m[k]).collect());
     let paired = sets.paired;
     let steps = sets.sim_steps_in(si);
-    let (_, a) = crate::measure_at(model, &sim, times.as_deref(), steps.as_deref(), paired, seed);
-    let (_, b) = crate::measure_at(model, &sim, times.as_deref(), steps.as_deref(), paired, crate::other_draws(seed));
+    let (_, a) = crate::measure_at(model, &sim, moments.as_deref(), steps.as_deref(), paired, seed);
+    let (_, b) = crate::measure_at(model, &sim, moments.as_deref(), steps.as_deref(), paired, crate::other_draws(seed));
     let draw = raw_components(&a, &b);
     if paired || ri.len() < 100 {
         return draw;

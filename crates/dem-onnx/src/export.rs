@@ -157,7 +157,7 @@ fn check_tail(proto: &pb::ModelProto, stored: &Stored, check_inputs: &[Dem], exp
     let model = stored.residual_or_empty();
     let k = model.draws();
     let n = check_inputs.len();
-    let uniform = model.uniforms_of(0, 0, n);
+    let uniform = model.uniforms_of(0, 0, n, None);
     let times: Vec<f32> = (0..n).map(|i| if i % 5 == 0 { f32::NAN } else { 0.1 * (i % 40) as f32 }).collect();
     let mut native = expected.to_vec();
     for (i, (x, y)) in check_inputs.iter().zip(native.iter_mut()).enumerate() {

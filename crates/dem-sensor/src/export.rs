@@ -89,7 +89,7 @@ pub fn export(model: &SensorModel, records: &[Dem], path: &str, metadata: &[(Str
     let name = std::path::Path::new(path).file_stem().map_or("sensor".into(), |s| s.to_string_lossy().into_owned());
     let proto = graph::sensor_model(model, &name, metadata);
     let (n, k) = (records.len(), model.draws());
-    let uniform = model.uniforms_of(0, 0, n);
+    let uniform = model.uniforms_of(0, 0, n, None);
     let times: Vec<f32> = (0..n).map(|i| if i % 5 == 0 { f32::NAN } else { 0.1 * (i % 40) as f32 }).collect();
     let mut native = records.to_vec();
     for (i, d) in native.iter_mut().enumerate() {

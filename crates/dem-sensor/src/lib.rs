@@ -55,10 +55,77 @@ pub struct SensorModel {
 /// leaves it unchanged, and every effect draws a fixed number of values per
 /// record whatever its parameters (common random numbers for the fitter).
 pub fn effect_rng(seed: u64, effect: &Effect, occurrence: u64, record: u64) -> ChaCha8Rng {
-    let name_key = effect.name().bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| (h ^ b as u64).wrapping_mul(0x100_0000_01b3));
-    let mut rng = ChaCha8Rng::seed_from_u64(mix(seed ^ mix(name_key ^ mix(occurrence))));
+    let mut rng = effect_seed_rng(seed, effect, occurrence);
     rng.set_stream(record);
     rng
+}
+
+/// The random stream of one effect in one run (labels' `sequence`): as
+/// [`effect_rng`], on a ChaCha stream no record index reaches (the top bit
+/// set), so the draws a run keeps ([`EffectSpec::run_draws`](effects::EffectSpec::run_draws))
+/// are the same in each of its frames, and other runs' differ.
+pub fn effect_run_rng(seed: u64, effect: &Effect, occurrence: u64, run: u64) -> ChaCha8Rng {
+    let mut rng = effect_seed_rng(seed, effect, occurrence);
+    rng.set_stream(RUN_STREAMS | run);
+    rng
+}
+
+/// The top bit of a ChaCha stream number: set for runs' streams, clear for
+/// records' (a stream holds fewer than 2^63 records).
+const RUN_STREAMS: u64 = 1 << 63;
+
+fn effect_seed_rng(seed: u64, effect: &Effect, occurrence: u64) -> ChaCha8Rng {
+    let name_key = effect.name().bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| (h ^ b as u64).wrapping_mul(0x100_0000_01b3));
+    ChaCha8Rng::seed_from_u64(mix(seed ^ mix(name_key ^ mix(occurrence))))
+}
+
+/// Where a record sits in time, from its labels: its run (`sequence`) and
+/// its time in the run (`time`; NaN where unknown). The draws a run keeps
+/// read the run; `startup` reads the time.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Moment {
+    /// The run the record belongs to, when its labels say.
+    pub run: Option<u64>,
+    /// Seconds since the run's start; NaN where unknown.
+    pub time: f64,
+}
+
+impl Moment {
+    /// A record of no known run or time: every draw is its own.
+    pub const UNKNOWN: Moment = Moment { run: None, time: f64::NAN };
+
+    /// The time when known (finite).
+    pub fn known_time(&self) -> Option<f64> {
+        Some(self.time).filter(|t| t.is_finite())
+    }
+}
+
+/// True when some of `moments` know their time (`startup` can read it).
+pub fn any_time(moments: Option<&[Moment]>) -> bool {
+    moments.is_some_and(|m| m.iter().any(|m| m.known_time().is_some()))
+}
+
+/// Each label's [`Moment`], in the labels' order.
+pub fn moments(labels: &[dem_core::table::Label]) -> Vec<Moment> {
+    labels.iter().map(|l| Moment { run: l.sequence, time: l.time.unwrap_or(f64::NAN) }).collect()
+}
+
+/// Why `model`'s run draws are drawn per record over records of
+/// `moments` (none given, or none naming its run), or None when they are
+/// the runs': one line for the tool's log.
+pub fn runs_unknown(model: &SensorModel, moments: Option<&[Moment]>) -> Option<String> {
+    let keeping: Vec<&str> = model.effects.iter().filter(|e| e.spec().run_draws > 0).map(Effect::name).collect();
+    if keeping.is_empty() || moments.is_some_and(|m| m.iter().any(|m| m.run.is_some())) {
+        return None;
+    }
+    let why = if moments.is_some() { "the labels name no run (`sequence`)" } else { "no --labels gave the records' runs" };
+    Some(format!("{} keep draws for a run, but {why}: they are drawn afresh for every record", keeping.join(", ")))
+}
+
+/// The moment of record `i` of `moments`, [`Moment::UNKNOWN`] past their end
+/// or without them.
+pub fn moment_at(moments: Option<&[Moment]>, i: usize) -> Moment {
+    moments.and_then(|m| m.get(i).copied()).unwrap_or(Moment::UNKNOWN)
 }
 
 impl SensorModel {
@@ -129,7 +196,7 @@ impl SensorModel {
 
     /// Apply every effect to record number `index` of a stream, in order.
     pub fn apply(&self, d: &mut Dem, seed: u64, index: u64) {
-        self.apply_at(d, seed, index, None)
+        self.apply_at(d, seed, index, Moment::UNKNOWN)
     }
 
     /// Uniforms per record of the whole model ([`Effect::draws`] summed):
@@ -138,10 +205,18 @@ impl SensorModel {
         self.effects.iter().map(Effect::draws).sum()
     }
 
-    /// The uniforms of record `index` under `seed`, effect after effect in
-    /// the model's order, into `out` ([`SensorModel::draws`] long). Each
-    /// effect's come from its own stream ([`effect_rng`]).
-    pub fn uniforms(&self, seed: u64, index: u64, out: &mut [f32]) {
+    /// True when an effect keeps draws for a run ([`EffectSpec::run_draws`](effects::EffectSpec::run_draws)):
+    /// without the records' runs they are drawn per record.
+    pub fn keeps_run_draws(&self) -> bool {
+        self.effects.iter().any(|e| e.spec().run_draws > 0)
+    }
+
+    /// The uniforms of record `index` at `moment` under `seed`, effect after
+    /// effect in the model's order, into `out` ([`SensorModel::draws`]
+    /// long). Each effect's come from its own stream ([`effect_rng`]); the
+    /// first [`EffectSpec::run_draws`](effects::EffectSpec::run_draws) of
+    /// an effect from its run's ([`effect_run_rng`]) when the run is known.
+    pub fn uniforms(&self, seed: u64, index: u64, moment: Moment, out: &mut [f32]) {
         assert_eq!(out.len(), self.draws(), "uniforms: wrong length");
         let mut at = 0;
         for (i, e) in self.effects.iter().enumerate() {
@@ -150,18 +225,23 @@ impl SensorModel {
                 let occurrence = self.effects[..i].iter().filter(|x| x.name() == e.name()).count() as u64;
                 let mut rng = effect_rng(seed, e, occurrence, index);
                 draws::fill_uniform(&mut rng, &mut out[at..at + n]);
+                let kept = e.spec().run_draws;
+                if let (Some(run), true) = (moment.run, kept > 0) {
+                    draws::fill_uniform(&mut effect_run_rng(seed, e, occurrence, run), &mut out[at..at + kept]);
+                }
             }
             at += n;
         }
     }
 
     /// The uniforms of records `first..first + n` under `seed`, record after
-    /// record ([`SensorModel::uniforms`] each), drawn in parallel: `n x K`.
-    pub fn uniforms_of(&self, seed: u64, first: u64, n: usize) -> Vec<f32> {
+    /// record ([`SensorModel::uniforms`] each, `moments[i]` the moment of
+    /// record `first + i`), drawn in parallel: `n x K`.
+    pub fn uniforms_of(&self, seed: u64, first: u64, n: usize, moments: Option<&[Moment]>) -> Vec<f32> {
         let k = self.draws();
         let mut u = vec![0.0f32; n * k];
         if k > 0 {
-            u.par_chunks_mut(k).enumerate().for_each(|(i, u)| self.uniforms(seed, first + i as u64, u));
+            u.par_chunks_mut(k).enumerate().for_each(|(i, u)| self.uniforms(seed, first + i as u64, moment_at(moments, i), u));
         }
         u
     }
@@ -183,12 +263,12 @@ impl SensorModel {
         }
     }
 
-    /// [`SensorModel::apply`] for a record `time` seconds into its run, when
-    /// known (labels' `time`; `startup` uses it).
-    pub fn apply_at(&self, d: &mut Dem, seed: u64, index: u64, time: Option<f64>) {
+    /// [`SensorModel::apply`] for a record at `moment` in its run (from its
+    /// labels: the run's draws, `startup`'s time).
+    pub fn apply_at(&self, d: &mut Dem, seed: u64, index: u64, moment: Moment) {
         let mut u = vec![0.0f32; self.draws()];
-        self.uniforms(seed, index, &mut u);
-        self.apply_drawn(d, &u, time);
+        self.uniforms(seed, index, moment, &mut u);
+        self.apply_drawn(d, &u, moment.known_time());
     }
 
     /// Apply the model to records whose stream indices start at `first`, in
@@ -197,22 +277,26 @@ impl SensorModel {
         self.apply_all_at(records, seed, first, None)
     }
 
-    /// [`SensorModel::apply_all`] with each record's time in its run
-    /// (`times[i]` for `records[i]`; NaN where unknown).
-    pub fn apply_all_at(&self, records: &mut [Dem], seed: u64, first: u64, times: Option<&[f64]>) {
-        records
-            .par_iter_mut()
-            .enumerate()
-            .for_each(|(i, d)| self.apply_at(d, seed, first + i as u64, times.and_then(|t| t.get(i).copied()).filter(|t| t.is_finite())));
+    /// [`SensorModel::apply_all`] with each record's moment in its run
+    /// (`moments[i]` for `records[i]`).
+    pub fn apply_all_at(&self, records: &mut [Dem], seed: u64, first: u64, moments: Option<&[Moment]>) {
+        records.par_iter_mut().enumerate().for_each(|(i, d)| self.apply_at(d, seed, first + i as u64, moment_at(moments, i)));
     }
 
     /// [`SensorModel::apply_all_at`] on `records`, records `first..` of a
     /// stream whose first record is record `first_index` of the whole data
-    /// set; `times` (the labels file and its times) index the stream's own
-    /// records, and a stream longer than them is refused naming the file.
-    pub fn apply_chunk(&self, records: &mut [Dem], seed: u64, first_index: u64, first: u64, times: Option<(&str, &[f64])>) -> Result<()> {
-        let t = chunk_times(times, first, records.len())?;
-        self.apply_all_at(records, seed, first_index + first, t);
+    /// set; `moments` (the labels file and its moments) index the stream's
+    /// own records, and a stream longer than them is refused naming the file.
+    pub fn apply_chunk(
+        &self,
+        records: &mut [Dem],
+        seed: u64,
+        first_index: u64,
+        first: u64,
+        moments: Option<(&str, &[Moment])>,
+    ) -> Result<()> {
+        let m = chunk_moments(moments, first, records.len())?;
+        self.apply_all_at(records, seed, first_index + first, m);
         Ok(())
     }
 
@@ -246,10 +330,10 @@ pub fn threshold(d: &mut Dem) {
     }
 }
 
-/// The times of records `first..first + n` of a stream from its labels
-/// (`(path, times)`); a stream longer than its labels is refused.
-pub fn chunk_times<'a>(times: Option<(&str, &'a [f64])>, first: u64, n: usize) -> Result<Option<&'a [f64]>> {
-    match times {
+/// The moments of records `first..first + n` of a stream from its labels
+/// (`(path, moments)`); a stream longer than its labels is refused.
+pub fn chunk_moments<'a>(moments: Option<(&str, &'a [Moment])>, first: u64, n: usize) -> Result<Option<&'a [Moment]>> {
+    match moments {
         Some((path, t)) => {
             let (a, b) = (first as usize, first as usize + n);
             if b > t.len() {
@@ -278,34 +362,34 @@ pub fn apply_stream(model: &SensorModel, input: &str, output: &str, seed: u64, p
     apply_stream_at(model, input, output, seed, None, progress)
 }
 
-/// [`apply_stream`] with the time of each record in its run (`times[i]` for
-/// record i of the stream; from a labels CSV). A stream longer than
-/// `times` is refused.
+/// [`apply_stream`] with the moment of each record in its run
+/// (`moments[i]` for record i of the stream; from a labels CSV). A stream
+/// longer than `moments` is refused.
 pub fn apply_stream_at(
     model: &SensorModel,
     input: &str,
     output: &str,
     seed: u64,
-    times: Option<(&str, &[f64])>,
+    moments: Option<(&str, &[Moment])>,
     progress: impl Fn(u64),
 ) -> Result<u64> {
-    apply_shard(model, input, output, seed, 0, times, progress)
+    apply_shard(model, input, output, seed, 0, moments, progress)
 }
 
 /// [`apply_stream_at`] on a shard of a larger data set whose first record is
 /// record `first_index` of the whole: each record's random draws come from
-/// its index in the whole, so shards joined equal one run on the whole,
-/// byte for byte. `times` index the shard's own records.
+/// its index in the whole and its run, so shards joined equal one run on
+/// the whole, byte for byte. `moments` index the shard's own records.
 pub fn apply_shard(
     model: &SensorModel,
     input: &str,
     output: &str,
     seed: u64,
     first_index: u64,
-    times: Option<(&str, &[f64])>,
+    moments: Option<(&str, &[Moment])>,
     progress: impl Fn(u64),
 ) -> Result<u64> {
-    apply_shard_emit(model, input, output, seed, first_index, times, None, progress)
+    apply_shard_emit(model, input, output, seed, first_index, moments, None, progress)
 }
 
 /// [`apply_shard`], writing each record's uniforms (float32 `(N, K)`, the
@@ -317,7 +401,7 @@ pub fn apply_shard_emit(
     output: &str,
     seed: u64,
     first_index: u64,
-    times: Option<(&str, &[f64])>,
+    moments: Option<(&str, &[Moment])>,
     emit_uniform: Option<&str>,
     progress: impl Fn(u64),
 ) -> Result<u64> {
@@ -328,12 +412,12 @@ pub fn apply_shard_emit(
         output,
         |first, chunk| {
             match &mut emit {
-                None => model.apply_chunk(chunk, seed, first_index, first, times)?,
+                None => model.apply_chunk(chunk, seed, first_index, first, moments)?,
                 Some(w) => {
-                    let t = chunk_times(times, first, chunk.len())?;
-                    let u = model.uniforms_of(seed, first_index + first, chunk.len());
+                    let m = chunk_moments(moments, first, chunk.len())?;
+                    let u = model.uniforms_of(seed, first_index + first, chunk.len(), m);
                     chunk.par_iter_mut().enumerate().for_each(|(i, d)| {
-                        model.apply_drawn(d, &u[i * k..(i + 1) * k], t.and_then(|t| t.get(i).copied()));
+                        model.apply_drawn(d, &u[i * k..(i + 1) * k], moment_at(m, i).known_time());
                     });
                     if k > 0 {
                         w.write(&u)?;
@@ -345,7 +429,7 @@ pub fn apply_shard_emit(
             progress(chunk.len() as u64);
             Ok(())
         },
-        |read| labels_cover(times.map(|(p, t)| (p, t.len())), read),
+        |read| labels_cover(moments.map(|(p, m)| (p, m.len())), read),
     )?;
     if let Some(w) = emit {
         w.finish()?;
@@ -416,6 +500,40 @@ mod tests {
         assert_eq!(m.effects[0].name(), "occlusion");
         let m = m.with(Effect::Noise(Noise { sigma0: 0.01, k: 0.0 }));
         assert_eq!(m.effects.iter().map(|e| e.name()).collect::<Vec<_>>(), ["occlusion", "noise", "dropout"]);
+    }
+
+    #[test]
+    fn a_run_keeps_its_run_draws_and_each_frame_draws_the_rest_afresh() {
+        use crate::effects::{Lag, Tilt, SPECS};
+        assert!(SPECS.iter().all(|s| s.run_draws <= s.draws), "run draws are some of an effect's draws");
+        let m = SensorModel::new(vec![
+            Effect::Lag(Lag { s: 0.05, spread: 0.5 }),
+            Effect::Tilt(Tilt { pitch: 0.01, roll: 0.01, x0: 0.2, range: 1.0 }),
+            Effect::Noise(Noise { sigma0: 0.01, k: 0.0 }),
+        ]);
+        let k = m.draws();
+        let at = |index: u64, run: Option<u64>| {
+            let mut u = vec![0.0f32; k];
+            m.uniforms(7, index, Moment { run, time: f64::NAN }, &mut u);
+            u
+        };
+        // lag's one draw and tilt's two are the run's; noise's 100 the record's.
+        let kept = |u: &[f32]| [u[0], u[1], u[2]];
+        let (a, b, c) = (at(10, Some(3)), at(11, Some(3)), at(12, Some(4)));
+        assert_eq!(kept(&a), kept(&b), "one run, one mount angle and one lag");
+        assert_ne!(kept(&a), kept(&c), "another run, another draw");
+        assert_ne!(a[3..], b[3..], "the noise is new every frame");
+        // Without a run every draw is the record's, as before runs were known,
+        // and the frame's draws do not depend on the run.
+        let alone = at(10, None);
+        assert_eq!(alone[3..], a[3..]);
+        assert_ne!(kept(&alone), kept(&a));
+        assert_ne!(kept(&alone), kept(&at(11, None)));
+        let runs = [Moment { run: Some(3), time: 0.1 }, Moment { run: Some(3), time: 0.2 }];
+        assert_eq!(m.uniforms_of(7, 10, 2, Some(&runs)), [a, b].concat(), "the batch draws as one record at a time");
+        assert!(runs_unknown(&m, None).unwrap().contains("lag, tilt keep draws for a run"));
+        assert!(runs_unknown(&m, Some(&runs)).is_none());
+        assert!(runs_unknown(&SensorModel::new(vec![Effect::Noise(Noise { sigma0: 0.01, k: 0.0 })]), None).is_none());
     }
 
     #[test]

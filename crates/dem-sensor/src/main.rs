@@ -22,7 +22,7 @@ use dem_sensor::{apply_shard_emit, SensorModel};
   dem-apply --model gy.onnx sim.npy | dem-sensor apply --sensor gap/sensor.json --only startup \
       --labels sim_labels.csv -o realistic.npy
   dem-sensor show --sensor sensor.json        # the effects, one a line
-  dem-sensor effects                          # the vocabulary: effect,family,stage,draws,params,emulator_stages,limits
+  dem-sensor effects                          # the vocabulary: effect,family,stage,draws,run_draws,params,emulator_stages,limits
   dem-sensor export --sensor gap/sensor.json -o sensor.onnx   # one ONNX graph: dem, uniform, time -> dem_out
   dem-sensor apply --sensor sensor.json --seed 1 --emit-uniform u.npy sim.npy -o out.npy   # sensor.onnx fed u.npy gives out.npy
   dem-split --shards 4 --out part sim.npy | tail -n +2 | while IFS=, read shard first n; do
@@ -124,12 +124,15 @@ fn main() -> ExitCode {
             if !only.is_empty() {
                 m = m.only(&only).map_err(|why| dem_core::DemError::input(model.as_str(), why))?;
             }
-            let times = match &labels {
-                Some(p) => Some(dem_core::table::times(&dem_core::table::read_labels(p)?)),
+            let moments = match &labels {
+                Some(p) => Some(dem_sensor::moments(&dem_core::table::read_labels(p)?)),
                 None => None,
             };
+            if let Some(why) = dem_sensor::runs_unknown(&m, moments.as_deref()) {
+                cli::log(format_args!("note: {why}"));
+            }
             let bar = cli::progress(0, "records");
-            let t = labels.as_deref().zip(times.as_deref());
+            let t = labels.as_deref().zip(moments.as_deref());
             let n = apply_shard_emit(&m, &input, &output, seed, first_index, t, emit_uniform.as_deref(), |k| bar.inc(k))?;
             bar.finish_and_clear();
             cli::log(format_args!("{n} records through {}", m.summary()));

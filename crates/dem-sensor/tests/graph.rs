@@ -5,7 +5,7 @@
 
 use dem_core::format::{Dem, DemCells, COLS, GRID_ROWS};
 use dem_sensor::effects::{Bias, Noise, Startup};
-use dem_sensor::{graph, Effect, SensorModel};
+use dem_sensor::{graph, Effect, Moment, SensorModel};
 
 fn records() -> Vec<Dem> {
     let mut all = dem_core::npy::read_all(dem_testkit::testdata("sim.npy").to_str().unwrap()).unwrap();
@@ -31,7 +31,7 @@ fn compare(model: &SensorModel) -> (f64, f32) {
     let mut uniform = vec![0.0f32; n * k];
     for (i, u) in uniform.chunks_mut(k.max(1)).enumerate().take(n) {
         if k > 0 {
-            model.uniforms(9, i as u64, u);
+            model.uniforms(9, i as u64, Moment::UNKNOWN, u);
         }
     }
     let t = times(n);
@@ -198,7 +198,7 @@ fn a_step_of_exactly_a_threshold_is_decided_alike_in_the_graph() {
         let mut uniform = vec![0.0f32; n * k];
         if k > 0 {
             for (i, u) in uniform.chunks_mut(k).enumerate() {
-                model.uniforms(3, i as u64, u);
+                model.uniforms(3, i as u64, Moment::UNKNOWN, u);
             }
         }
         let t = vec![f32::NAN; n];

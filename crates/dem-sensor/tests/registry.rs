@@ -194,9 +194,9 @@ fn the_emulator_stages_are_the_specs_and_the_docs_table() {
     }
     let csv = dem_sensor::effects::csv();
     assert_eq!(csv.lines().count(), SPECS.len() + 1);
-    assert!(csv.contains("\nstep-jitter,steps,registration,100,sigma edge,vibration,sigma=0..0.1 edge=0..1\n"), "{csv}");
+    assert!(csv.contains("\nstep-jitter,steps,registration,100,0,sigma edge,vibration,sigma=0..0.1 edge=0..1\n"), "{csv}");
     assert!(
-        csv.contains("\ntilt,heights,registration,2,pitch roll x0 range,extrinsic,pitch=0..0.2 roll=0..0.2 x0=-0.6..1.45 range=0..3\n"),
+        csv.contains("\ntilt,heights,registration,2,2,pitch roll x0 range,extrinsic,pitch=0..0.2 roll=0..0.2 x0=-0.6..1.45 range=0..3\n"),
         "{csv}"
     );
 }

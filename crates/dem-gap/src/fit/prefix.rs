@@ -59,8 +59,8 @@ impl<'a> Prepared<'a> {
         let shared = later.iter().chain(std::iter::once(probe)).any(|l| first.iter().any(|f| f.name() == l.name()));
         let split = (!shared).then(|| {
             let mut before = target.sim.to_vec();
-            SensorModel::new(first.to_vec()).apply_all_at(&mut before, target.seed, 0, target.times);
-            let drawn = rest(base, at, *probe).uniforms_of(target.seed, 0, target.sim.len());
+            SensorModel::new(first.to_vec()).apply_all_at(&mut before, target.seed, 0, target.moments);
+            let drawn = rest(base, at, *probe).uniforms_of(target.seed, 0, target.sim.len(), target.moments);
             Split { at, name: probe.name(), before, drawn }
         });
         Prepared { target, base, split }
@@ -112,7 +112,7 @@ mod tests {
         );
         for paired in [true, false] {
             let real = stats(&real_recs, paired.then_some(sim.as_slice()));
-            let target = Target { sim: &sim, times: None, steps: None, paired, real: &real, seed: 3 };
+            let target = Target { sim: &sim, moments: None, steps: None, paired, real: &real, seed: 3 };
             let base = SensorModel::new(vec![
                 Effect::Occlusion(Occlusion { h: 0.5, x0: 0.1 }),
                 Effect::Smoothing(Smoothing { w: 0.6 }),

@@ -182,17 +182,25 @@ pub fn modelling(stage: &str) -> Vec<&'static str> {
 }
 
 /// The vocabulary as CSV, one effect a line in the vocabulary's order:
-/// `effect,family,stage,draws,params,emulator_stages,limits`, lists
+/// `effect,family,stage,draws,run_draws,params,emulator_stages,limits`, lists
 /// separated by spaces; `limits` each parameter's physical box
 /// (`name=lo..hi`, [`ParamSpec::limit`]), which every model is held to.
 pub fn csv() -> String {
-    let mut out = String::from("effect,family,stage,draws,params,emulator_stages,limits\n");
+    let mut out = String::from("effect,family,stage,draws,run_draws,params,emulator_stages,limits\n");
     for s in SPECS {
         let params: Vec<&str> = s.params.iter().map(|p| p.name).collect();
         let limits: Vec<String> = s.params.iter().map(|p| format!("{}={}..{}", p.name, p.limit.lo, p.limit.hi)).collect();
-        let line =
-            [s.name, s.family.name(), s.stage.name(), &s.draws.to_string(), &params.join(" "), &s.emulator.join(" "), &limits.join(" ")]
-                .join(",");
+        let line = [
+            s.name,
+            s.family.name(),
+            s.stage.name(),
+            &s.draws.to_string(),
+            &s.run_draws.to_string(),
+            &params.join(" "),
+            &s.emulator.join(" "),
+            &limits.join(" "),
+        ]
+        .join(",");
         out.push_str(&line);
         out.push('\n');
     }
@@ -296,6 +304,13 @@ pub struct EffectSpec {
     /// terrain (a set with more stairs has other record means), so dem-gap
     /// fits it only where both sides hold the same terrain mix.
     pub whole_record: bool,
+    /// How many of its [`EffectSpec::draws`], the first ones, belong to a
+    /// run: a record whose labels name its run (`sequence`) reads them from
+    /// the run's stream, the same in every frame of the run, as what a run
+    /// keeps (a mount's miscalibration, a pipeline's latency at the run's
+    /// speed) stays the same from frame to frame. The others are new every
+    /// frame. Without runs every draw is the record's own.
+    pub run_draws: usize,
     /// Its place in the physical chain.
     pub stage: Stage,
     /// The stages of dem-synth's emulator ([`EMULATOR_STAGES`]) whose

@@ -26,6 +26,7 @@ impl EffectKind for Bias {
         formula: "h += b + t x",
         params: Self::PARAMS,
         whole_record: true,
+        run_draws: 0,
         stage: Stage::Registration,
         draws: 0,
     };

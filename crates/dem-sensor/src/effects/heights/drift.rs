@@ -35,6 +35,7 @@ impl EffectKind for Drift {
             on are left alone: the map registers older frames at a believed pose that walks at random per metre travelled",
         params: Self::PARAMS,
         whole_record: false,
+        run_draws: 0,
         stage: Stage::Pose,
         // A Box-Muller pair per row: its x and its height step.
         draws: 2 * GRID_ROWS,

@@ -28,11 +28,14 @@ impl EffectKind for Lag {
         name: "lag",
         family: Family::Heights,
         emulator: &["latency"],
-        formula: "per record shift s_r = `s` (1 + `spread` (2u - 1)), u uniform; h'(x) = h(x - s_r) + s_r tan(pitch), pitch the record's \
+        formula: "per run shift s_r = `s` (1 + `spread` (2u - 1)), u uniform, the run's draw; h'(x) = h(x - s_r) + s_r tan(pitch), pitch the record's \
             row 20 column 0 (clamped to +-MAX_CLIMB_PITCH, 0 if not finite): the DEM is the map of a frame s_r / v old, cut at that \
             older pose. See shift_rows for the interpolation; validity is kept",
         params: Self::PARAMS,
         whole_record: false,
+        // The shift is the pipeline's latency times the run's speed: both
+        // hold for a run, so the shift is the run's.
+        run_draws: 1,
         stage: Stage::Pose,
         draws: 1,
     };

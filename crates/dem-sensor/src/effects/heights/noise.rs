@@ -28,6 +28,7 @@ impl EffectKind for Noise {
             sensor mount NOISE_ORIGIN to the cell's centre at its height (clamped to +-NOISE_RANGE_HEIGHT)",
         params: Self::PARAMS,
         whole_record: false,
+        run_draws: 0,
         stage: Stage::Noise,
         // 50 Box-Muller pairs: one normal per cell.
         draws: GRID_ROWS * COLS,

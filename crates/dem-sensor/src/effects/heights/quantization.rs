@@ -25,6 +25,7 @@ impl EffectKind for Quantization {
         formula: "h = q floor(h / q + ROUND_UP_FROM) (half steps round up, the same in every runtime)",
         params: Self::PARAMS,
         whole_record: false,
+        run_draws: 0,
         stage: Stage::Quantization,
         draws: 0,
     };

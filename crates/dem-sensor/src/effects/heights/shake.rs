@@ -34,6 +34,7 @@ impl EffectKind for Shake {
             way) and its spread follows the terrain under the tracks",
         params: Self::PARAMS,
         whole_record: true,
+        run_draws: 0,
         stage: Stage::Registration,
         // One Box-Muller pair.
         draws: 2,

@@ -11,7 +11,7 @@ use dem_graph::Builder;
 
 params! {
     /// The camera's pitch and roll off their calibration (extrinsic error):
-    /// heights tilted by distance times angle, a new angle per record.
+    /// heights tilted by distance times angle, one angle per run.
     #[serde(expecting = "struct variant Effect::Tilt")]
     Tilt {
         // Sds of the camera's pitch and roll errors up to 3 degrees (0.05
@@ -38,13 +38,16 @@ impl EffectKind for Tilt {
         family: Family::Heights,
         emulator: &["extrinsic"],
         formula:
-            "per record a = `pitch` z1, b = `roll` z2 (z1, z2 standard normals, one Box-Muller pair; radians, used as slopes), h += a \
+            "per run a = `pitch` z1, b = `roll` z2 (z1, z2 standard normals, one Box-Muller pair of the run's draws; radians, used as slopes), h += a \
             (`range` + max(x, x0) - x0) + b y: the camera's pitch and roll off their calibration (the extrinsic error). A point seen \
             at horizontal range d moves by a d in height, and the map fuses each cell over the ranges it was seen from: a cell past \
             x0 was seen from `range` + (x - x0) on average, the cells behind x0 keep the error of their last views, so the whole DEM \
             rises or falls with the angle and tilts about a pivot `range` behind x0",
         params: Self::PARAMS,
         whole_record: true,
+        // The mount's angle is the run's: a real mount keeps its
+        // miscalibration for the robot's life, the emulator for a run.
+        run_draws: 2,
         stage: Stage::Registration,
         // One Box-Muller pair.
         draws: 2,

@@ -32,6 +32,7 @@ impl EffectKind for DropHoles {
             moves, from the floor below it, outliers of the older ones; their variance grows past the map's threshold",
         params: Self::PARAMS,
         whole_record: false,
+        run_draws: 0,
         stage: Stage::JumpHoles,
         // Two per cell: whether the edge's cell is lost, and which of the two.
         draws: 2 * GRID_ROWS * COLS,

@@ -25,6 +25,7 @@ impl EffectKind for Dropout {
         formula: "each valid cell missing with probability p",
         params: Self::PARAMS,
         whole_record: false,
+        run_draws: 0,
         stage: Stage::Dropout,
         // One per cell.
         draws: GRID_ROWS * COLS,

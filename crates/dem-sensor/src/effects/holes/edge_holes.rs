@@ -28,6 +28,7 @@ impl EffectKind for EdgeHoles {
         formula: "a valid cell whose valid 4-neighbour is higher by more than g is missing with probability p (the foot of a height jump)",
         params: Self::PARAMS,
         whole_record: false,
+        run_draws: 0,
         stage: Stage::JumpHoles,
         // One per cell.
         draws: GRID_ROWS * COLS,

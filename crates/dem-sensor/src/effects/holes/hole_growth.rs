@@ -28,6 +28,7 @@ impl EffectKind for HoleGrowth {
             hole, where a 10 cm cell holds fewer seen map cells than the two of four the map needs)",
         params: Self::PARAMS,
         whole_record: false,
+        run_draws: 0,
         stage: Stage::HoleGrowth,
         // One per cell.
         draws: GRID_ROWS * COLS,

@@ -41,6 +41,7 @@ impl EffectKind for PatchDropout {
             and its x-neighbours left valid (the points a patch takes from a cell beside a step are those that lifted it)",
         params: Self::PARAMS,
         whole_record: false,
+        run_draws: 0,
         stage: Stage::Patches,
         // Per slot: whether it holds a blob, the blob's x, its y.
         draws: 3 * PATCH_SLOTS,

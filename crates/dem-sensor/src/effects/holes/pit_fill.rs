@@ -32,6 +32,7 @@ impl EffectKind for PitFill {
             the lower of the two with probability p",
         params: Self::PARAMS,
         whole_record: false,
+        run_draws: 0,
         stage: Stage::PitFill,
         // One per cell.
         draws: GRID_ROWS * COLS,

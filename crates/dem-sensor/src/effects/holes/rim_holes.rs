@@ -29,6 +29,7 @@ impl EffectKind for RimHoles {
         formula: "a valid cell whose valid 4-neighbour is lower by more than g is missing with probability p (the rim of a height jump)",
         params: Self::PARAMS,
         whole_record: false,
+        run_draws: 0,
         stage: Stage::JumpHoles,
         // One per cell.
         draws: GRID_ROWS * COLS,

@@ -25,6 +25,7 @@ impl EffectKind for RowDropout {
         formula: "each grid row wholly missing with probability p",
         params: Self::PARAMS,
         whole_record: false,
+        run_draws: 0,
         stage: Stage::RowDropout,
         // One per row.
         draws: GRID_ROWS,

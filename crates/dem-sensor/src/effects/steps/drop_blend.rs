@@ -34,6 +34,7 @@ impl EffectKind for DropBlend {
             and its mean range puts the cell's points part of the way to the other surface",
         params: Self::PARAMS,
         whole_record: false,
+        run_draws: 0,
         stage: Stage::DropMoves,
         // Two per cell: whether it is blended, and how far.
         draws: 2 * GRID_ROWS * COLS,

@@ -43,6 +43,7 @@ impl EffectKind for FloorLift {
             row; x at the cone's lowest ray: the rows where the map keeps that grazing view)",
         params: Self::PARAMS,
         whole_record: false,
+        run_draws: 0,
         stage: Stage::DropMoves,
         // Two per cell: whether it is lifted, and how far.
         draws: 2 * GRID_ROWS * COLS,

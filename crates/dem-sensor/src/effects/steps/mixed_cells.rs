@@ -36,6 +36,7 @@ impl EffectKind for MixedCells {
             half of the higher cell the lower surface reaches (the step lies in it, deeper than e) reads the lower height",
         params: Self::PARAMS,
         whole_record: false,
+        run_draws: 0,
         stage: Stage::MixedCells,
         // Per row boundary a step position, then a reach per column.
         draws: (GRID_ROWS - 1) * (1 + COLS),

@@ -39,6 +39,7 @@ impl EffectKind for RiserBlend {
             their rays, up or down the step as the view angle gives",
         params: Self::PARAMS,
         whole_record: false,
+        run_draws: 0,
         stage: Stage::RiserMoves,
         // One per cell.
         draws: GRID_ROWS * COLS,

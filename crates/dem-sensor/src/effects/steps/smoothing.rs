@@ -24,6 +24,7 @@ impl EffectKind for Smoothing {
         formula: "h = (w h + (1-w)/8 sum of valid 3x3 neighbours) / (w + (1-w)/8 n_valid)",
         params: Self::PARAMS,
         whole_record: false,
+        run_draws: 0,
         stage: Stage::Smoothing,
         draws: 0,
     };

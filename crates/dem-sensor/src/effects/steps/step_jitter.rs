@@ -41,6 +41,7 @@ impl EffectKind for StepJitter {
             each cell; even ground averages it out and reads nothing",
         params: Self::PARAMS,
         whole_record: false,
+        run_draws: 0,
         stage: Stage::Registration,
         // One normal per cell, as `noise` draws them.
         draws: GRID_ROWS * COLS,

@@ -27,6 +27,7 @@ impl EffectKind for Fov {
         formula: "cells whose centre x is outside [x_min, x_max] missing",
         params: Self::PARAMS,
         whole_record: false,
+        run_draws: 0,
         stage: Stage::FieldOfView,
         draws: 0,
     };

@@ -35,6 +35,7 @@ impl EffectKind for Occlusion {
             only the cell holding the face is seen)",
         params: Self::PARAMS,
         whole_record: false,
+        run_draws: 0,
         stage: Stage::Occlusion,
         draws: 0,
     };

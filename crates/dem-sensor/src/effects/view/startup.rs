@@ -33,6 +33,7 @@ impl EffectKind for Startup {
             time, with probability p the record is a startup frame and e = x0 - u (x0 + 0.6), u uniform",
         params: Self::PARAMS,
         whole_record: false,
+        run_draws: 0,
         stage: Stage::Startup,
         // u1: whether a record without a time is a startup frame; u2: its edge.
         draws: 2,

@@ -36,6 +36,7 @@ impl EffectKind for ViewTop {
             +-MAX_CLIMB_PITCH, 0 if not finite)",
         params: Self::PARAMS,
         whole_record: false,
+        run_draws: 0,
         stage: Stage::FieldOfView,
         draws: 0,
     };
