@@ -75,7 +75,8 @@ struct Args {
     heights: Option<dem_onnx::Heights>,
     /// Labels CSV of the input's records: their `time` in the run places
     /// the residual model's startup rows (without it, startup frames are
-    /// drawn at the model's rate).
+    /// drawn at the model's rate), and their `sequence` gives the draws a
+    /// run keeps (`tilt`'s mount angle, `lag`'s shift) once per run.
     #[arg(long, value_name = "CSV")]
     labels: Option<String>,
     /// Seed of every draw: --sample-masks and the residual sensor model.

@@ -63,7 +63,8 @@ enum Command {
         #[arg(long, default_value_t = 0)]
         first_index: u64,
         /// Labels CSV of the input (one row per record): `startup` uses
-        /// each record's `time` in its run; without, its per-record rate p.
+        /// each record's `time` in its run (without, its per-record rate
+        /// p), and the draws a run keeps (`tilt`, `lag`) its `sequence`.
         #[arg(long, value_name = "CSV")]
         labels: Option<String>,
         /// Apply only these effects of the model (comma-separated names,
@@ -109,8 +110,10 @@ enum Command {
     ///
     /// In the order dem-gap tries them: effect, family (the module that
     /// defines it), stage (its place in the physical chain), draws per
-    /// record, parameters, and the dem-synth stages (`--no-<stage>`) it
-    /// models; lists are separated by spaces.
+    /// record, how many of them a run keeps (drawn once per run when
+    /// `--labels` name the runs), parameters, the dem-synth stages
+    /// (`--no-<stage>`) it models, and each parameter's physical box; lists
+    /// are separated by spaces.
     Effects,
 }
 
