@@ -197,12 +197,6 @@ fn csv_io(e: csv::Error) -> std::io::Error {
     std::io::Error::other(e)
 }
 
-/// Each record's time in its run (the labels' `time`), NaN where the
-/// labels have none: what `startup` places its blind edge by.
-pub fn times(labels: &[Label]) -> Vec<f64> {
-    labels.iter().map(|l| l.time.unwrap_or(f64::NAN)).collect()
-}
-
 /// Read a labels CSV; rows must be indexed 0, 1, 2, ... in order.
 pub fn read_labels(path: &str) -> Result<Vec<Label>> {
     let rows: Vec<Label> = read_rows(path, &["index", "terrain"])?;
