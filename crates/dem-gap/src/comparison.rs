@@ -247,7 +247,7 @@ mod tests {
                 d
             })
             .collect();
-        let noise = SensorModel::new(vec![Effect::Noise(Noise { sigma0: 0.004, k: 0.01 })]);
+        let noise = SensorModel::new(vec![Effect::Noise(Noise { sigma0: 0.004, k: 0.01, tau: 0.0 })]);
         let (real, _) = measure(&noise, &sim, true, 1);
         for paired in [true, false] {
             let rs = distribution::stats(&real, paired.then_some(&sim[..]));

@@ -140,6 +140,8 @@ pub fn fit(spec: &EffectSpec, base: &SensorModel, target: &Target) -> Option<Fit
     let fixed: Vec<Option<f64>> = match name {
         "startup" if dem_sensor::any_time(target.moments) => vec![None, None, Some(0.0)],
         "startup" => vec![None, Some(0.0), None],
+        // noise: a map's memory only where runs, times and poses show it.
+        "noise" if !dem_sensor::any_in_run(target.moments) => vec![None, None, Some(0.0)],
         _ => vec![None; ranges.len()],
     };
     let mut widened = Vec::new();

@@ -241,7 +241,7 @@ mod tests {
     fn a_candidate_whose_share_an_effect_took_is_displaced_by_it() {
         let lag = Effect::Lag(Lag { s: 0.07, spread: 0.0 });
         let tilt = Effect::Tilt(Tilt { pitch: 0.005, roll: 0.035, x0: 0.2, range: 0.3 });
-        let noise = Effect::Noise(Noise { sigma0: 7e-4, k: 1e-3 });
+        let noise = Effect::Noise(Noise { sigma0: 7e-4, k: 1e-3, tau: 0.0 });
         let shake = Effect::Shake(Shake { sigma: 0.018, edge: 0.2 });
         let drift = Effect::Drift(Drift { rate: 0.1, zrate: 0.018, x0: 0.96 });
         let bias = Effect::Bias(Bias { b: 0.003, t: 0.0 });

@@ -55,7 +55,7 @@ mod tests {
     #[test]
     fn a_sensor_that_flickers_where_the_map_holds_still_has_a_gap_in_time() {
         let ground = |g: usize| 0.03 * ((g * 7919 % 13) as f32 / 13.0);
-        let noise = SensorModel::new(vec![Effect::Noise(Noise { sigma0: 0.0035, k: 0.0 })]);
+        let noise = SensorModel::new(vec![Effect::Noise(Noise { sigma0: 0.0035, k: 0.0, tau: 0.0 })]);
         // Real's error of each ground strip, drawn once by the same noise:
         // strip g of run k is index k * 50 + g.
         let mut strips: Vec<Dem> = (0..20 * 50)

@@ -18,6 +18,7 @@ pub mod effects;
 pub mod evidence;
 pub mod export;
 pub mod graph;
+pub mod memory;
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -75,29 +76,55 @@ pub fn effect_run_rng(seed: u64, effect: &Effect, occurrence: u64, run: u64) -> 
 const RUN_STREAMS: u64 = 1 << 63;
 
 fn effect_seed_rng(seed: u64, effect: &Effect, occurrence: u64) -> ChaCha8Rng {
-    let name_key = effect.name().bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| (h ^ b as u64).wrapping_mul(0x100_0000_01b3));
-    ChaCha8Rng::seed_from_u64(mix(seed ^ mix(name_key ^ mix(occurrence))))
+    ChaCha8Rng::seed_from_u64(effect_seed_key(seed, effect, occurrence))
 }
 
-/// Where a record sits in time, from its labels: its run (`sequence`) and
-/// its time in the run (`time`; NaN where unknown). The draws a run keeps
-/// read the run; `startup` reads the time.
+/// The key of an effect's streams: the seed, its name and its occurrence.
+fn effect_seed_key(seed: u64, effect: &Effect, occurrence: u64) -> u64 {
+    let name_key = effect.name().bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| (h ^ b as u64).wrapping_mul(0x100_0000_01b3));
+    mix(seed ^ mix(name_key ^ mix(occurrence)))
+}
+
+/// Where a record sits in time, from its labels: its run (`sequence`), its
+/// time in the run (`time`; NaN where unknown) and the robot's pose (`x`,
+/// `y`, `yaw`). The draws a run keeps read the run; `startup` reads the
+/// time; a map's memory ([`memory`]) all three.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Moment {
     /// The run the record belongs to, when its labels say.
     pub run: Option<u64>,
     /// Seconds since the run's start; NaN where unknown.
     pub time: f64,
+    /// The robot's pose in the world, when its labels give x, y and yaw.
+    pub pose: Option<memory::Pose>,
 }
 
 impl Moment {
     /// A record of no known run or time: every draw is its own.
-    pub const UNKNOWN: Moment = Moment { run: None, time: f64::NAN };
+    pub const UNKNOWN: Moment = Moment { run: None, time: f64::NAN, pose: None };
 
     /// The time when known (finite).
     pub fn known_time(&self) -> Option<f64> {
         Some(self.time).filter(|t| t.is_finite())
     }
+
+    /// Run, time and pose, when all three are known: what a map's memory reads.
+    pub fn in_run(&self) -> Option<(u64, f64, memory::Pose)> {
+        Some((self.run?, self.known_time()?, self.pose?))
+    }
+
+    /// The metres the robot travelled in its run, when known: what
+    /// `drift`'s walk reads.
+    pub fn travelled(&self) -> Option<f64> {
+        self.run?;
+        Some(self.pose?.travelled).filter(|t| t.is_finite())
+    }
+}
+
+/// True when some of `moments` know their run, time and pose (a map's
+/// memory can be fitted and applied).
+pub fn any_in_run(moments: Option<&[Moment]>) -> bool {
+    moments.is_some_and(|m| m.iter().any(|m| m.in_run().is_some()))
 }
 
 /// True when some of `moments` know their time (`startup` can read it).
@@ -105,9 +132,33 @@ pub fn any_time(moments: Option<&[Moment]>) -> bool {
     moments.is_some_and(|m| m.iter().any(|m| m.known_time().is_some()))
 }
 
-/// Each label's [`Moment`], in the labels' order.
+/// Each label's [`Moment`], in the labels' order; a pose's `travelled`
+/// is the path its run's poses make in time order, up to it.
 pub fn moments(labels: &[dem_core::table::Label]) -> Vec<Moment> {
-    labels.iter().map(|l| Moment { run: l.sequence, time: l.time.unwrap_or(f64::NAN) }).collect()
+    let mut out: Vec<Moment> = labels
+        .iter()
+        .map(|l| Moment {
+            run: l.sequence,
+            time: l.time.unwrap_or(f64::NAN),
+            pose: match (l.x, l.y, l.yaw) {
+                (Some(x), Some(y), Some(yaw)) => Some(memory::Pose { x, y, yaw, travelled: f64::NAN }),
+                _ => None,
+            },
+        })
+        .collect();
+    let mut in_runs: Vec<usize> = (0..out.len()).filter(|&i| out[i].run.is_some() && out[i].known_time().is_some()).collect();
+    in_runs.sort_by(|&a, &b| out[a].run.cmp(&out[b].run).then(out[a].time.total_cmp(&out[b].time)));
+    let mut last: Option<(u64, f64, f64, f64)> = None;
+    for i in in_runs {
+        let (Some(run), Some(pose)) = (out[i].run, out[i].pose.as_mut()) else { continue };
+        let travelled = match last {
+            Some((r, x, y, t)) if r == run => t + (pose.x - x).hypot(pose.y - y),
+            _ => 0.0,
+        };
+        pose.travelled = travelled;
+        last = Some((run, pose.x, pose.y, travelled));
+    }
+    out
 }
 
 /// Why `model`'s run draws are drawn per record over records of
@@ -205,12 +256,6 @@ impl SensorModel {
         self.effects.iter().map(Effect::draws).sum()
     }
 
-    /// True when an effect keeps draws for a run ([`EffectSpec::run_draws`](effects::EffectSpec::run_draws)):
-    /// without the records' runs they are drawn per record.
-    pub fn keeps_run_draws(&self) -> bool {
-        self.effects.iter().any(|e| e.spec().run_draws > 0)
-    }
-
     /// The uniforms of record `index` at `moment` under `seed`, effect after
     /// effect in the model's order, into `out` ([`SensorModel::draws`]
     /// long). Each effect's come from its own stream ([`effect_rng`]); the
@@ -228,6 +273,12 @@ impl SensorModel {
                 let kept = e.spec().run_draws;
                 if let (Some(run), true) = (moment.run, kept > 0) {
                     draws::fill_uniform(&mut effect_run_rng(seed, e, occurrence, run), &mut out[at..at + kept]);
+                }
+                if let Some(run) = moment.run {
+                    let key = mix(effect_seed_key(seed, e, occurrence) ^ mix(RUN_STREAMS | run));
+                    if let Some(z) = e.normals_in_run(key, moment) {
+                        memory::uniforms_of_normals(&z, &mut out[at..at + n]);
+                    }
                 }
             }
             at += n;
@@ -442,6 +493,32 @@ mod tests {
     use super::*;
     use crate::effects::{Dropout, Noise, Occlusion, RowDropout};
 
+    /// A pose's path travelled is its run's, in time order, whatever the
+    /// labels' order; without a run or a time it is unknown.
+    #[test]
+    fn the_path_travelled_follows_each_run_in_time() {
+        use dem_core::{format::Terrain, table::Label};
+        let label = |sequence: Option<u64>, time: Option<f64>, x: f64, y: f64| Label {
+            index: 0,
+            terrain: Terrain::Flat,
+            x: Some(x),
+            y: Some(y),
+            yaw: Some(0.0),
+            sequence,
+            time,
+        };
+        let m = moments(&[
+            label(Some(1), Some(0.2), 3.0, 4.0),
+            label(Some(2), Some(0.0), 9.0, 9.0),
+            label(Some(1), Some(0.0), 0.0, 0.0),
+            label(Some(1), Some(0.4), 3.0, 5.0),
+            label(None, Some(0.1), 1.0, 1.0),
+            label(Some(2), None, 1.0, 1.0),
+        ]);
+        let travelled: Vec<Option<f64>> = m.iter().map(Moment::travelled).collect();
+        assert_eq!(travelled, [Some(5.0), Some(0.0), Some(0.0), Some(6.0), None, None]);
+    }
+
     #[test]
     fn only_keeps_the_named_effects_and_their_draws() {
         use dem_core::format::{empty_dem, DemCells};
@@ -470,7 +547,7 @@ mod tests {
         let m = SensorModel {
             effects: vec![
                 Effect::Occlusion(Occlusion { h: 0.45, x0: 0.15 }),
-                Effect::Noise(Noise { sigma0: 0.003, k: 0.01 }),
+                Effect::Noise(Noise { sigma0: 0.003, k: 0.01, tau: 0.0 }),
                 Effect::Dropout(Dropout { p: 0.1 }),
             ],
             warnings: vec!["fitted at the edge of its box: noise (k)".into()],
@@ -498,7 +575,7 @@ mod tests {
     fn insertion_follows_the_physical_order() {
         let m = SensorModel::default().with(Effect::Dropout(Dropout { p: 0.1 })).with(Effect::Occlusion(Occlusion { h: 0.5, x0: 0.1 }));
         assert_eq!(m.effects[0].name(), "occlusion");
-        let m = m.with(Effect::Noise(Noise { sigma0: 0.01, k: 0.0 }));
+        let m = m.with(Effect::Noise(Noise { sigma0: 0.01, k: 0.0, tau: 0.0 }));
         assert_eq!(m.effects.iter().map(|e| e.name()).collect::<Vec<_>>(), ["occlusion", "noise", "dropout"]);
     }
 
@@ -509,12 +586,12 @@ mod tests {
         let m = SensorModel::new(vec![
             Effect::Lag(Lag { s: 0.05, spread: 0.5 }),
             Effect::Tilt(Tilt { pitch: 0.01, roll: 0.01, x0: 0.2, range: 1.0 }),
-            Effect::Noise(Noise { sigma0: 0.01, k: 0.0 }),
+            Effect::Noise(Noise { sigma0: 0.01, k: 0.0, tau: 0.0 }),
         ]);
         let k = m.draws();
         let at = |index: u64, run: Option<u64>| {
             let mut u = vec![0.0f32; k];
-            m.uniforms(7, index, Moment { run, time: f64::NAN }, &mut u);
+            m.uniforms(7, index, Moment { run, time: f64::NAN, pose: None }, &mut u);
             u
         };
         // lag's one draw and tilt's two are the run's; noise's 100 the record's.
@@ -529,11 +606,11 @@ mod tests {
         assert_eq!(alone[3..], a[3..]);
         assert_ne!(kept(&alone), kept(&a));
         assert_ne!(kept(&alone), kept(&at(11, None)));
-        let runs = [Moment { run: Some(3), time: 0.1 }, Moment { run: Some(3), time: 0.2 }];
+        let runs = [Moment { run: Some(3), time: 0.1, pose: None }, Moment { run: Some(3), time: 0.2, pose: None }];
         assert_eq!(m.uniforms_of(7, 10, 2, Some(&runs)), [a, b].concat(), "the batch draws as one record at a time");
         assert!(runs_unknown(&m, None).unwrap().contains("lag, tilt keep draws for a run"));
         assert!(runs_unknown(&m, Some(&runs)).is_none());
-        assert!(runs_unknown(&SensorModel::new(vec![Effect::Noise(Noise { sigma0: 0.01, k: 0.0 })]), None).is_none());
+        assert!(runs_unknown(&SensorModel::new(vec![Effect::Noise(Noise { sigma0: 0.01, k: 0.0, tau: 0.0 })]), None).is_none());
     }
 
     #[test]
@@ -549,7 +626,7 @@ mod tests {
         };
         let m = SensorModel {
             effects: vec![
-                Effect::Noise(Noise { sigma0: 0.01, k: 0.01 }),
+                Effect::Noise(Noise { sigma0: 0.01, k: 0.01, tau: 0.0 }),
                 Effect::Dropout(Dropout { p: 0.3 }),
                 Effect::RowDropout(RowDropout { p: 0.2 }),
             ],

@@ -116,7 +116,10 @@ fn a_model_of_several_effects_computes_the_same_in_the_graph() {
 
 #[test]
 fn the_graph_says_what_its_inputs_are() {
-    let model = SensorModel::new(vec![Effect::Noise(Noise { sigma0: 0.01, k: 0.0 }), Effect::Startup(Startup { x0: 0.3, v: 0.2, p: 0.1 })]);
+    let model = SensorModel::new(vec![
+        Effect::Noise(Noise { sigma0: 0.01, k: 0.0, tau: 0.0 }),
+        Effect::Startup(Startup { x0: 0.3, v: 0.2, p: 0.1 }),
+    ]);
     let proto = graph::sensor_model(&model, "s", &[]);
     let names: Vec<&str> = proto.graph.as_ref().unwrap().input.iter().map(|i| i.name.as_str()).collect();
     assert_eq!(names, ["dem", "uniform", "time"]);

@@ -64,7 +64,7 @@ proptest! {
             for (i, h) in heights.iter().enumerate() {
                 d.set_valid(i / 5, i % 5, *h);
             }
-            m.apply_at(&mut d, seed, 7, Moment { run: None, time: a.abs() });
+            m.apply_at(&mut d, seed, 7, Moment { run: None, time: a.abs(), pose: None });
             prop_assert!(d.iter().all(|v| v.is_finite()), "{json} wrote a non-finite value");
         }
     }
@@ -111,7 +111,7 @@ proptest! {
         for (i, h) in heights.iter().enumerate() {
             d.set_valid(i / 5, i % 5, *h * scale);
         }
-        m.apply_at(&mut d, seed, 3, Moment { run: None, time: 1.5 });
+        m.apply_at(&mut d, seed, 3, Moment { run: None, time: 1.5, pose: None });
         prop_assert!(d.iter().all(|v| v.is_finite()), "{json} on heights x {scale} wrote a non-finite value");
     }
 }

@@ -294,3 +294,85 @@ fn motion_effects_equal_the_numpy_implementation_in_distribution() {
         }
     }
 }
+
+/// `model` applied to the bundled sim records (with `labels`, when given)
+/// and the numpy reference of the frame statistics
+/// (`scripts/peers/temporal.py`) over the bundled runs (frames 0.4 s
+/// apart): the lag-1 correlation of the error against sim, and its sd.
+fn frame_rcorr_and_sd(dir: &std::path::Path, name: &str, model: &str, labels: Option<&str>) -> (f64, f64) {
+    let (sim, sensor, out) = (td("sim.npy"), arg(dir, &format!("{name}.json")), arg(dir, &format!("{name}.npy")));
+    std::fs::write(&sensor, model).unwrap();
+    let mut args = vec!["apply", "--sensor", &sensor, "--seed", "4", &sim, "-o", &out];
+    args.extend(labels.map(|l| ["--labels", l]).into_iter().flatten());
+    ok(&run("dem-sensor", &args, None));
+    let got = dem_testkit::py(
+        dir,
+        &format!(
+            r#"
+import sys
+import numpy as np
+sys.path.insert(0, {peers:?})
+import temporal
+sim, x = np.load({sim:?}), np.load({out:?})
+valid = (sim[..., 1] > 0) & (x[..., 1] > 0)
+print(temporal.stats(x, sim, temporal.runs({labels:?}))["rcorr"], np.std((x[..., 0] - sim[..., 0])[valid]))
+"#,
+            peers = workspace_root().join("scripts/peers").to_string_lossy(),
+            labels = td("sim_labels.csv"),
+        ),
+    );
+    let v: Vec<f64> = got.split_whitespace().map(|v| v.parse().unwrap()).collect();
+    (v[0], v[1])
+}
+
+/// A map's memory: `noise` with `tau` keeps its error over the same
+/// ground where noise drawn new every frame forgets it; its spread is the
+/// same; and the records reversed, their labels with them, give the same
+/// records.
+#[test]
+fn a_map_s_memory_keeps_the_noise_over_the_same_ground() {
+    let dir = tempdir();
+    let labels = td("sim_labels.csv");
+    let noise = |tau: f64| format!(r#"{{"effects": [{{"effect": "noise", "params": {{"sigma0": 0.01, "k": 0.0, "tau": {tau}}}}}]}}"#);
+    let (fresh_rcorr, fresh_sd) = frame_rcorr_and_sd(dir.path(), "fresh", &noise(0.0), Some(&labels));
+    let (kept_rcorr, kept_sd) = frame_rcorr_and_sd(dir.path(), "kept", &noise(2.0), Some(&labels));
+    // exp(-0.4 / 2) = 0.82 where a cell sees the same 10 cm of ground in
+    // both frames; the robot moves 11.6 cm a frame, so some see the next.
+    assert!(fresh_rcorr.abs() < 0.05, "noise new every frame keeps a correlation of {fresh_rcorr}");
+    assert!((0.6..0.85).contains(&kept_rcorr), "a map's memory of 2 s keeps a correlation of {kept_rcorr}");
+    for sd in [fresh_sd, kept_sd] {
+        assert!((sd - 0.01).abs() < 5e-4, "the noise's sd {sd} against sigma0 0.01");
+    }
+    // The same records and labels, last first.
+    let records = npy::read_all(&td("sim.npy")).unwrap();
+    let reversed: Vec<_> = records.iter().rev().cloned().collect();
+    let back = arg(dir.path(), "reversed.npy");
+    npy::write_all(&back, &reversed).unwrap();
+    let text = std::fs::read_to_string(&labels).unwrap();
+    let mut lines = text.lines();
+    let header = lines.next().unwrap();
+    let rows: Vec<&str> = lines.collect();
+    let body: String = rows.iter().rev().enumerate().map(|(i, l)| format!("{i},{}\n", l.split_once(',').unwrap().1)).collect();
+    let back_labels = arg(dir.path(), "reversed.csv");
+    std::fs::write(&back_labels, format!("{header}\n{body}")).unwrap();
+    let sensor = arg(dir.path(), "kept.json");
+    let o = run("dem-sensor", &["apply", "--sensor", &sensor, "--labels", &back_labels, "--seed", "4", &back], None);
+    let out = npy::NpyReader::new(ok(&o), "stdout", None).read_to_end().unwrap();
+    let forward = npy::read_all(&arg(dir.path(), "kept.npy")).unwrap();
+    assert!(out.iter().rev().eq(forward.iter()), "the order of the records changed their noise");
+}
+
+/// `drift` with the runs: the ground seen earlier keeps its displacement
+/// from one frame to the next (a frame adds one 10 cm step of the walk to
+/// some ten), where a walk drawn per record is new every frame; the
+/// displacement's spread is the same.
+#[test]
+fn drift_walks_with_the_path_a_run_travelled() {
+    let dir = tempdir();
+    let model = r#"{"effects": [{"effect": "drift", "params": {"rate": 0.0, "zrate": 0.02, "x0": 1.0}}]}"#;
+    let (run_rcorr, run_sd) = frame_rcorr_and_sd(dir.path(), "run", model, Some(&td("sim_labels.csv")));
+    let (own_rcorr, own_sd) = frame_rcorr_and_sd(dir.path(), "own", model, None);
+    assert!(own_rcorr.abs() < 0.1, "a walk per record keeps a correlation of {own_rcorr}");
+    assert!(run_rcorr > 0.7, "the run's walk keeps a correlation of {run_rcorr}");
+    assert!((run_sd / own_sd - 1.0).abs() < 0.1, "sd {run_sd} with the runs, {own_sd} per record");
+}

@@ -36,8 +36,10 @@ struct Split {
     /// The sim records after `base.effects[..at]`.
     before: Vec<Dem>,
     /// Each sim record's draws of the candidate and the effects after it:
-    /// the same at every parameter point, so drawn once.
+    /// the same at every parameter point of the same memory, so drawn once.
     drawn: Vec<f32>,
+    /// The probe's memory ([`Effect::memory`]), which `drawn` follows.
+    memory: Option<f64>,
 }
 
 /// Where [`SensorModel::with`] inserts `e` into `base`.
@@ -61,7 +63,7 @@ impl<'a> Prepared<'a> {
             let mut before = target.sim.to_vec();
             SensorModel::new(first.to_vec()).apply_all_at(&mut before, target.seed, 0, target.moments);
             let drawn = rest(base, at, *probe).uniforms_of(target.seed, 0, target.sim.len(), target.moments);
-            Split { at, name: probe.name(), before, drawn }
+            Split { at, name: probe.name(), before, drawn, memory: probe.memory() }
         });
         Prepared { target, base, split }
     }
@@ -73,7 +75,10 @@ impl<'a> Prepared<'a> {
             _ => return self.target.gap(&self.base.with(e)),
         };
         let rest = rest(self.base, split.at, e);
-        self.target.gap_of(&self.target.stats_after(&split.before, &rest, Some(&split.drawn)))
+        // A map's memory makes the draws depend on its time constant.
+        let redrawn =
+            (e.memory() != split.memory).then(|| rest.uniforms_of(self.target.seed, 0, self.target.sim.len(), self.target.moments));
+        self.target.gap_of(&self.target.stats_after(&split.before, &rest, Some(redrawn.as_deref().unwrap_or(&split.drawn))))
     }
 }
 
@@ -105,7 +110,7 @@ mod tests {
     fn the_split_model_gives_the_whole_model_s_gap_bit_for_bit() {
         let sim = records(40);
         let mut real_recs = sim.clone();
-        SensorModel::new(vec![Effect::Noise(Noise { sigma0: 0.004, k: 0.01 }), Effect::Dropout(Dropout { p: 0.1 })]).apply_all(
+        SensorModel::new(vec![Effect::Noise(Noise { sigma0: 0.004, k: 0.01, tau: 0.0 }), Effect::Dropout(Dropout { p: 0.1 })]).apply_all(
             &mut real_recs,
             9,
             0,
@@ -116,7 +121,7 @@ mod tests {
             let base = SensorModel::new(vec![
                 Effect::Occlusion(Occlusion { h: 0.5, x0: 0.1 }),
                 Effect::Smoothing(Smoothing { w: 0.6 }),
-                Effect::Noise(Noise { sigma0: 0.002, k: 0.0 }),
+                Effect::Noise(Noise { sigma0: 0.002, k: 0.0, tau: 0.0 }),
                 Effect::RowDropout(RowDropout { p: 0.05 }),
             ]);
             for e in [
@@ -125,7 +130,7 @@ mod tests {
                 Effect::EdgeHoles(EdgeHoles { g: 0.1, p: 0.5 }),
                 Effect::Fov(Fov { x_min: -0.3, x_max: 1.2 }),
                 // A second noise: the model cannot be split after the first.
-                Effect::Noise(Noise { sigma0: 0.001, k: 0.002 }),
+                Effect::Noise(Noise { sigma0: 0.001, k: 0.002, tau: 0.0 }),
             ] {
                 let prepared = Prepared::new(&target, &base, &e);
                 let (split, whole) = (prepared.gap(e), target.gap(&base.with(e)));

@@ -572,6 +572,32 @@ impl Effect {
         self.spec().draws
     }
 
+    /// The time constant (s) of the map's memory this effect's draws
+    /// follow over the same ground ([`crate::memory`]), when it has one.
+    pub fn memory(&self) -> Option<f64> {
+        match self {
+            Effect::Noise(n) if n.tau > 0.0 => Some(n.tau),
+            _ => None,
+        }
+    }
+
+    /// The normals a record at `moment` of a run draws from the run's
+    /// world rather than its own stream (`key` keys the effect and run), in
+    /// the order its Box-Muller pairs give them: `noise`'s with a memory,
+    /// of the ground each cell sees ([`crate::memory::ground_normals`]);
+    /// `drift`'s, of the path travelled ([`crate::memory::path_steps`]).
+    /// None: the record's own draws.
+    pub fn normals_in_run(&self, key: u64, moment: crate::Moment) -> Option<Vec<f64>> {
+        match self {
+            Effect::Noise(_) => {
+                let (tau, (_, time, pose)) = (self.memory()?, moment.in_run()?);
+                Some(crate::memory::ground_normals(key, tau, time, pose).to_vec())
+            }
+            Effect::Drift(_) => Some(crate::memory::path_steps(key, moment.travelled()?).to_vec()),
+            _ => None,
+        }
+    }
+
     /// Check the parameters: finite, within +-[`MAX_PARAM`], then the
     /// effect's own rule (probabilities in [0, 1], sigma >= 0, w in (0, 1],
     /// q > 0, h > 0, x_min < x_max, ...).

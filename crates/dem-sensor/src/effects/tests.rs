@@ -636,7 +636,7 @@ fn random_effects_have_their_rates_and_spread() {
         Effect::RowDropout(RowDropout { p: 0.3 }).apply(&mut d, &mut r1);
         rows += (100 - d.valid_cells()) / 5;
         let mut d = flat();
-        Effect::Noise(Noise { sigma0: 0.01, k: 0.0 }).apply(&mut d, &mut r1);
+        Effect::Noise(Noise { sigma0: 0.01, k: 0.0, tau: 0.0 }).apply(&mut d, &mut r1);
         sq += (0..100).map(|i| (d[2 * i] as f64 + 0.07).powi(2)).sum::<f64>();
     }
     assert!((miss as f64 / 20000.0 - 0.2).abs() < 0.02);

@@ -32,7 +32,8 @@ impl EffectKind for Drift {
         formula: "rows whose centre x < `x0` are displaced by a random walk going back from x0: per row r, from the row just behind x0 \
             backward, dx(r) = `rate` sqrt(0.1) sum of xi_j and dz(r) = `zrate` sqrt(0.1) sum of zeta_j over the rows j from r to the \
             last row behind x0 (xi_j, zeta_j the normals of Box-Muller pair j); h'(x) = h(x - dx) + dz by shift_rows; rows from x0 \
-            on are left alone: the map registers older frames at a believed pose that walks at random per metre travelled",
+            on are left alone: the map registers older frames at a believed pose that walks at random per metre travelled; with the record's \
+            run, time and pose known, xi_j and zeta_j are the steps of the run's walk over the path under row j (crate::memory::path_steps)",
         params: Self::PARAMS,
         whole_record: false,
         run_draws: 0,

@@ -16,6 +16,10 @@ params! {
         sigma0: fit Range::lin(0.0, 0.03), limit Limit::new(0.0, 0.1).natural_lo();
         /// Growth with squared range (1/m).
         k: fit Range::lin(0.0, 0.03), limit Limit::new(0.0, 0.1).natural_lo();
+        /// The fused map's memory (s): over the same ground a cell's noise
+        /// is a first-order process of this time constant; 0, new every frame.
+        #[serde(default)]
+        tau: fit Range::lin(0.0, 2.0), limit Limit::new(0.0, 10.0).natural_lo();
     }
 }
 
@@ -25,7 +29,9 @@ impl EffectKind for Noise {
         family: Family::Heights,
         emulator: &["noise"],
         formula: "h += sigma z, z a standard normal (Box-Muller, crate::draws), sigma = sigma0 + k d^2, d = distance from the nominal \
-            sensor mount NOISE_ORIGIN to the cell's centre at its height (clamped to +-NOISE_RANGE_HEIGHT)",
+            sensor mount NOISE_ORIGIN to the cell's centre at its height (clamped to +-NOISE_RANGE_HEIGHT); \
+            with tau > 0 and the record's run, time and pose known, z follows the ground the cell sees: a first-order \
+            process of time constant tau per 10 cm ground cell of the run (crate::memory), new every frame otherwise",
         params: Self::PARAMS,
         whole_record: false,
         run_draws: 0,
@@ -35,26 +41,30 @@ impl EffectKind for Noise {
     };
 
     fn check(&self) -> Result<(), String> {
-        let Self { sigma0, k } = *self;
-        check_noise(sigma0, k)
+        let Self { sigma0, k, tau } = *self;
+        check_noise(sigma0, k)?;
+        if tau < 0.0 {
+            return Err("tau must be >= 0".into());
+        }
+        Ok(())
     }
 
     fn apply(&self, d: &mut Dem, rng: &mut Draws, _time: Option<f64>) {
-        let Self { sigma0, k } = *self;
+        let Self { sigma0, k, .. } = *self;
         add_noise(d, rng, sigma0, k)
     }
 
     fn graph(&self, b: &mut Builder, c: &Cells, u: &str, _time: Option<&str>) -> Cells {
-        let Self { sigma0, k } = *self;
+        let Self { sigma0, k, .. } = *self;
         operators(b, c, u, sigma0, k)
     }
 
     fn evidence(&self, c: &Context) -> String {
-        sentence(c)
+        sentence(self.tau, c)
     }
 
     fn examples() -> Vec<Self> {
-        vec![Noise { sigma0: 0.01, k: 0.02 }]
+        vec![Noise { sigma0: 0.01, k: 0.02, tau: 0.0 }, Noise { sigma0: 0.01, k: 0.02, tau: 0.5 }]
     }
 }
 
@@ -104,7 +114,7 @@ fn operators(b: &mut Builder, c: &Cells, u: &str, sigma0: f64, k: f64) -> Cells 
 }
 
 /// The evidence for `noise`.
-fn sentence(c: &Context) -> String {
+fn sentence(tau: f64, c: &Context) -> String {
     let real = c.real;
     let before = c.before;
     let spread = c.spread();
@@ -130,5 +140,16 @@ fn sentence(c: &Context) -> String {
             mm(bf),
         )
     };
-    c.fitted(body)
+    let memory = match tau > 0.0 && real.term("frame-dh").is_some() {
+        true => format!(
+            "; over the same ground in consecutive frames heights change by real {} vs {} without it, and keep a lag-1 correlation \
+             of real {:.2} vs {:.2} without it: the map holds a cell's noise for about {tau:.2} s",
+            mm(real.mean_over("frame-dh", 0..20)),
+            mm(before.mean_over("frame-dh", 0..20)),
+            real.mean_over("frame-rcorr", 0..20),
+            before.mean_over("frame-rcorr", 0..20),
+        ),
+        false => String::new(),
+    };
+    c.fitted(body + &memory)
 }
