@@ -1,8 +1,8 @@
 //! Fitting one candidate effect: a grid search over its parameter box
 //! (the fit boxes and limits of its [`EffectSpec`], defined with the
 //! effect in dem-sensor), refined around the best point (four times; for four parameters, whose
-//! first grid is coarser, five times around each of its three best), of
-//! the gap between
+//! first grid is coarser, five times around each of its three best; a map's
+//! memory fitted after the amplitude, [`fitted_last`]), of the gap between
 //! model(sim) with the candidate added and real. Every evaluation uses the
 //! same random streams (the seed), so the gap changes with the parameters,
 //! not with the draws.
@@ -144,8 +144,9 @@ pub fn fit(spec: &EffectSpec, base: &SensorModel, target: &Target) -> Option<Fit
         "noise" if !dem_sensor::any_in_run(target.moments) => vec![None, None, Some(0.0)],
         _ => vec![None; ranges.len()],
     };
+    let last = fitted_last(name, target);
     let mut widened = Vec::new();
-    let mut fitted = fit_in(name, base, target, &ranges, &fixed)?;
+    let mut fitted = search(name, base, target, &ranges, &fixed, last)?;
     for _ in 0..2 {
         let mut changed = false;
         for (i, (r, l)) in ranges.iter_mut().zip(&lim).enumerate() {
@@ -168,7 +169,7 @@ pub fn fit(spec: &EffectSpec, base: &SensorModel, target: &Target) -> Option<Fit
         if !changed {
             break;
         }
-        fitted = fit_in(name, base, target, &ranges, &fixed)?;
+        fitted = search(name, base, target, &ranges, &fixed, last)?;
     }
     let (mut effect, u, g) = fitted;
     let at_edge = (0..ranges.len())
@@ -189,10 +190,51 @@ pub fn fit(spec: &EffectSpec, base: &SensorModel, target: &Target) -> Option<Fit
 /// A parameter within this share of its box from an edge is on the edge.
 const EDGE: f64 = 0.01;
 
-/// Grid search plus refinement in the boxes `ranges`; parameters with a
-/// `fixed` value are not searched. Returns the effect, the best point in
+/// The parameter fitted after the others: a map's memory (`noise`'s tau,
+/// where runs show it) changes the frame terms only, so the amplitude is
+/// fitted with it at the middle of its box, then it alone, then all of them
+/// around that point. A three-parameter grid costs seven times the
+/// two-parameter one, and noise is a candidate at every step.
+fn fitted_last(name: &str, target: &Target) -> Option<usize> {
+    (name == "noise" && dem_sensor::any_in_run(target.moments)).then_some(2)
+}
+
+/// [`fit_in`] on the whole box, or in stages when parameter `last` is
+/// fitted after the others ([`fitted_last`]).
+fn search(
+    name: &str,
+    base: &SensorModel,
+    target: &Target,
+    ranges: &[Range],
+    fixed: &[Option<f64>],
+    last: Option<usize>,
+) -> Option<(Effect, Vec<f64>, f64)> {
+    let Some(last) = last.filter(|&l| fixed[l].is_none()) else {
+        return fit_in(name, base, target, ranges, fixed, None);
+    };
+    let mut first = fixed.to_vec();
+    first[last] = Some(ranges[last].at(0.5));
+    let (_, u, _) = fit_in(name, base, target, ranges, &first, None)?;
+    let others: Vec<Option<f64>> =
+        (0..ranges.len()).map(|i| if i == last { None } else { fixed[i].or(Some(ranges[i].at(u[i]))) }).collect();
+    let (_, u_last, _) = fit_in(name, base, target, ranges, &others, None)?;
+    let mut centre = u;
+    centre[last] = u_last[last];
+    fit_in(name, base, target, ranges, fixed, Some(&centre))
+}
+
+/// Grid search plus refinement in the boxes `ranges`, or refinement alone
+/// around `centre` (box units, every parameter) when given; parameters with
+/// a `fixed` value are not searched. Returns the effect, the best point in
 /// box units and its gap.
-fn fit_in(name: &str, base: &SensorModel, target: &Target, ranges: &[Range], fixed: &[Option<f64>]) -> Option<(Effect, Vec<f64>, f64)> {
+fn fit_in(
+    name: &str,
+    base: &SensorModel,
+    target: &Target,
+    ranges: &[Range],
+    fixed: &[Option<f64>],
+    centre: Option<&[f64]>,
+) -> Option<(Effect, Vec<f64>, f64)> {
     let free: Vec<usize> = (0..ranges.len()).filter(|&i| fixed[i].is_none()).collect();
     let dims = free.len();
     let values = |u: &[f64]| -> Vec<f64> {
@@ -219,18 +261,24 @@ fn fit_in(name: &str, base: &SensorModel, target: &Target, ranges: &[Range], fix
     };
     let best_of = |pts: Vec<Vec<f64>>| -> Option<(Vec<f64>, f64)> { scored(pts).min_by(by_gap) };
     let n = first_grid(name, dims);
-    let (per, rounds, starts) = if dims >= 4 { (3, 5, 3) } else { (5, 4, 1) };
     let spacing = 1.0 / (n - 1) as f64;
-    let first = grid(&vec![0.5; dims], spacing, n, dims);
-    let mut seeds: Vec<(Vec<f64>, f64)> = if starts == 1 {
-        vec![best_of(first)?]
-    } else {
-        let mut all: Vec<(Vec<f64>, f64)> = scored(first).collect();
-        all.sort_by(by_gap);
-        apart_starts(all, starts, spacing)?
+    let (per, rounds, mut seeds) = match centre {
+        // Around a staged fit's point: the last rounds of a refinement.
+        Some(centre) => {
+            let c: Vec<f64> = free.iter().map(|&i| centre[i]).collect();
+            let g = eval(&c);
+            (3, 3, vec![(c, g)])
+        }
+        None if dims >= 4 => {
+            let mut all: Vec<(Vec<f64>, f64)> = scored(grid(&vec![0.5; dims], spacing, n, dims)).collect();
+            all.sort_by(by_gap);
+            (3, 5, apart_starts(all, 3, spacing)?)
+        }
+        None => (5, 4, vec![best_of(grid(&vec![0.5; dims], spacing, n, dims))?]),
     };
+    let first_step = if centre.is_some() { spacing / 4.0 } else { spacing / 2.0 };
     for (best, best_gap) in seeds.iter_mut() {
-        let mut step = spacing / 2.0;
+        let mut step = first_step;
         for _ in 0..rounds {
             if let Some((p, g)) = best_of(grid(best, step, per, dims)) {
                 if g < *best_gap {
