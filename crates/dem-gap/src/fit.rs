@@ -144,9 +144,14 @@ pub fn fit(spec: &EffectSpec, base: &SensorModel, target: &Target) -> Option<Fit
         "noise" if !dem_sensor::any_in_run(target.moments) => vec![None, None, Some(0.0)],
         _ => vec![None; ranges.len()],
     };
-    let last = fitted_last(name, target);
+    let last = fitted_last(spec, target);
+    // The base's part before the candidate, applied once for every stage
+    // and every widened box (the place depends on the name alone; a
+    // point of another memory is redrawn by `Prepared`).
+    let mid: Vec<f64> = ranges.iter().zip(&fixed).map(|(r, f)| f.unwrap_or(r.at(0.5))).collect();
+    let prepared = prefix::Prepared::new(target, base, &Effect::from_values(name, &mid)?);
     let mut widened = Vec::new();
-    let mut fitted = search(name, base, target, &ranges, &fixed, last)?;
+    let mut fitted = search(name, &prepared, &ranges, &fixed, last)?;
     for _ in 0..2 {
         let mut changed = false;
         for (i, (r, l)) in ranges.iter_mut().zip(&lim).enumerate() {
@@ -169,7 +174,7 @@ pub fn fit(spec: &EffectSpec, base: &SensorModel, target: &Target) -> Option<Fit
         if !changed {
             break;
         }
-        fitted = search(name, base, target, &ranges, &fixed, last)?;
+        fitted = search(name, &prepared, &ranges, &fixed, last)?;
     }
     let (mut effect, u, g) = fitted;
     let at_edge = (0..ranges.len())
@@ -195,32 +200,32 @@ const EDGE: f64 = 0.01;
 /// fitted with it at the middle of its box, then it alone, then all of them
 /// around that point. A three-parameter grid costs seven times the
 /// two-parameter one, and noise is a candidate at every step.
-fn fitted_last(name: &str, target: &Target) -> Option<usize> {
-    (name == "noise" && dem_sensor::any_in_run(target.moments)).then_some(2)
+fn fitted_last(spec: &EffectSpec, target: &Target) -> Option<usize> {
+    let tau = spec.params.iter().position(|p| p.name == "tau");
+    tau.filter(|_| spec.name == "noise" && dem_sensor::any_in_run(target.moments))
 }
 
 /// [`fit_in`] on the whole box, or in stages when parameter `last` is
 /// fitted after the others ([`fitted_last`]).
 fn search(
     name: &str,
-    base: &SensorModel,
-    target: &Target,
+    prepared: &prefix::Prepared,
     ranges: &[Range],
     fixed: &[Option<f64>],
     last: Option<usize>,
 ) -> Option<(Effect, Vec<f64>, f64)> {
     let Some(last) = last.filter(|&l| fixed[l].is_none()) else {
-        return fit_in(name, base, target, ranges, fixed, None);
+        return fit_in(name, prepared, ranges, fixed, None);
     };
     let mut first = fixed.to_vec();
     first[last] = Some(ranges[last].at(0.5));
-    let (_, u, _) = fit_in(name, base, target, ranges, &first, None)?;
+    let (_, u, _) = fit_in(name, prepared, ranges, &first, None)?;
     let others: Vec<Option<f64>> =
         (0..ranges.len()).map(|i| if i == last { None } else { fixed[i].or(Some(ranges[i].at(u[i]))) }).collect();
-    let (_, u_last, _) = fit_in(name, base, target, ranges, &others, None)?;
+    let (_, u_last, _) = fit_in(name, prepared, ranges, &others, None)?;
     let mut centre = u;
     centre[last] = u_last[last];
-    fit_in(name, base, target, ranges, fixed, Some(&centre))
+    fit_in(name, prepared, ranges, fixed, Some(&centre))
 }
 
 /// Grid search plus refinement in the boxes `ranges`, or refinement alone
@@ -229,8 +234,7 @@ fn search(
 /// box units and its gap.
 fn fit_in(
     name: &str,
-    base: &SensorModel,
-    target: &Target,
+    prepared: &prefix::Prepared,
     ranges: &[Range],
     fixed: &[Option<f64>],
     centre: Option<&[f64]>,
@@ -244,8 +248,6 @@ fn fit_in(
         }
         v
     };
-    let probe = Effect::from_values(name, &values(&vec![0.5; dims]))?;
-    let prepared = prefix::Prepared::new(target, base, &probe);
     let eval = |u: &[f64]| -> f64 {
         let v = values(u);
         match Effect::from_values(name, &v) {
