@@ -4,7 +4,10 @@ Many environments step together; each step the simulator's perfect height
 scans (here: DEMs of a dem-synth world, one run per environment) go
 through the virtual sensor as one batch, with each environment's time
 since its reset, so a fresh episode's first frames miss the rows the
-measured maps miss at startup. The "policy" is a stand-in (a fixed linear
+measured maps miss at startup. A sensor with a map's memory keeps each
+environment's map from step to step: it takes each environment's motion
+since its last step (from the labels' poses), and `reset(ids)` starts the
+runs of the episodes that ended while the others keep their maps. The "policy" is a stand-in (a fixed linear
 map to a flipper command); what matters is where the sensor sits.
 
     python python/examples/policy_loop.py gy-sensor.onnx sim.npy sim_labels.csv --envs 64 --steps 50
@@ -19,16 +22,18 @@ import csv
 import numpy as np
 
 import demstream
-from demstream.sensor import VirtualSensor
+from demstream.sensor import VirtualSensor, motion_between
 
 
 def runs_of(labels_csv):
-    """Record indices of each run (its `sequence`), in time order, from a labels CSV."""
-    runs = {}
+    """Record indices of each run (its `sequence`), in time order, and every
+    record's pose (x, y, yaw), from a labels CSV."""
+    runs, poses = {}, []
     with open(labels_csv) as f:
         for i, row in enumerate(csv.DictReader(f)):
             runs.setdefault(row["sequence"], []).append((float(row["time"]), i))
-    return [[i for _, i in sorted(r)] for r in runs.values() if len(r) > 1]
+            poses.append([float(row[k]) for k in ("x", "y", "yaw")])
+    return [[i for _, i in sorted(r)] for r in runs.values() if len(r) > 1], np.array(poses)
 
 
 def main(argv=None):
@@ -43,7 +48,7 @@ def main(argv=None):
     a = ap.parse_args(argv)
 
     dems = demstream.read(a.sim)
-    runs = runs_of(a.labels)
+    runs, poses = runs_of(a.labels)
     sensor = VirtualSensor(a.model)
     rng = np.random.default_rng(a.seed)
     policy = rng.normal(0.0, 0.1, size=(21 * 5 * 2, 4)).astype(np.float32)
@@ -52,9 +57,12 @@ def main(argv=None):
     frame = np.zeros(a.envs, dtype=np.int64)
     t = np.zeros(a.envs, dtype=np.float32)
     stats = []
+    last = None
     for step in range(a.steps):
         idx = np.array([runs[r][min(f, len(runs[r]) - 1)] for r, f in zip(run, frame)])
-        seen = sensor(dems[idx], time=t, rng=rng)                 # the virtual sensor, one batch
+        motion = None if last is None else motion_between(poses[last], poses[idx])
+        seen = sensor(dems[idx], time=t, rng=rng, motion=motion)  # the virtual sensor, one batch
+        last = idx
         action = np.tanh(seen.reshape(a.envs, -1) @ policy)        # the policy's input is what a robot would see
         assert action.shape == (a.envs, 4) and np.isfinite(action).all()
         valid = seen[:, :20, :, 1] > 0
@@ -64,6 +72,7 @@ def main(argv=None):
         frame += 1
         t += a.dt
         done = rng.random(a.envs) < 0.05                           # episodes end; resets start at time 0
+        sensor.reset(np.flatnonzero(done))                         # their maps start again, the others keep theirs
         run[done] = rng.integers(0, len(runs), done.sum())
         frame[done] = 0
         t[done] = 0.0

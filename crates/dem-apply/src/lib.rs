@@ -12,6 +12,11 @@
 //! labels. The result equals `dem-apply --network-only | dem-sensor apply`
 //! with the same seed, byte for byte.
 //!
+//! A residual with a map's memory (`map-memory`) steps each run's records
+//! in stream order, from the labels' runs, times and poses, carrying each
+//! run's map from batch to batch ([`Runs`]); a record earlier in its run
+//! than the one before it is refused.
+//!
 //! A generator exported with `--heights input` keeps the input's heights
 //! under its holes ([`Heights::Input`]): the network decides which cells are
 //! missing, the sim's heights stay, and its residual model (fitted on that
@@ -23,6 +28,7 @@ use dem_core::{table, DemError};
 use dem_onnx::apply::{apply, After, ApplyStats, MaskSampling};
 use dem_onnx::sensor::Stored;
 use dem_onnx::{Heights, OnnxModel};
+use dem_sensor::fusion::{Runs, CELLS};
 use rayon::prelude::*;
 
 pub use dem_onnx::generator::RESIDUAL_KEY;
@@ -117,6 +123,9 @@ pub fn run(c: &Config, model: &OnnxModel, progress: impl FnMut(u64)) -> Result<R
     };
     let sample = c.sample_masks.then_some(MaskSampling { seed: c.seed, first_index: c.first_index });
     let residual = tail.residual_or_empty();
+    // A map's memory steps each run's records in stream order, batch after batch.
+    let runs =
+        residual.map_memory().zip(moments.as_ref()).map(|(m, (path, _))| (std::sync::Mutex::new(Runs::new(m, c.first_index)), *path));
     let finish = |inp: &[Dem], out: &mut [Dem], first: u64| -> Result<(), DemError> {
         if let Some(s) = &sample {
             s.draw(inp, out, first);
@@ -126,6 +135,10 @@ pub fn run(c: &Config, model: &OnnxModel, progress: impl FnMut(u64)) -> Result<R
         out.par_iter_mut().zip(inp).enumerate().for_each(|(i, (y, x))| {
             tail.finish(x, y, &u[i * k..(i + 1) * k], dem_sensor::moment_at(m, i).known_time());
         });
+        if let (Some((runs, path)), Some(m)) = (&runs, m) {
+            let memory = |i: usize| u[(i + 1) * k - CELLS..(i + 1) * k].to_vec();
+            runs.lock().expect("one stream").step_chunk(path, first, out, inp, m, memory)?;
+        }
         if let Some(w) = &emit {
             let mut w = w.lock().expect("one writer");
             if k > 0 {

@@ -13,7 +13,7 @@ use rand_chacha::ChaCha8Rng;
 
 use dem_core::distribution::{gap, Stats};
 use dem_core::format::Dem;
-use dem_sensor::effects::EffectSpec;
+use dem_sensor::effects::{EffectSpec, Stage};
 use dem_sensor::SensorModel;
 
 use crate::fit;
@@ -59,8 +59,11 @@ impl<'a> Comparison<'a> {
     /// True when the run may fit `spec`: an effect that moves whole
     /// records only where both sides hold the same terrain mix (paired,
     /// over pairs, drawn to one mix) or when the user asked for it.
+    /// A map's memory only where the runs are known in time on both
+    /// sides: it is judged on consecutive frames.
     pub fn fits(&self, spec: &EffectSpec) -> bool {
-        !spec.whole_record || self.whole_record_left_out().is_none()
+        let runs_known = dem_sensor::any_in_run(self.sets.sim_moments.as_deref()) && self.sets.real_steps.is_some();
+        (!spec.whole_record || self.whole_record_left_out().is_none()) && (spec.stage != Stage::Memory || runs_known)
     }
 
     /// Why the effects that move whole records are left out, when they are.

@@ -85,16 +85,21 @@ impl Target<'_> {
             out
         };
         let paired_sim = self.paired.then_some(self.sim);
-        match self.steps {
-            None => stats_made(from.len(), paired_sim, make),
-            Some(steps) => {
-                let out: Vec<Dem> = (0..from.len().div_ceil(CHUNK))
-                    .into_par_iter()
-                    .flat_map_iter(|c| make(c * CHUNK..((c + 1) * CHUNK).min(from.len())))
-                    .collect();
-                summarise(&out, paired_sim, Some(steps))
-            }
+        // A map's memory steps the runs: it needs every frame at once.
+        let memory = model.map_memory().zip(self.moments.filter(|m| dem_sensor::any_in_run(Some(m))));
+        if self.steps.is_none() && memory.is_none() {
+            return stats_made(from.len(), paired_sim, make);
         }
+        let mut out: Vec<Dem> =
+            (0..from.len().div_ceil(CHUNK)).into_par_iter().flat_map_iter(|c| make(c * CHUNK..((c + 1) * CHUNK).min(from.len()))).collect();
+        if let Some((memory, moments)) = memory {
+            let uniforms = |i: usize| match drawn {
+                Some(all) => all[(i + 1) * k - dem_sensor::fusion::CELLS..(i + 1) * k].to_vec(),
+                None => model.memory_uniforms(self.seed, i as u64),
+            };
+            dem_sensor::fusion::step_set(memory, &mut out, self.sim, moments, uniforms);
+        }
+        summarise(&out, paired_sim, self.steps)
     }
 
     /// Gap of model(sim) against real; infinite for a model that hides far

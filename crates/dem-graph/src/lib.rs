@@ -10,7 +10,8 @@
 //! The operators are the plain ones every runtime has (onnxruntime,
 //! tract, PyTorch through onnx2torch): arithmetic, `Where`, comparisons,
 //! `And`/`Or`/`Not`, `Cast`, `Slice`, `Pad`, `Concat`, `Reshape`,
-//! `Reduce*` with an `axes` attribute (opset [`OPSET`]), `Gather`, `Conv`,
+//! `Reduce*` with an `axes` attribute (opset [`OPSET`]), `Gather`,
+//! `GatherElements`, `Conv`,
 //! `Floor`, `Sqrt`, `Log`, `Cos`, `Sin` (no `LessOrEqual`: onnx2torch has none).
 
 use prost::Message;
@@ -331,6 +332,12 @@ pub struct Input<'a> {
 /// Run `model` with tract on `inputs` (given in the graph's input order)
 /// and return its first output's values, row-major.
 pub fn run(model: &pb::ModelProto, inputs: &[Input]) -> anyhow::Result<Vec<f32>> {
+    Ok(run_all(model, inputs)?.swap_remove(0))
+}
+
+/// [`run`], returning every output's values, row-major, in the graph's
+/// output order.
+pub fn run_all(model: &pb::ModelProto, inputs: &[Input]) -> anyhow::Result<Vec<Vec<f32>>> {
     let bytes = model.encode_to_vec();
     let mut m = tract_onnx::onnx().model_for_read(&mut &bytes[..])?;
     for (i, x) in inputs.iter().enumerate() {
@@ -342,8 +349,7 @@ pub fn run(model: &pb::ModelProto, inputs: &[Input]) -> anyhow::Result<Vec<f32>>
         .map(|x| Ok(tract_ndarray::ArrayD::from_shape_vec(x.shape.clone(), x.data.to_vec())?.into_tensor().into_tvalue()))
         .collect::<anyhow::Result<_>>()?;
     let out = plan.run(tensors)?;
-    let view = out[0].try_as_plain_ram()?;
-    Ok(view.as_slice::<f32>()?.to_vec())
+    out.iter().map(|o| Ok(o.try_as_plain_ram()?.as_slice::<f32>()?.to_vec())).collect()
 }
 
 #[cfg(test)]

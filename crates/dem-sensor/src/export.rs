@@ -97,26 +97,15 @@ pub fn export(model: &SensorModel, records: &[Dem], path: &str, metadata: &[(Str
     }
     let got = graph::run_tract(&proto, model, records, &uniform, &times)
         .map_err(|e| DemError::input(path, format!("export check failed, nothing written: tract cannot run the graph: {e:#}")))?;
-    let (mut differ, mut worst) = (0usize, 0.0f32);
-    for (i, (a, b)) in native.iter().zip(&got).enumerate() {
-        if a[200..] != b[200..] {
-            return Err(DemError::input(
-                path,
-                format!("export check failed, nothing written: the graph changes row 20 of check record {i}"),
-            ));
-        }
-        for r in 0..GRID_ROWS {
-            for c in 0..COLS {
-                if a.is_valid(r, c) != b.is_valid(r, c) {
-                    differ += 1;
-                } else if a.is_valid(r, c) {
-                    let d = (a.height(r, c) - b.height(r, c)).abs();
-                    worst = if d.is_nan() { f32::INFINITY } else { worst.max(d) };
-                }
-            }
-        }
+    let mut check = Agreement::default();
+    check.compare(path, &native, &got)?;
+    if let Some(memory) = model.map_memory() {
+        let (native, got) = stepped(&proto, model, memory, records, &uniform, &times)
+            .map_err(|e| DemError::input(path, format!("export check failed, nothing written: tract cannot step the graph: {e:#}")))?;
+        check.compare(path, &native, &got)?;
     }
-    let validity_differ = differ as f64 / (n * GRID_ROWS * COLS).max(1) as f64;
+    let validity_differ = check.differ as f64 / check.cells.max(1) as f64;
+    let worst = check.worst;
     if validity_differ > VALIDITY_TOLERANCE || worst > HEIGHT_TOLERANCE {
         return Err(DemError::input(
             path,
@@ -134,4 +123,90 @@ pub fn export(model: &SensorModel, records: &[Dem], path: &str, metadata: &[(Str
         w.write_all(&bytes)
     })?;
     Ok(ExportCheck { records: n, validity_differ, max_height_diff: worst, bytes: bytes.len() })
+}
+
+/// Where the graph and the native code disagree, over the records compared.
+#[derive(Default)]
+struct Agreement {
+    cells: usize,
+    differ: usize,
+    worst: f32,
+}
+
+impl Agreement {
+    /// Add `native` against `got`; a graph that changes row 20 is refused.
+    fn compare(&mut self, path: &str, native: &[Dem], got: &[Dem]) -> Result<()> {
+        for (i, (a, b)) in native.iter().zip(got).enumerate() {
+            if a[200..] != b[200..] {
+                return Err(DemError::input(
+                    path,
+                    format!("export check failed, nothing written: the graph changes row 20 of check record {i}"),
+                ));
+            }
+            for r in 0..GRID_ROWS {
+                for c in 0..COLS {
+                    if a.is_valid(r, c) != b.is_valid(r, c) {
+                        self.differ += 1;
+                    } else if a.is_valid(r, c) {
+                        let d = (a.height(r, c) - b.height(r, c)).abs();
+                        self.worst = if d.is_nan() { f32::INFINITY } else { self.worst.max(d) };
+                    }
+                }
+            }
+            self.cells += GRID_ROWS * COLS;
+        }
+        Ok(())
+    }
+}
+
+/// Frames of each check run: the check records in order, [`RUN_FRAMES`] a run.
+const RUN_FRAMES: usize = 6;
+
+/// The check records stepped as runs of [`RUN_FRAMES`] frames (the records
+/// in order; a seeded motion of up to 15 cm and 0.2 rad between frames),
+/// natively and by tract feeding each step's `state_out` to the next:
+/// (native, tract), run after run. `uniform` and `times` are the records'.
+pub fn stepped(
+    proto: &dem_graph::proto::ModelProto,
+    model: &SensorModel,
+    memory: crate::effects::MapMemory,
+    records: &[Dem],
+    uniform: &[f32],
+    times: &[f32],
+) -> anyhow::Result<(Vec<Dem>, Vec<Dem>)> {
+    use crate::fusion::{state_of, step, Motion, CELLS, MOTION_LEN, STATE_LEN};
+    let k = model.draws();
+    let runs = records.len() / RUN_FRAMES;
+    let mut rng = ChaCha8Rng::seed_from_u64(1);
+    let motions: Vec<Motion> = (0..runs * RUN_FRAMES)
+        .map(|_| Motion { dx: rng.gen_range(-0.02..0.15), dy: rng.gen_range(-0.05..0.05), dyaw: rng.gen_range(-0.2..0.2) })
+        .collect();
+    let at = |run: usize, frame: usize| run * RUN_FRAMES + frame;
+    let mut native = vec![records[0]; runs * RUN_FRAMES];
+    let mut got = native.clone();
+    let mut native_state = vec![[0.0f32; STATE_LEN]; runs];
+    let mut state = vec![0.0f32; runs * STATE_LEN];
+    for frame in 0..RUN_FRAMES {
+        let idx: Vec<usize> = (0..runs).map(|r| at(r, frame)).collect();
+        let batch: Vec<Dem> = idx.iter().map(|&i| records[i]).collect();
+        let u: Vec<f32> = idx.iter().flat_map(|&i| uniform[i * k..(i + 1) * k].iter().copied()).collect();
+        let t: Vec<f32> = idx.iter().map(|&i| times[i]).collect();
+        let motion: Vec<f32> = idx.iter().flat_map(|&i| motions[i].to_array()).collect();
+        let reset = vec![if frame == 0 { 1.0 } else { 0.0 }; runs];
+        debug_assert_eq!(motion.len(), runs * MOTION_LEN);
+        let (out, next) =
+            graph::run_tract_step(proto, model, &batch, &u, &t, graph::Step { state: &state, motion: &motion, reset: &reset })?;
+        state = next;
+        for (r, &i) in idx.iter().enumerate() {
+            got[i] = out[r];
+            let mut d = records[i];
+            model.apply_drawn(&mut d, &uniform[i * k..(i + 1) * k], Some(f64::from(times[i])));
+            if frame > 0 {
+                step(memory, &native_state[r], motions[i], &records[i], &mut d, &uniform[(i + 1) * k - CELLS..(i + 1) * k]);
+            }
+            native_state[r] = state_of(&records[i], &d);
+            native[i] = d;
+        }
+    }
+    Ok((native, got))
 }

@@ -17,6 +17,7 @@ pub mod draws;
 pub mod effects;
 pub mod evidence;
 pub mod export;
+pub mod fusion;
 pub mod graph;
 pub mod memory;
 
@@ -166,11 +167,19 @@ pub fn moments(labels: &[dem_core::table::Label]) -> Vec<Moment> {
 /// the runs': one line for the tool's log.
 pub fn runs_unknown(model: &SensorModel, moments: Option<&[Moment]>) -> Option<String> {
     let keeping: Vec<&str> = model.effects.iter().filter(|e| e.spec().run_draws > 0).map(Effect::name).collect();
-    if keeping.is_empty() || moments.is_some_and(|m| m.iter().any(|m| m.run.is_some())) {
-        return None;
+    let mut lines = Vec::new();
+    if !keeping.is_empty() && !moments.is_some_and(|m| m.iter().any(|m| m.run.is_some())) {
+        let why = if moments.is_some() { "the labels name no run (`sequence`)" } else { "no --labels gave the records' runs" };
+        lines.push(format!("{} keep draws for a run, but {why}: they are drawn afresh for every record", keeping.join(", ")));
     }
-    let why = if moments.is_some() { "the labels name no run (`sequence`)" } else { "no --labels gave the records' runs" };
-    Some(format!("{} keep draws for a run, but {why}: they are drawn afresh for every record", keeping.join(", ")))
+    if model.map_memory().is_some() && !any_in_run(moments) {
+        lines.push(
+            "map-memory steps each run's frames, but no record has a run, time and pose (labels' sequence, time, x, y, yaw): \
+             every frame is a run's first"
+                .to_string(),
+        );
+    }
+    (!lines.is_empty()).then(|| lines.join("; "))
 }
 
 /// The moment of record `i` of `moments`, [`Moment::UNKNOWN`] past their end
@@ -203,6 +212,11 @@ impl SensorModel {
         }
         for (i, e) in m.effects.iter().enumerate() {
             e.check().map_err(|r| format!("effect {i} ({}): {r}", e.name()))?;
+            if matches!(e, Effect::MapMemory(_)) && i + 1 != m.effects.len() {
+                return Err(format!(
+                    "effect {i} (map-memory): a map's memory is a model's last effect, on the frame all the others made, and a model has one"
+                ));
+            }
         }
         Ok(m)
     }
@@ -329,15 +343,45 @@ impl SensorModel {
     }
 
     /// [`SensorModel::apply_all`] with each record's moment in its run
-    /// (`moments[i]` for `records[i]`).
+    /// (`moments[i]` for `records[i]`); a map's memory steps each run of
+    /// the records in time order ([`fusion::step_set`]).
     pub fn apply_all_at(&self, records: &mut [Dem], seed: u64, first: u64, moments: Option<&[Moment]>) {
+        let memory = self.map_memory().zip(moments.filter(|m| any_in_run(Some(m))));
+        let inputs = memory.map(|_| records.to_vec());
+        self.apply_frames(records, seed, first, moments);
+        if let (Some((memory, moments)), Some(inputs)) = (memory, inputs) {
+            fusion::step_set(memory, records, &inputs, moments, |i| self.memory_uniforms(seed, first + i as u64));
+        }
+    }
+
+    /// Every record's frame: the model with its map's memory as a run's
+    /// first frame (`moments[i]` for `records[i]`), in parallel.
+    pub fn apply_frames(&self, records: &mut [Dem], seed: u64, first: u64, moments: Option<&[Moment]>) {
         records.par_iter_mut().enumerate().for_each(|(i, d)| self.apply_at(d, seed, first + i as u64, moment_at(moments, i)));
     }
 
-    /// [`SensorModel::apply_all_at`] on `records`, records `first..` of a
+    /// The model's map memory (`map-memory`, a model's last effect), if it has one.
+    pub fn map_memory(&self) -> Option<effects::MapMemory> {
+        match self.effects.last() {
+            Some(Effect::MapMemory(m)) => Some(*m),
+            _ => None,
+        }
+    }
+
+    /// The uniforms of the model's map memory for record `index`: the last
+    /// slice of [`SensorModel::uniforms`] (it keeps none for a run).
+    pub fn memory_uniforms(&self, seed: u64, index: u64) -> Vec<f32> {
+        let e = self.effects.last().expect("a model with a map memory");
+        let mut u = vec![0.0f32; e.draws()];
+        draws::fill_uniform(&mut effect_rng(seed, e, 0, index), &mut u);
+        u
+    }
+
+    /// [`SensorModel::apply_frames`] on `records`, records `first..` of a
     /// stream whose first record is record `first_index` of the whole data
     /// set; `moments` (the labels file and its moments) index the stream's
     /// own records, and a stream longer than them is refused naming the file.
+    /// A map's memory is stepped by the stream's [`fusion::Runs`].
     pub fn apply_chunk(
         &self,
         records: &mut [Dem],
@@ -347,7 +391,7 @@ impl SensorModel {
         moments: Option<(&str, &[Moment])>,
     ) -> Result<()> {
         let m = chunk_moments(moments, first, records.len())?;
-        self.apply_all_at(records, seed, first_index + first, m);
+        self.apply_frames(records, seed, first_index + first, m);
         Ok(())
     }
 
@@ -458,12 +502,17 @@ pub fn apply_shard_emit(
 ) -> Result<u64> {
     let k = model.draws();
     let mut emit = emit_uniform.map(|p| dem_core::npy::F32ArrayWriter::create(p, &[k as u64])).transpose()?;
+    let mut runs = model.map_memory().zip(moments).map(|(m, (path, _))| (fusion::Runs::new(m, first_index), path));
     let (_, written) = transform_checked(
         input,
         output,
         |first, chunk| {
-            match &mut emit {
-                None => model.apply_chunk(chunk, seed, first_index, first, moments)?,
+            let inputs = runs.as_ref().map(|_| chunk.to_vec());
+            let drawn = match &mut emit {
+                None => {
+                    model.apply_chunk(chunk, seed, first_index, first, moments)?;
+                    None
+                }
                 Some(w) => {
                     let m = chunk_moments(moments, first, chunk.len())?;
                     let u = model.uniforms_of(seed, first_index + first, chunk.len(), m);
@@ -475,7 +524,16 @@ pub fn apply_shard_emit(
                     } else {
                         w.write_empty(chunk.len() as u64);
                     }
+                    Some(u)
                 }
+            };
+            if let (Some((runs, path)), Some(inputs)) = (&mut runs, inputs) {
+                let m = chunk_moments(moments, first, chunk.len())?.expect("a map's memory steps runs from labels");
+                let memory_uniforms = |i: usize| match &drawn {
+                    Some(u) => u[(i + 1) * k - fusion::CELLS..(i + 1) * k].to_vec(),
+                    None => model.memory_uniforms(seed, first_index + first + i as u64),
+                };
+                runs.step_chunk(path, first, chunk, &inputs, m, memory_uniforms)?;
             }
             progress(chunk.len() as u64);
             Ok(())

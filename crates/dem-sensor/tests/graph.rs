@@ -78,12 +78,51 @@ fn every_effect_alone_computes_the_same_in_the_graph() {
     assert_eq!(names.len(), dem_sensor::effects::NAMES.len(), "every effect of the vocabulary is checked");
     for e in effects {
         let model = SensorModel::new(vec![e]);
+        if let Some(memory) = model.map_memory() {
+            check_steps(&model, memory);
+            continue;
+        }
         let before = records();
         let mut after = before.clone();
         model.apply_all_at(&mut after, 9, 0, None);
         assert!(before != after, "{e} acts on the test records");
         check(&model);
     }
+}
+
+/// A map's memory: the test records stepped as runs, natively and by tract
+/// feeding each step's state to the next, agree; and the memory acts (a
+/// run's later frames are not the frames alone).
+fn check_steps(model: &SensorModel, memory: dem_sensor::effects::MapMemory) {
+    let input = records();
+    let (n, k) = (input.len(), model.draws());
+    let uniform = model.uniforms_of(9, 0, n, None);
+    let t = times(n);
+    let proto = graph::sensor_model(model, "test", &[]);
+    let (native, got) = dem_sensor::export::stepped(&proto, model, memory, &input, &uniform, &t).unwrap();
+    let frames: Vec<_> = (0..native.len())
+        .map(|i| {
+            let mut d = input[i];
+            model.apply_drawn(&mut d, &uniform[i * k..(i + 1) * k], None);
+            d
+        })
+        .collect();
+    assert!(native != frames, "{}: the memory acts on a run's later frames", model.summary());
+    let (mut differ, mut worst) = (0usize, 0.0f32);
+    for (a, b) in native.iter().zip(&got) {
+        assert_eq!(a[200..], b[200..], "row 20 passes through");
+        for r in 0..GRID_ROWS {
+            for c in 0..COLS {
+                if a.is_valid(r, c) != b.is_valid(r, c) {
+                    differ += 1;
+                } else if a.is_valid(r, c) {
+                    worst = worst.max((a.height(r, c) - b.height(r, c)).abs());
+                }
+            }
+        }
+    }
+    let share = differ as f64 / (native.len() * GRID_ROWS * COLS) as f64;
+    assert!(share <= 1e-4 && worst <= 1e-5, "{}: stepped, {share} of validity and {worst:e} m differ", model.summary());
 }
 
 #[test]

@@ -1,7 +1,8 @@
 //! `dem-sensor export` and `dem-sensor apply --emit-uniform`, run as users
 //! run them: onnxruntime, fed the uniforms dem-sensor drew and the labels'
 //! times, gives dem-sensor's output for every effect of the vocabulary
-//! alone and for a model of several.
+//! alone and for a model of several; a map's memory stepped through the
+//! labels' runs with the motion their poses give.
 
 use dem_sensor::SensorModel;
 use dem_testkit::{arg, ok, py, run, stderr, tempdir, testdata};
@@ -61,12 +62,16 @@ fn onnxruntime_fed_dem_sensor_s_uniforms_gives_its_output_for_every_effect() {
 import csv, os, numpy as np
 from demstream.sensor import VirtualSensor
 dem = np.load("{sim}")
-t = np.array([float(r["time"]) for r in csv.DictReader(open("{labels}"))], dtype=np.float32)
+rows = list(csv.DictReader(open("{labels}")))
+t = np.array([float(r["time"]) for r in rows], dtype=np.float32)
+run = np.array([int(r["sequence"]) for r in rows])
+pose = np.array([[float(r[k]) for k in ("x", "y", "yaw")] for r in rows])
 for i, model, out, u in [{cases}]:
     s = VirtualSensor(model)
     uniform = np.load(u) if "uniform" in s.inputs else None
     assert np.load(u).shape == (len(dem), s.uniform_count), i
-    got = s(dem, time=t, uniform=uniform)
+    # A map's memory: the runs stepped side by side, as dem-sensor steps them.
+    got = s.over_runs(dem, run, pose, time=t, uniform=uniform)
     want = np.load(out)
     va, vb = want[:, :20, :, 1] > 0, got[:, :20, :, 1] > 0
     differ = (va != vb).mean()

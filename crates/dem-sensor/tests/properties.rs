@@ -4,6 +4,7 @@
 //! (PROPTEST_CASES, default 256 a property); `make fuzz` runs many more.
 
 use dem_core::format::{empty_dem, DemCells};
+use dem_sensor::memory::Pose;
 use dem_sensor::{Moment, SensorModel};
 use proptest::prelude::*;
 
@@ -56,6 +57,7 @@ proptest! {
             "step-jitter" => format!(r#"{{"sigma":{},"edge":{b}}}"#, c / 4.0),
             "lag" => format!(r#"{{"s":{},"spread":{c}}}"#, a / 40.0),
             "drift" => format!(r#"{{"rate":{c},"zrate":{b},"x0":{a}}}"#),
+            "map-memory" => format!(r#"{{"rate":{c},"hold":{}}}"#, b / 20.0),
             other => unreachable!("{other}"),
         };
         let json = format!(r#"{{"effects":[{{"effect":"{effect}","params":{params}}}]}}"#);
@@ -96,7 +98,7 @@ proptest! {
     #![proptest_config(config())]
 
     /// Stacks of up to 64 effects anywhere in their physical boxes, on heights up to
-    /// 1e30 m either way, write only finite values.
+    /// 1e30 m either way, write only finite values, frame after frame of a run.
     #[test]
     fn every_accepted_stack_writes_only_finite_values(
         picks in proptest::collection::vec((prop::sample::select(dem_sensor::effects::NAMES.to_vec()), 0.0f64..=1.0, 0.0f64..=1.0, any::<bool>()), 1..=64),
@@ -104,15 +106,22 @@ proptest! {
         heights in proptest::collection::vec(-3.0f32..3.0, 100),
         seed in any::<u64>(),
     ) {
-        let effects: Vec<String> = picks.iter().map(|(e, a, b, s)| extreme(e, *a, *b, if *s { 1.0 } else { -1.0 })).collect();
+        // A map's memory is a model's last effect: the first one picked goes there.
+        let memory = picks.iter().find(|p| p.0 == "map-memory");
+        let mut effects: Vec<String> =
+            picks.iter().filter(|p| p.0 != "map-memory").map(|(e, a, b, s)| extreme(e, *a, *b, if *s { 1.0 } else { -1.0 })).collect();
+        effects.extend(memory.map(|(e, a, b, s)| extreme(e, *a, *b, if *s { 1.0 } else { -1.0 })));
         let json = format!(r#"{{"effects":[{}]}}"#, effects.join(","));
         let m = SensorModel::from_json(&json).map_err(|e| TestCaseError::fail(format!("{json}: {e}")))?;
         let mut d = empty_dem();
         for (i, h) in heights.iter().enumerate() {
             d.set_valid(i / 5, i % 5, *h * scale);
         }
-        m.apply_at(&mut d, seed, 3, Moment { run: None, time: 1.5, pose: None });
-        prop_assert!(d.iter().all(|v| v.is_finite()), "{json} on heights x {scale} wrote a non-finite value");
+        // Three frames of one run, the robot moving and turning between them.
+        let at = |k: f64| Moment { run: Some(4), time: 1.5 + 0.1 * k, pose: Some(Pose { x: 0.07 * k, y: 0.01 * k, yaw: 0.1 * k, travelled: f64::NAN }) };
+        let mut run = [d; 3];
+        m.apply_all_at(&mut run, seed, 3, Some(&[at(0.0), at(1.0), at(2.0)]));
+        prop_assert!(run.iter().flatten().all(|v| v.is_finite()), "{json} on heights x {scale} wrote a non-finite value");
     }
 }
 

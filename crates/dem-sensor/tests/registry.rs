@@ -113,6 +113,10 @@ fn terrain() -> Dem {
 fn every_effect_reads_its_draws() {
     for spec in SPECS {
         let e = at(spec, 0.3);
+        if let Effect::MapMemory(m) = e {
+            memory_reads_its_draws(m);
+            continue;
+        }
         // Uniforms spread over [0, 1), from `start` on.
         let out = |start: f32| {
             let u: Vec<f32> = (0..spec.draws).map(|i| (start + 0.618 * i as f32).fract()).collect();
@@ -126,6 +130,21 @@ fn every_effect_reads_its_draws() {
             assert_ne!(out(0.0), out(0.5), "{}: {} uniforms that change nothing", spec.name, spec.draws);
         }
     }
+}
+
+/// A map's memory reads its draws on a run's later frame: where the frame
+/// misses cells the map holds, whether each keeps the map's estimate.
+fn memory_reads_its_draws(m: dem_sensor::effects::MapMemory) {
+    use dem_sensor::fusion::{state_of, step, Motion};
+    let prev = state_of(&terrain(), &terrain());
+    let out = |start: f32| {
+        let u: Vec<f32> = (0..100).map(|i| (start + 0.618 * i as f32).fract()).collect();
+        let mut d = terrain();
+        (0..20).for_each(|r| d.set_missing(r, r % 5));
+        step(m, &prev, Motion { dx: 0.03, dy: 0.0, dyaw: 0.0 }, &terrain(), &mut d, &u);
+        d
+    };
+    assert_ne!(out(0.0), out(0.5), "map-memory: 100 uniforms that change nothing");
 }
 
 /// docs/dem-sensor.md's table of effects lists exactly the vocabulary,

@@ -145,6 +145,9 @@ pub enum Stage {
     HoleGrowth,
     /// Whole rows lost (`row-dropout`).
     RowDropout,
+    /// The fused map across frames (`map-memory`): last, on the frame
+    /// every other stage made.
+    Memory,
 }
 
 impl Stage {
@@ -168,6 +171,7 @@ impl Stage {
             Stage::Patches => "patches",
             Stage::HoleGrowth => "hole-growth",
             Stage::RowDropout => "row-dropout",
+            Stage::Memory => "memory",
         }
     }
 }
@@ -538,6 +542,7 @@ registry! {
     Lag => heights::lag,
     Drift => heights::drift,
     StepJitter => steps::step_jitter,
+    MapMemory => view::map_memory,
 }
 
 /// Every effect name, in the vocabulary's order ([`SPECS`]' names).

@@ -20,7 +20,8 @@
 use dem_core::format::{COLS, GRID_ROWS};
 use dem_graph::{Builder, Input};
 
-use crate::SensorModel;
+use crate::fusion::{MOTION, MOTION_LEN, RESET, STATE, STATE_OUT};
+use crate::{Effect, SensorModel};
 
 pub mod ops;
 
@@ -69,7 +70,9 @@ pub fn join_dem(b: &mut Builder, c: &Cells, row20: &str, out: &str) -> String {
 
 /// Every effect of `model`, in order, on `cells`; `uniform` is the graph's
 /// `(N, K)` uniforms (needed when K > 0), `time` its `(N,)` times (needed
-/// when the model has `startup`).
+/// when the model has `startup`). A map's memory then steps the frame
+/// ([`crate::fusion::operators`]) from the graph's [`INPUT`] and state
+/// inputs, and names the new state [`STATE_OUT`].
 pub fn apply(b: &mut Builder, model: &SensorModel, cells: Cells, uniform: Option<&str>, time: Option<&str>) -> Cells {
     let mut at = 0;
     let mut c = cells;
@@ -81,6 +84,10 @@ pub fn apply(b: &mut Builder, model: &SensorModel, cells: Cells, uniform: Option
         let u = (n > 0).then(|| uniforms(b, uniform.expect("a model with draws has a uniform input"), at, n, &[-1, n as i64]));
         // An effect that draws nothing never reads its uniforms.
         c = e.graph(b, &c, u.as_deref().unwrap_or(""), time);
+        if let (Effect::MapMemory(m), Some(u)) = (e, &u) {
+            let (input, _) = split_dem(b, INPUT);
+            c = crate::fusion::operators(b, *m, &c, &input, u);
+        }
         at += n;
     }
     b.set_prefix(&base);
@@ -111,8 +118,21 @@ pub fn sensor_model(model: &SensorModel, name: &str, extra_metadata: &[(String, 
         model.summary(),
         input_list(model)
     );
-    b.model(name, graph_inputs(model), vec![dem_graph::batch_value(OUTPUT, &[21, 5, 2])], doc, &metadata)
+    b.model(name, graph_inputs(model), graph_outputs(model), doc, &metadata)
 }
+
+/// The graph's outputs for `model`: [`OUTPUT`], and [`STATE_OUT`] with a
+/// map's memory.
+pub fn graph_outputs(model: &SensorModel) -> Vec<dem_graph::proto::ValueInfoProto> {
+    let mut v = vec![dem_graph::batch_value(OUTPUT, &[21, 5, 2])];
+    if model.map_memory().is_some() {
+        v.push(dem_graph::batch_value(STATE_OUT, &STATE_DIMS));
+    }
+    v
+}
+
+/// A state's shape after the batch axis: `(20, 5, 4)`.
+pub const STATE_DIMS: [i64; 3] = [GRID_ROWS as i64, COLS as i64, crate::fusion::CHANNELS as i64];
 
 /// The `metadata_props` key of a model's warnings ([`SensorModel::warnings`]),
 /// one a line: `dem-apply --info` prints them under it.
@@ -147,6 +167,11 @@ pub fn graph_inputs(model: &SensorModel) -> Vec<dem_graph::proto::ValueInfoProto
     if model.uses_time() {
         v.push(dem_graph::batch_value(TIME, &[]));
     }
+    if model.map_memory().is_some() {
+        v.push(dem_graph::batch_value(STATE, &STATE_DIMS));
+        v.push(dem_graph::batch_value(MOTION, &[MOTION_LEN as i64]));
+        v.push(dem_graph::batch_value(RESET, &[]));
+    }
     v
 }
 
@@ -158,6 +183,13 @@ pub fn input_list(model: &SensorModel) -> String {
     }
     if model.uses_time() {
         parts.push("time float32 (N) seconds into the run, NaN where unknown".to_string());
+    }
+    if model.map_memory().is_some() {
+        parts.push(
+            "state float32 (N,20,5,4) the last frame's state_out (zeros at a reset); motion float32 (N,3) dx, dy (m), dyaw (rad) \
+             since the last frame, in its axes; reset float32 (N) 1 at a run's first frame, else 0. Outputs also state_out"
+                .to_string(),
+        );
     }
     parts.join("; ")
 }
@@ -171,12 +203,16 @@ pub fn io_metadata(model: &SensorModel) -> Vec<(String, String)> {
     if model.uses_time() {
         names.push(TIME);
     }
+    if model.map_memory().is_some() {
+        names.extend([STATE, MOTION, RESET]);
+    }
     vec![(UNIFORM_COUNT_KEY.into(), model.draws().to_string()), (INPUTS_KEY.into(), names.join(","))]
 }
 
 /// Run `proto` (a sensor graph, or any graph with the same inputs) with
 /// tract on `records`, with their uniforms (`records.len() x K`, row-major)
-/// and times (NaN where unknown).
+/// and times (NaN where unknown); a graph with a map's memory as at each
+/// run's first frame.
 pub fn run_tract(
     proto: &dem_graph::proto::ModelProto,
     model: &SensorModel,
@@ -184,6 +220,33 @@ pub fn run_tract(
     uniform: &[f32],
     times: &[f32],
 ) -> anyhow::Result<Vec<dem_core::Dem>> {
+    let n = records.len();
+    let first = Step { state: &vec![0.0; n * crate::fusion::STATE_LEN], motion: &vec![0.0; n * MOTION_LEN], reset: &vec![1.0; n] };
+    Ok(run_tract_step(proto, model, records, uniform, times, first)?.0)
+}
+
+/// The state inputs of one step of a graph with a map's memory, one
+/// record after another, row-major.
+#[derive(Clone, Copy)]
+pub struct Step<'a> {
+    /// [`STATE`]: `N x 400`.
+    pub state: &'a [f32],
+    /// [`MOTION`]: `N x 3`.
+    pub motion: &'a [f32],
+    /// [`RESET`]: `N`.
+    pub reset: &'a [f32],
+}
+
+/// [`run_tract`] for one step of a graph: its DEMs and, with a map's
+/// memory, its new state (`N x 400`; empty without).
+pub fn run_tract_step(
+    proto: &dem_graph::proto::ModelProto,
+    model: &SensorModel,
+    records: &[dem_core::Dem],
+    uniform: &[f32],
+    times: &[f32],
+    step: Step,
+) -> anyhow::Result<(Vec<dem_core::Dem>, Vec<f32>)> {
     let n = records.len();
     let flat: Vec<f32> = records.iter().flat_map(|d| d.iter().copied()).collect();
     let mut inputs = vec![Input { name: INPUT, shape: vec![n, 21, 5, 2], data: &flat }];
@@ -193,6 +256,13 @@ pub fn run_tract(
     if model.uses_time() {
         inputs.push(Input { name: TIME, shape: vec![n], data: times });
     }
-    let out = dem_graph::run(proto, &inputs)?;
-    Ok(out.chunks(dem_core::format::RECORD_LEN).map(|c| std::array::from_fn(|i| c[i])).collect())
+    if model.map_memory().is_some() {
+        inputs.push(Input { name: STATE, shape: vec![n, GRID_ROWS, COLS, crate::fusion::CHANNELS], data: step.state });
+        inputs.push(Input { name: MOTION, shape: vec![n, MOTION_LEN], data: step.motion });
+        inputs.push(Input { name: RESET, shape: vec![n], data: step.reset });
+    }
+    let mut out = dem_graph::run_all(proto, &inputs)?;
+    let state = if out.len() > 1 { out.swap_remove(1) } else { Vec::new() };
+    let dems = out[0].chunks(dem_core::format::RECORD_LEN).map(|c| std::array::from_fn(|i| c[i])).collect();
+    Ok((dems, state))
 }

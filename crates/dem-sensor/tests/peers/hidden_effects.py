@@ -4,10 +4,11 @@ formulas with numpy, independently of the Rust sensor/fitting code (its own
 random draws, its own loops), so dem-gap's tests check the fitter against
 data it did not make.
 
-usage: python hidden_effects.py SIM.npy OUT.npy SEED EFFECT [EFFECT ...]
+usage: python hidden_effects.py SIM.npy OUT.npy SEED EFFECT [EFFECT ...] [--labels LABELS.csv]
 EFFECT: name:param=value,param=value   e.g. noise:sigma0=0.004,k=0.012
 Effects are applied in the order given. Record i of OUT is record i of SIM
-(identity pairing).
+(identity pairing). map-memory, last, steps each run of LABELS.csv
+(sequence, time, x, y, yaw) in file order; without labels it does nothing.
 
 Definitions (x of row r = -0.55 + 0.1 r, y of column c = (2 - c) 0.1,
 heights relative to the robot centre; missing = mask -1, height 0):
@@ -88,6 +89,17 @@ heights relative to the robot centre; missing = mask -1, height 0):
                0, clamped to +-1 rad; linear interpolation between the two
                row centres around x - s_r, a row outside the grid or missing
                read as the cell's own height; validity kept
+  map-memory   per run, frame after frame: the last frame's output and
+               input grids moved by the robot's motion (from the labels'
+               poses, in the last frame's axes): cell (r, c) of the new
+               frame is at (x, y) = R(dyaw) (x_r, y_c) + (dx, dy) in the
+               last one; valid where the last frame's nearest cell is,
+               its height the bilinear mean of the valid cells of the
+               four around it. dz = mean over cells valid in the moved
+               last input and the input of (moved last input - input).
+               With m the moved last output - dz and f this frame:
+               both valid: m + rate (f - m); f only: f; m only: m with
+               probability hold, else missing
   drift        rows with centre x < x0 displaced: going back from the last
                such row, dx and dz are cumulative sums of normals of sd
                rate sqrt(0.1) and zrate sqrt(0.1) per row (one of each per
@@ -454,23 +466,98 @@ def drift(d, rng, rate, zrate, x0):
     _shift(d, dx, dz)
 
 
+def map_memory(d, rng, rate, hold):
+    """A frame alone is a run's first: the map is the frame (the step is map_memory_step)."""
+
+
+def _moved(grid, fr, fc):
+    """grid (20, 5, 2) at fractional cells (fr, fc): (valid, height) by the nearest cell and bilinear weights."""
+    rn, cn = int(np.floor(fr + 0.5)), int(np.floor(fc + 0.5))
+    if not (0 <= rn < 20 and 0 <= cn < 5) or grid[rn, cn, 1] <= 0:
+        return False, 0.0
+    r0, c0 = int(np.floor(fr)), int(np.floor(fc))
+    num = den = 0.0
+    for rr, wr in ((r0, 1 - (fr - r0)), (r0 + 1, fr - r0)):
+        for cc, wc in ((c0, 1 - (fc - c0)), (c0 + 1, fc - c0)):
+            if 0 <= rr < 20 and 0 <= cc < 5 and grid[rr, cc, 1] > 0:
+                num += wr * wc * grid[rr, cc, 0]
+                den += wr * wc
+    return True, num / den
+
+
+def map_memory_step(last_out, last_in, d, inp, motion, rng, rate, hold):
+    dx, dy, dyaw = motion
+    src = {}
+    for r in range(20):
+        for c in range(5):
+            x = np.cos(dyaw) * X[r] - np.sin(dyaw) * Y[c] + dx
+            y = np.sin(dyaw) * X[r] + np.cos(dyaw) * Y[c] + dy
+            src[r, c] = (x + 0.55) / 0.1, 2 - y / 0.1
+    diffs = []
+    for (r, c), (fr, fc) in src.items():
+        ok, h = _moved(last_in, fr, fc)
+        if ok and inp[r, c, 1] > 0:
+            diffs.append(h - inp[r, c, 0])
+    dz = float(np.mean(diffs)) if diffs else 0.0
+    keep = rng.random((20, 5)) < hold
+    for (r, c), (fr, fc) in src.items():
+        ok, m = _moved(last_out, fr, fc)
+        m -= dz
+        if d[r, c, 1] > 0 and ok:
+            d[r, c, 0] = m + rate * (d[r, c, 0] - m)
+        elif d[r, c, 1] <= 0 and ok and keep[r, c]:
+            d[r, c] = (m, 1.0)
+        elif d[r, c, 1] <= 0:
+            d[r, c] = (0.0, -1.0)
+
+
+def runs_of(labels):
+    """Per record: (run, pose) from a labels CSV with sequence, x, y, yaw."""
+    import csv
+    with open(labels) as f:
+        return [(r["sequence"], (float(r["x"]), float(r["y"]), float(r["yaw"]))) for r in csv.DictReader(f)]
+
+
+def motion_between(a, b):
+    (xa, ya, wa), (xb, yb, wb) = a, b
+    ex, ey = xb - xa, yb - ya
+    turn = (wb - wa + np.pi) % (2 * np.pi) - np.pi
+    return np.cos(wa) * ex + np.sin(wa) * ey, -np.sin(wa) * ex + np.cos(wa) * ey, turn
+
+
 EFFECTS = {"noise": noise, "dropout": dropout, "row-dropout": row_dropout, "occlusion": occlusion,
            "fov": fov, "smoothing": smoothing, "bias": bias, "quantization": quantization,
            "startup": startup, "patch-dropout": patch_dropout, "edge-holes": edge_holes,
            "mixed-cells": mixed_cells, "rim-holes": rim_holes, "pit-fill": pit_fill, "view-top": view_top,
            "hole-growth": hole_growth, "drop-blend": drop_blend, "riser-blend": riser_blend, "floor-lift": floor_lift,
-           "drop-holes": drop_holes, "tilt": tilt, "shake": shake, "step-jitter": step_jitter, "lag": lag, "drift": drift}
+           "drop-holes": drop_holes, "tilt": tilt, "shake": shake, "step-jitter": step_jitter, "lag": lag, "drift": drift,
+           "map-memory": map_memory}
 
 
 def main():
-    sim_path, out_path, seed = sys.argv[1], sys.argv[2], int(sys.argv[3])
-    effects = [parse(s) for s in sys.argv[4:]]
-    sim = np.load(sim_path)
+    args = sys.argv[1:]
+    labels = None
+    if "--labels" in args:
+        i = args.index("--labels")
+        labels = args[i + 1]
+        args = args[:i] + args[i + 2:]
+    sim_path, out_path, seed = args[0], args[1], int(args[2])
+    effects = [parse(s) for s in args[3:]]
+    memory = dict(effects).get("map-memory")
+    sim = np.load(sim_path).astype(np.float32)
     rng = np.random.default_rng(seed)
-    out = sim.astype(np.float32).copy()
-    for d in out:
+    out = sim.copy()
+    runs = runs_of(labels) if labels and memory is not None else None
+    last = {}
+    for i, d in enumerate(out):
         for name, params in effects:
             EFFECTS[name](d, rng, **params)
+        if runs is not None:
+            run, pose = runs[i]
+            if run in last:
+                was_pose, was_out, was_in = last[run]
+                map_memory_step(was_out, was_in, d, sim[i], motion_between(was_pose, pose), rng, **memory)
+            last[run] = (pose, d.copy(), sim[i])
     np.save(out_path, out.astype(np.float32))
 
 

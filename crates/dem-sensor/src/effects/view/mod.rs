@@ -1,5 +1,6 @@
-//! What the sensor can see: `occlusion`, `fov`, `view-top`, `startup`.
-//! Each removes cells the camera never observed; none moves a height.
+//! What the sensor can see: `occlusion`, `fov`, `view-top`, `startup`, and
+//! what the map keeps of what it saw (`map-memory`). The first four remove
+//! cells the camera never observed and move no height.
 //!
 //! One file per effect (its parameters, spec, check, apply, ONNX
 //! operators, evidence sentence and examples); this module holds what
@@ -9,6 +10,7 @@ use crate::graph::ops::HALF;
 use dem_core::format::{row_center_x, COLS, GRID_ROWS};
 
 pub mod fov;
+pub mod map_memory;
 pub mod occlusion;
 pub mod startup;
 pub mod view_top;
