@@ -322,3 +322,92 @@ print(bool(np.isfinite(out).all()))
     assert!(lines[2].starts_with("environment 2: time inf"), "{said}");
     assert_eq!(lines[3], "True", "a NaN height is a missing cell, not a NaN output: {said}");
 }
+
+/// A residual with a map's memory: dem-apply steps each run of the labels in
+/// stream order, and onnxruntime stepping the whole graph through the same
+/// runs (`VirtualSensor.over_runs`, fed dem-apply's uniforms) gives its
+/// output; `VirtualSensor` keeps each environment's map, `reset(ids)`
+/// starts those runs again while the others keep theirs, and it refuses a
+/// motion or height that is not finite, naming the environment. A run out
+/// of time order is refused naming the record, and nothing is written.
+#[test]
+fn a_map_s_memory_steps_each_run_alike_in_dem_apply_and_onnxruntime() {
+    let dir = tempdir();
+    let json = RESIDUAL.replace(
+        r#"{"effect": "hole-growth", "params": {"p": 0.15}}"#,
+        r#"{"effect": "hole-growth", "params": {"p": 0.15}}, {"effect": "map-memory", "params": {"rate": 0.35, "hold": 0.9}}"#,
+    );
+    let residual = SensorModel::from_json(&json).unwrap();
+    assert!(residual.map_memory().is_some());
+    let model = arg(dir.path(), "gy-memory.onnx");
+    export(&model, &Stored { residual: Some(residual.clone()), heights: Heights::Input });
+    let (out, u) = (arg(dir.path(), "out.npy"), arg(dir.path(), "u.npy"));
+    let args = ["--model", &model, "--labels", &td("sim_labels.csv"), "--seed", "5", "--emit-uniform", &u, &td("sim.npy"), "-o", &out];
+    ok(&run("dem-apply", &args, None));
+    let said = py(
+        dir.path(),
+        &format!(
+            r#"
+import csv, numpy as np
+from demstream.sensor import VirtualSensor, motion_between
+s = VirtualSensor("{model}")
+assert s.stateful and s.inputs == ["dem", "uniform", "time", "state", "motion", "reset"], s.inputs
+dem, u, want = np.load("{sim}"), np.load("{u}"), np.load("{out}")
+rows = list(csv.DictReader(open("{labels}")))
+t = np.array([float(r["time"]) for r in rows], dtype=np.float32)
+run = np.array([int(r["sequence"]) for r in rows])
+pose = np.array([[float(r[k]) for k in ("x", "y", "yaw")] for r in rows])
+got = s.over_runs(dem, run, pose, time=t, uniform=u)
+va, vb = want[:, :20, :, 1] > 0, got[:, :20, :, 1] > 0
+worst = np.abs(np.where(va & vb, want[:, :20, :, 0] - got[:, :20, :, 0], 0)).max()
+print("alike", (va != vb).mean(), worst, np.array_equal(want[:, 20], got[:, 20]))
+# Three environments, each on its own run; environment 1 starts again at the fourth step.
+runs = [np.flatnonzero(run == r)[:4] for r in np.unique(run)[:3]]
+steps = [np.array([r[k] for r in runs]) for k in range(4)]
+s, outs = VirtualSensor("{model}"), []
+for k, idx in enumerate(steps):
+    if k == 3:
+        s.reset([1])
+    motion = None if k == 0 else motion_between(pose[steps[k - 1]], pose[idx])
+    outs.append(s(dem[idx], time=t[idx], uniform=u[idx], motion=motion))
+idx = steps[3]
+first = VirtualSensor("{model}")(dem[idx[1:2]], time=t[idx[1:2]], uniform=u[idx[1:2]])
+kept = VirtualSensor("{model}").over_runs(dem[runs[0]], run=[0] * 4, pose=pose[runs[0]], time=t[runs[0]], uniform=u[runs[0]])
+frame = VirtualSensor("{model}")(dem[idx[:1]], time=t[idx[:1]], uniform=u[idx[:1]])
+print("reset", np.array_equal(outs[3][1], first[0]), np.abs(outs[3][0] - kept[3]).max() < 1e-6, not np.array_equal(outs[3][0], frame[0]))
+for bad, what in [("motion", "environment 2: motion"), ("dem", "environment 0: inf in the height")]:
+    m = np.zeros((3, 3), np.float32)
+    d = dem[idx].copy()
+    if bad == "motion":
+        m[2, 0] = np.nan
+    else:
+        d[0, 4, 2, 0] = np.inf
+    try:
+        s(d, time=t[idx], motion=m)
+        print("accepted", bad)
+    except ValueError as e:
+        print("refused", what in str(e), e)
+"#,
+            sim = td("sim.npy"),
+            labels = td("sim_labels.csv"),
+        ),
+    );
+    let alike: Vec<&str> = said.lines().find(|l| l.starts_with("alike")).unwrap().split_whitespace().collect();
+    let (differ, worst): (f64, f64) = (alike[1].parse().unwrap(), alike[2].parse().unwrap());
+    assert!(differ <= 1e-4 && worst <= 1e-5 && alike[3] == "True", "{said}");
+    assert!(said.contains("reset True True True"), "the reset environment starts again, the others keep their maps: {said}");
+    assert_eq!(said.matches("refused True").count(), 2, "{said}");
+    // A run out of time order: record 2 of run 0 before record 1.
+    let text = std::fs::read_to_string(td("sim_labels.csv")).unwrap();
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    let mut row: Vec<String> = lines[2].split(',').map(String::from).collect();
+    *row.last_mut().unwrap() = "9.5".into();
+    lines[2] = row.join(",");
+    let labels = arg(dir.path(), "late.csv");
+    std::fs::write(&labels, lines.join("\n") + "\n").unwrap();
+    let late = arg(dir.path(), "late.npy");
+    let o = run("dem-apply", &["--model", &model, "--labels", &labels, &td("sim.npy"), "-o", &late], None);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("late.csv") && stderr(&o).contains("record 2 (run 0) is at 0.8 s"), "{}", stderr(&o));
+    assert!(!std::path::Path::new(&late).exists(), "nothing written");
+}

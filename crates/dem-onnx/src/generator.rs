@@ -80,12 +80,18 @@ pub fn generator_model(w: &GeneratorWeights, name: &str) -> pb::ModelProto {
         w.arch.name(),
         w.width
     );
-    model_proto(g, name, doc, vec![dem_graph::batch_value(INPUT, &[21, 5, 2])])
+    model_proto(g, name, doc, vec![dem_graph::batch_value(INPUT, &[21, 5, 2])], vec![dem_graph::batch_value(OUTPUT, &[21, 5, 2])])
 }
 
 /// A model of graph `g` with output [`OUTPUT`] `(N, 21, 5, 2)`.
-pub(crate) fn model_proto(g: Builder, name: &str, doc: String, inputs: Vec<pb::ValueInfoProto>) -> pb::ModelProto {
-    let mut m = g.model(name, inputs, vec![dem_graph::batch_value(OUTPUT, &[21, 5, 2])], doc, &[]);
+pub(crate) fn model_proto(
+    g: Builder,
+    name: &str,
+    doc: String,
+    inputs: Vec<pb::ValueInfoProto>,
+    outputs: Vec<pb::ValueInfoProto>,
+) -> pb::ModelProto {
+    let mut m = g.model(name, inputs, outputs, doc, &[]);
     m.producer_name = "dem-onnx".into();
     m
 }

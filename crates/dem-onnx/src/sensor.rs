@@ -167,7 +167,7 @@ pub fn sensor_model(w: &GeneratorWeights, name: &str, stored: &Stored) -> pb::Mo
     tail_nodes(&mut g, stored);
     let desc = format!("G_Y ({} head, width {})", w.arch.name(), w.width);
     let model = stored.residual_or_empty();
-    model_proto(g, name, stored.describe(&desc), sensor_graph::graph_inputs(&model))
+    model_proto(g, name, stored.describe(&desc), sensor_graph::graph_inputs(&model), sensor_graph::graph_outputs(&model))
 }
 
 /// The network part of a virtual sensor file ([`network_part`]).
@@ -256,7 +256,13 @@ fn sensor_alone(proto: &pb::ModelProto, info: &ModelInfo, name: &str) -> Result<
     }
     let mut g = Builder::new();
     g.node("Identity", &[INPUT], vec![], NETWORK_OUT);
-    let identity = model_proto(g, &graph.name, String::new(), vec![dem_graph::batch_value(INPUT, &[21, 5, 2])]);
+    let identity = model_proto(
+        g,
+        &graph.name,
+        String::new(),
+        vec![dem_graph::batch_value(INPUT, &[21, 5, 2])],
+        vec![dem_graph::batch_value(OUTPUT, &[21, 5, 2])],
+    );
     let mut identity = identity;
     identity.graph.as_mut().expect("a graph").output = vec![dem_graph::batch_value(NETWORK_OUT, &[21, 5, 2])];
     Ok((identity, Stored { residual: Some(model), heights: Heights::Network }))

@@ -98,6 +98,46 @@ fn deterministic_effects_equal_the_numpy_implementation() {
     }
 }
 
+/// A map's memory stepped through the bundled runs (labels' runs, times and
+/// poses) by dem-sensor and by the numpy peer, which reads the labels and
+/// steps the runs in its own loops: with a hold of 1 (no draw decides) the
+/// same cells are missing and heights agree within 1e-5 m.
+#[test]
+fn a_map_s_memory_over_runs_matches_the_numpy_peer() {
+    let dir = tempdir();
+    let model = arg(dir.path(), "m.json");
+    std::fs::write(
+        &model,
+        r#"{"effects": [{"effect": "dropout", "params": {"p": 0.0}}, {"effect": "map-memory", "params": {"rate": 0.3, "hold": 1.0}}]}"#,
+    )
+    .unwrap();
+    let args = ["apply", "--sensor", &model, "--labels", &td("sim_labels.csv"), &td("sim.npy")];
+    let rust = npy::NpyReader::new(ok(&run("dem-sensor", &args, None)), "stdout", None).read_to_end().unwrap();
+    let py_out = arg(dir.path(), "p.npy");
+    let o = Command::new(python())
+        .arg(workspace_root().join("crates/dem-sensor/tests/peers/hidden_effects.py"))
+        .args([&td("sim.npy"), &py_out, "1", "map-memory:rate=0.3,hold=1", "--labels", &td("sim_labels.csv")])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let theirs = npy::read_all(&py_out).unwrap();
+    let sim = npy::read_all(&td("sim.npy")).unwrap();
+    let (mut worst, mut moved) = (0.0f32, 0usize);
+    for ((a, b), s) in rust.iter().zip(&theirs).zip(&sim) {
+        for r in 0..20 {
+            for c in 0..5 {
+                assert_eq!(a.is_valid(r, c), b.is_valid(r, c), "cell ({r}, {c}) validity");
+                if a.is_valid(r, c) {
+                    worst = worst.max((a.height(r, c) - b.height(r, c)).abs());
+                    moved += usize::from(!s.is_valid(r, c) || (a.height(r, c) - s.height(r, c)).abs() > 1e-3);
+                }
+            }
+        }
+    }
+    assert!(worst <= 1e-5, "heights differ by {worst:e} m");
+    assert!(moved > rust.len(), "the memory acts: {moved} cells of {} records differ from sim", rust.len());
+}
+
 #[test]
 fn bad_models_exit_2_naming_the_file() {
     let dir = tempdir();
