@@ -16,8 +16,9 @@ Fed the uniforms dem-apply drew (``dem-apply --emit-uniform u.npy``),
 ``sensor(dems, time=t, uniform=np.load("u.npy"))`` gives dem-apply's output.
 
 A file whose model has a map's memory (``map-memory``) also takes ``state``
-``(N, 20, 5, 4)``, ``motion`` ``(N, 3)`` (dx, dy in m, dyaw in rad since the
-environment's last frame, in that frame's axes) and ``reset`` ``(N,)``, and
+``(N, 20, 5, 4)``, ``motion`` ``(N, 4)`` (dx, dy in m, dyaw in rad since the
+environment's last frame, in that frame's axes, and dt, the seconds since
+it) and ``reset`` ``(N,)``, and
 gives ``state_out``. The sensor keeps each environment's state between
 calls: ``reset(ids)`` starts those environments' runs again (their next
 frame is a run's first: no memory, and with ``time`` since the reset, the
@@ -37,15 +38,17 @@ __all__ = ["VirtualSensor", "draw_uniform", "draw_uniform_torch", "motion_betwee
 _STATE = (20, 5, 4)
 
 
-def motion_between(a, b):
-    """The motion ``(N, 3)`` from poses ``a`` to ``b`` (each ``(N, 3)``: world
-    x, y, yaw): forward and left in ``a``'s axes, and the turn in (-pi, pi]."""
+def motion_between(a, b, dt):
+    """The motion ``(N, 4)`` from poses ``a`` to ``b`` (each ``(N, 3)``: world
+    x, y, yaw) ``dt`` seconds later (a number or ``(N,)``): forward and left
+    in ``a``'s axes, the turn in (-pi, pi], and dt."""
     a, b = np.asarray(a, np.float64), np.asarray(b, np.float64)
     ex, ey = b[:, 0] - a[:, 0], b[:, 1] - a[:, 1]
     c, s = np.cos(a[:, 2]), np.sin(a[:, 2])
     turn = np.remainder(b[:, 2] - a[:, 2], 2 * np.pi)
     turn = np.where(turn > np.pi, turn - 2 * np.pi, turn)
-    return np.stack([c * ex + s * ey, -s * ex + c * ey, turn], axis=1).astype(np.float32)
+    dt = np.broadcast_to(np.asarray(dt, np.float64), ex.shape)
+    return np.stack([c * ex + s * ey, -s * ex + c * ey, turn, dt], axis=1).astype(np.float32)
 
 _GRID = 2 ** 24
 
@@ -138,7 +141,7 @@ class VirtualSensor:
         ``uniform``: the ``(N, K)`` draws; by default fresh ones from ``rng``
         (a ``numpy.random.Generator``; a new one when ``None``).
         ``motion``: with a map's memory, each environment's ``(dx, dy,
-        dyaw)`` since its last frame, ``(N, 3)`` (ignored at a run's first
+        dyaw, dt)`` since its last frame, ``(N, 4)`` (ignored at a run's first
         frame; ``None``: every environment's first). The batch keeps its
         environments: the first call fixes ``N``, and every environment
         starts its run there.
@@ -174,11 +177,14 @@ class VirtualSensor:
         ``--labels``: ``run`` ``(N,)`` each record's run, ``pose`` ``(N, 3)``
         its world x, y, yaw; each run's records in their order in ``dem``,
         the runs side by side as one batch of environments. Without a map's
-        memory, one call."""
+        memory, one call; with one, ``time`` (seconds in each run) is needed."""
         dem = np.asarray(dem, dtype=np.float32)
         n = dem.shape[0]
         if not self.stateful:
             return self(dem, time=time, uniform=uniform)
+        if time is None:
+            raise ValueError("over_runs: a map's memory needs each record's time in its run")
+        time = np.asarray(time, np.float32).reshape(n)
         run = np.asarray(run).reshape(n)
         pose = np.asarray(pose, dtype=np.float64).reshape(n, 3)
         order = [np.flatnonzero(run == r) for r in dict.fromkeys(run.tolist())]
@@ -191,9 +197,10 @@ class VirtualSensor:
             # A run that has ended repeats its last record; its output is not kept.
             idx = np.array([o[min(k, len(o) - 1)] for o in order])
             feeds = dict(
-                time=None if time is None else np.asarray(time, np.float32).reshape(n)[idx],
+                time=time[idx],
                 uniform=None if uniform is None else np.asarray(uniform, np.float32)[idx],
-                motion=None if last is None else motion_between(pose[last], pose[idx]),
+                # A run that has ended steps on its last record, a moment on.
+                motion=None if last is None else motion_between(pose[last], pose[idx], np.maximum(time[idx] - time[last], 1e-3)),
             )
             got = sensor(dem[idx], **feeds)
             live = np.array([k < len(o) for o in order])
@@ -215,12 +222,15 @@ class VirtualSensor:
         if motion is None:
             if not self.starting.all():
                 raise ValueError("motion is needed: the sensor keeps its environments' maps (reset() starts every run again)")
-            motion = np.zeros((n, 3), np.float32)
+            motion = np.zeros((n, 4), np.float32)
         motion = np.ascontiguousarray(motion, dtype=np.float32)
-        if motion.shape != (n, 3):
-            raise ValueError(f"motion has shape {motion.shape}; need ({n}, 3): dx, dy (m), dyaw (rad)")
-        bad = np.flatnonzero(~np.isfinite(motion).all(axis=1) & ~self.starting)
+        if motion.shape != (n, 4):
+            raise ValueError(f"motion has shape {motion.shape}; need ({n}, 4): dx, dy (m), dyaw (rad), dt (s)")
+        bad = np.flatnonzero((~np.isfinite(motion).all(axis=1) | (motion[:, 3] <= 0)) & ~self.starting)
         if bad.size:
-            raise ValueError(f"environment {bad[0]}: motion {motion[bad[0]].tolist()} (dx, dy in m and dyaw in rad must be finite)")
+            raise ValueError(
+                f"environment {bad[0]}: motion {motion[bad[0]].tolist()} (dx, dy in m and dyaw in rad must be finite, "
+                "and dt, the seconds since its last frame, > 0)"
+            )
         motion = np.where(self.starting[:, None], 0.0, motion).astype(np.float32)
         return {"state": self.state, "motion": motion, "reset": self.starting.astype(np.float32)}

@@ -60,7 +60,7 @@ def main(argv=None):
     last = None
     for step in range(a.steps):
         idx = np.array([runs[r][min(f, len(runs[r]) - 1)] for r, f in zip(run, frame)])
-        motion = None if last is None else motion_between(poses[last], poses[idx])
+        motion = None if last is None else motion_between(poses[last], poses[idx], a.dt)
         seen = sensor(dems[idx], time=t, rng=rng, motion=motion)  # the virtual sensor, one batch
         last = idx
         action = np.tanh(seen.reshape(a.envs, -1) @ policy)        # the policy's input is what a robot would see

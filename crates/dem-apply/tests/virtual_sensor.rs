@@ -335,7 +335,7 @@ fn a_map_s_memory_steps_each_run_alike_in_dem_apply_and_onnxruntime() {
     let dir = tempdir();
     let json = RESIDUAL.replace(
         r#"{"effect": "hole-growth", "params": {"p": 0.15}}"#,
-        r#"{"effect": "hole-growth", "params": {"p": 0.15}}, {"effect": "map-memory", "params": {"rate": 0.35, "hold": 0.9}}"#,
+        r#"{"effect": "hole-growth", "params": {"p": 0.15}}, {"effect": "map-memory", "params": {"tau": 0.6, "keep": 3.0}}"#,
     );
     let residual = SensorModel::from_json(&json).unwrap();
     assert!(residual.map_memory().is_some());
@@ -368,7 +368,7 @@ s, outs = VirtualSensor("{model}"), []
 for k, idx in enumerate(steps):
     if k == 3:
         s.reset([1])
-    motion = None if k == 0 else motion_between(pose[steps[k - 1]], pose[idx])
+    motion = None if k == 0 else motion_between(pose[steps[k - 1]], pose[idx], t[idx] - t[steps[k - 1]])
     outs.append(s(dem[idx], time=t[idx], uniform=u[idx], motion=motion))
 idx = steps[3]
 first = VirtualSensor("{model}")(dem[idx[1:2]], time=t[idx[1:2]], uniform=u[idx[1:2]])
@@ -376,7 +376,8 @@ kept = VirtualSensor("{model}").over_runs(dem[runs[0]], run=[0] * 4, pose=pose[r
 frame = VirtualSensor("{model}")(dem[idx[:1]], time=t[idx[:1]], uniform=u[idx[:1]])
 print("reset", np.array_equal(outs[3][1], first[0]), np.abs(outs[3][0] - kept[3]).max() < 1e-6, not np.array_equal(outs[3][0], frame[0]))
 for bad, what in [("motion", "environment 2: motion"), ("dem", "environment 0: inf in the height")]:
-    m = np.zeros((3, 3), np.float32)
+    m = np.zeros((3, 4), np.float32)
+    m[:, 3] = 0.4
     d = dem[idx].copy()
     if bad == "motion":
         m[2, 0] = np.nan

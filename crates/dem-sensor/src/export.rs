@@ -179,7 +179,12 @@ pub fn stepped(
     let runs = records.len() / RUN_FRAMES;
     let mut rng = ChaCha8Rng::seed_from_u64(1);
     let motions: Vec<Motion> = (0..runs * RUN_FRAMES)
-        .map(|_| Motion { dx: rng.gen_range(-0.02..0.15), dy: rng.gen_range(-0.05..0.05), dyaw: rng.gen_range(-0.2..0.2) })
+        .map(|_| Motion {
+            dx: rng.gen_range(-0.02..0.15),
+            dy: rng.gen_range(-0.05..0.05),
+            dyaw: rng.gen_range(-0.2..0.2),
+            dt: rng.gen_range(0.03..0.5),
+        })
         .collect();
     let at = |run: usize, frame: usize| run * RUN_FRAMES + frame;
     let mut native = vec![records[0]; runs * RUN_FRAMES];

@@ -10,9 +10,10 @@
 //!           valid iff the nearest cell (floor(fr + 1/2), floor(fc + 1/2)) is in the grid and valid;
 //!           its height bilinear over the valid cells of the four around (fr, fc)
 //! climb     dz = mean over cells whose input is valid now and was (moved): last input - input
+//! weights   dt seconds after the last frame: rate = 1 - e^(-dt/tau), kept = e^(-dt/keep)
 //! new       frame valid, map valid:  h = (m - dz) + rate (f - (m - dz))
 //!           frame valid, map missing: h = f
-//!           frame missing, map valid: h = m - dz when u < hold (the map keeps it), else missing
+//!           frame missing, map valid: h = m - dz when u < kept (the map keeps it), else missing
 //!           a run's first frame (reset): the frame
 //! ```
 //!
@@ -29,7 +30,7 @@ use dem_core::error::{DemError, Result};
 use dem_core::format::{Dem, DemCells, COLS, GRID_ROWS};
 use dem_graph::{attr_int, Builder};
 
-use crate::effects::{hit, MapMemory};
+use crate::effects::MapMemory;
 use crate::graph::ops::{is_valid, Cells};
 use crate::memory::Pose;
 use crate::Moment;
@@ -43,14 +44,16 @@ pub const CELLS: usize = GRID_ROWS * COLS;
 pub const STATE_LEN: usize = GRID_ROWS * COLS * CHANNELS;
 /// One record's state ([`CHANNELS`] per cell).
 pub type State = [f32; STATE_LEN];
-/// Floats of one record's motion: dx, dy (m), dyaw (rad).
-pub const MOTION_LEN: usize = 3;
+/// Floats of one record's motion: dx, dy (m), dyaw (rad), dt (s).
+pub const MOTION_LEN: usize = 4;
+/// Stands in for a time constant of 0 (the frame alone) in a division.
+const TINY: f32 = 1e-30;
 
 /// Name of the graph's state input `(N, 20, 5, 4)` (zeros at a reset).
 pub const STATE: &str = "state";
-/// Name of the graph's motion input `(N, 3)`: the robot's move since the
+/// Name of the graph's motion input `(N, 4)`: the robot's move since the
 /// last frame, in the last frame's axes (x forward, y left, yaw
-/// counter-clockwise).
+/// counter-clockwise), and the seconds since it.
 pub const MOTION: &str = "motion";
 /// Name of the graph's reset input `(N,)`: 1 at a run's first frame, 0 after.
 pub const RESET: &str = "reset";
@@ -73,22 +76,32 @@ pub struct Motion {
     pub dy: f32,
     /// Turn (rad, counter-clockwise), in (-pi, pi].
     pub dyaw: f32,
+    /// Seconds since the last frame.
+    pub dt: f32,
 }
 
 impl Motion {
-    /// The move from pose `a` to pose `b` (world poses of the labels).
-    pub fn between(a: Pose, b: Pose) -> Motion {
+    /// The move from pose `a` at time `ta` to pose `b` at `tb` (world
+    /// poses of the labels, seconds in the run).
+    pub fn between(a: Pose, ta: f64, b: Pose, tb: f64) -> Motion {
         let (s, c) = a.yaw.sin_cos();
         let (ex, ey) = (b.x - a.x, b.y - a.y);
         let turn = (b.yaw - a.yaw).rem_euclid(std::f64::consts::TAU);
         let turn = if turn > std::f64::consts::PI { turn - std::f64::consts::TAU } else { turn };
-        Motion { dx: (c * ex + s * ey) as f32, dy: (-s * ex + c * ey) as f32, dyaw: turn as f32 }
+        Motion { dx: (c * ex + s * ey) as f32, dy: (-s * ex + c * ey) as f32, dyaw: turn as f32, dt: (tb - ta) as f32 }
     }
 
-    /// The three numbers of the graph's [`MOTION`] input.
+    /// The four numbers of the graph's [`MOTION`] input.
     pub fn to_array(self) -> [f32; MOTION_LEN] {
-        [self.dx, self.dy, self.dyaw]
+        [self.dx, self.dy, self.dyaw, self.dt]
     }
+}
+
+/// The weight of a frame `dt` seconds after the last, and the chance that
+/// a cell it misses keeps the map's estimate: `(1 - e^(-dt/tau), e^(-dt/keep))`.
+pub fn weights(m: MapMemory, dt: f32) -> (f32, f32) {
+    let decay = |t: f64| (-dt / (t as f32).max(TINY)).exp();
+    (1.0 - decay(m.tau), decay(m.keep))
 }
 
 /// The state after a frame: `output` (the map) and `input` (the DEM the
@@ -166,14 +179,14 @@ pub fn step(m: MapMemory, prev: &State, motion: Motion, input: &Dem, out: &mut D
         }
     }
     let dz = climb / seen.max(1.0);
-    let rate = m.rate as f32;
+    let (rate, kept) = weights(m, motion.dt);
     for (i, &(fr, fc)) in sources.iter().enumerate() {
         let (r, c) = (i / COLS, i % COLS);
         let map = moved(prev, 0, fr, fc).map(|h| h - dz);
         match (out.is_valid(r, c), map) {
             (true, Some(h)) => out.set_valid(r, c, h + rate * (out.height(r, c) - h)),
             (true, None) => {}
-            (false, Some(h)) if hit(f64::from(u[i]), m.hold) => out.set_valid(r, c, h),
+            (false, Some(h)) if u[i] < kept => out.set_valid(r, c, h),
             (false, _) => out.set_missing(r, c),
         }
     }
@@ -234,7 +247,7 @@ impl Runs {
                         ),
                     ))
                 }
-                Some(last) => step(self.memory, &last.state, Motion::between(last.pose, pose), &inputs[i], out, &u(i)),
+                Some(last) => step(self.memory, &last.state, Motion::between(last.pose, last.time, pose, time), &inputs[i], out, &u(i)),
                 None if self.first_index > 0 && time > 0.0 => {
                     return Err(DemError::input(
                         path,
@@ -273,14 +286,17 @@ pub fn step_set(memory: MapMemory, outs: &mut [Dem], inputs: &[Dem], moments: &[
         .par_iter()
         .map(|run| {
             let mut done = Vec::with_capacity(run.len());
-            let mut last: Option<(Pose, State)> = None;
+            let mut last: Option<(Pose, f64, State)> = None;
             for &i in run {
-                let (_, _, pose) = moments[i].in_run().expect("a run's records are in their run");
+                let (_, time, pose) = moments[i].in_run().expect("a run's records are in their run");
                 let mut out = frames[i];
-                if let Some((was, state)) = &last {
-                    step(memory, state, Motion::between(*was, pose), &inputs[i], &mut out, &u(i));
+                if let Some((was, then, state)) = &last {
+                    // Two records of one time: the later one is a frame of its own.
+                    if time > *then {
+                        step(memory, state, Motion::between(*was, *then, pose, time), &inputs[i], &mut out, &u(i));
+                    }
                 }
-                last = Some((pose, state_of(&inputs[i], &out)));
+                last = Some((pose, time, state_of(&inputs[i], &out)));
                 done.push((i, out));
             }
             done
@@ -402,9 +418,19 @@ pub fn operators(b: &mut Builder, m: MapMemory, frame: &Cells, input: &Cells, u:
     let map_h = b.bin("Sub", &map_h, &dz);
     let (fv, mv) = (is_valid(b, &f_v), is_valid(b, &map_v));
     let change = b.bin("Sub", &f_h, &map_h);
-    let change = b.mul_const(&change, m.rate as f32);
+    let dt = part(b, 3);
+    let dt = b.un("Neg", &dt);
+    let decay = |b: &mut Builder, t: f64| {
+        let t = b.scalar((t as f32).max(TINY));
+        let x = b.bin("Div", &dt, &t);
+        b.un("Exp", &x)
+    };
+    let (forget, kept) = (decay(b, m.tau), decay(b, m.keep));
+    let one = b.scalar(1.0);
+    let rate = b.bin("Sub", &one, &forget);
+    let change = b.bin("Mul", &change, &rate);
     let blend = b.bin("Add", &map_h, &change);
-    let kept = b.lt_const(u, m.hold as f32);
+    let kept = b.bin("Less", u, &kept);
     let missing = b.un("Not", &fv);
     let kept = b.all(&[&missing, &mv, &kept]);
     let both = b.all(&[&fv, &mv]);
@@ -432,7 +458,12 @@ mod tests {
     use super::*;
     use dem_core::format::empty_dem;
 
-    const STILL: Motion = Motion { dx: 0.0, dy: 0.0, dyaw: 0.0 };
+    const STILL: Motion = Motion { dx: 0.0, dy: 0.0, dyaw: 0.0, dt: 0.1 };
+    /// tau and keep for a weight `rate` and a keep probability `p` 0.1 s after the last frame.
+    fn memory(rate: f64, p: f64) -> MapMemory {
+        let t = |q: f64| if q <= 0.0 { 0.0 } else { -0.1 / q.ln() };
+        MapMemory { tau: t(1.0 - rate), keep: t(p) }
+    }
 
     fn ramp() -> Dem {
         let mut d = empty_dem();
@@ -444,8 +475,8 @@ mod tests {
     fn motion_is_in_the_last_frame_s_axes() {
         let a = Pose { x: 1.0, y: 2.0, yaw: std::f64::consts::FRAC_PI_2, travelled: f64::NAN };
         let b = Pose { x: 1.0, y: 2.3, yaw: -3.0, travelled: f64::NAN };
-        let m = Motion::between(a, b);
-        assert!((m.dx - 0.3).abs() < 1e-6 && m.dy.abs() < 1e-6, "{m:?}: ahead of a robot facing +y");
+        let m = Motion::between(a, 2.0, b, 2.25);
+        assert!((m.dx - 0.3).abs() < 1e-6 && m.dy.abs() < 1e-6 && m.dt == 0.25, "{m:?}: ahead of a robot facing +y");
         // From +pi/2 to -3 rad is a turn of -4.57 rad, i.e. +1.71 rad.
         assert!((f64::from(m.dyaw) - (-3.0 - std::f64::consts::FRAC_PI_2 + std::f64::consts::TAU)).abs() < 1e-6, "{m:?}");
     }
@@ -461,15 +492,15 @@ mod tests {
         frame.set_missing(4, 1);
         (0..COLS).for_each(|c| frame.set_valid(10, c, frame.height(10, c) + 0.1));
         let mut d = frame;
-        step(MapMemory { rate: 1.0, hold: 0.0 }, &prev, STILL, &input, &mut d, &u);
+        step(memory(1.0, 0.0), &prev, STILL, &input, &mut d, &u);
         assert_eq!(d, frame, "no memory: the frame");
         let mut d = frame;
-        step(MapMemory { rate: 0.25, hold: 1.0 }, &prev, STILL, &input, &mut d, &u);
+        step(MapMemory { tau: memory(0.25, 0.0).tau, keep: 10.0 }, &prev, STILL, &input, &mut d, &u);
         assert_eq!(d.height(4, 1), input.height(4, 1), "the map keeps the cell the frame missed");
         assert!((d.height(10, 2) - (input.height(10, 2) + 0.025)).abs() < 1e-6, "a quarter of the new frame's change");
         let mut d = frame;
-        step(MapMemory { rate: 0.25, hold: 0.4 }, &prev, STILL, &input, &mut d, &u);
-        assert!(!d.is_valid(4, 1), "u = 0.5 is not below a hold of 0.4");
+        step(memory(0.25, 0.4), &prev, STILL, &input, &mut d, &u);
+        assert!(!d.is_valid(4, 1), "u = 0.5 is not below a keep probability of 0.4");
     }
 
     /// A whole cell forward, the map's rows move back by one; a climb seen
@@ -486,9 +517,9 @@ mod tests {
             (0..COLS).for_each(|c| input.set_valid(r, c, prev_in.height(r + 1, c) - 0.04));
         }
         let mut d = input;
-        step(MapMemory { rate: 0.02, hold: 0.0 }, &prev, Motion { dx: 0.1, dy: 0.0, dyaw: 0.0 }, &input, &mut d, &vec![0.9; CELLS]);
+        step(memory(0.02, 0.0), &prev, Motion { dx: 0.1, ..STILL }, &input, &mut d, &vec![0.9; CELLS]);
         let want = 0.5 - 0.04 + 0.02 * (input.height(7, 3) - (0.5 - 0.04));
-        assert!((d.height(7, 3) - want).abs() < 1e-6, "{} vs {want}: the high cell one row back, lowered by the climb", d.height(7, 3));
+        assert!((d.height(7, 3) - want).abs() < 1e-5, "{} vs {want}: the high cell one row back, lowered by the climb", d.height(7, 3));
         assert!((d.height(2, 0) - input.height(2, 0)).abs() < 1e-6, "the ground both see agrees once the climb is out");
         assert!(!d.is_valid(19, 0), "the new row ahead: the frame misses it and the map never saw it");
     }
@@ -499,7 +530,7 @@ mod tests {
     fn a_stream_steps_runs_in_time_order_only() {
         let pose = |x: f64| Some(Pose { x, y: 0.0, yaw: 0.0, travelled: f64::NAN });
         let at = |t: f64| Moment { run: Some(2), time: t, pose: pose(t) };
-        let m = MapMemory { rate: 0.5, hold: 0.5 };
+        let m = memory(0.5, 0.5);
         let mut outs = vec![ramp(); 3];
         let inputs = outs.clone();
         let u = |_: usize| vec![0.1f32; CELLS];

@@ -57,7 +57,7 @@ proptest! {
             "step-jitter" => format!(r#"{{"sigma":{},"edge":{b}}}"#, c / 4.0),
             "lag" => format!(r#"{{"s":{},"spread":{c}}}"#, a / 40.0),
             "drift" => format!(r#"{{"rate":{c},"zrate":{b},"x0":{a}}}"#),
-            "map-memory" => format!(r#"{{"rate":{c},"hold":{}}}"#, b / 20.0),
+            "map-memory" => format!(r#"{{"tau":{c},"keep":{}}}"#, b / 2.0),
             other => unreachable!("{other}"),
         };
         let json = format!(r#"{{"effects":[{{"effect":"{effect}","params":{params}}}]}}"#);

@@ -141,7 +141,7 @@ fn memory_reads_its_draws(m: dem_sensor::effects::MapMemory) {
         let u: Vec<f32> = (0..100).map(|i| (start + 0.618 * i as f32).fract()).collect();
         let mut d = terrain();
         (0..20).for_each(|r| d.set_missing(r, r % 5));
-        step(m, &prev, Motion { dx: 0.03, dy: 0.0, dyaw: 0.0 }, &terrain(), &mut d, &u);
+        step(m, &prev, Motion { dx: 0.03, dy: 0.0, dyaw: 0.0, dt: 0.1 }, &terrain(), &mut d, &u);
         d
     };
     assert_ne!(out(0.0), out(0.5), "map-memory: 100 uniforms that change nothing");

@@ -100,7 +100,7 @@ fn deterministic_effects_equal_the_numpy_implementation() {
 
 /// A map's memory stepped through the bundled runs (labels' runs, times and
 /// poses) by dem-sensor and by the numpy peer, which reads the labels and
-/// steps the runs in its own loops: with a hold of 1 (no draw decides) the
+/// steps the runs in its own loops: with no keeping (no draw decides) the
 /// same cells are missing and heights agree within 1e-5 m.
 #[test]
 fn a_map_s_memory_over_runs_matches_the_numpy_peer() {
@@ -108,7 +108,7 @@ fn a_map_s_memory_over_runs_matches_the_numpy_peer() {
     let model = arg(dir.path(), "m.json");
     std::fs::write(
         &model,
-        r#"{"effects": [{"effect": "dropout", "params": {"p": 0.0}}, {"effect": "map-memory", "params": {"rate": 0.3, "hold": 1.0}}]}"#,
+        r#"{"effects": [{"effect": "dropout", "params": {"p": 0.0}}, {"effect": "map-memory", "params": {"tau": 0.9, "keep": 0.0}}]}"#,
     )
     .unwrap();
     let args = ["apply", "--sensor", &model, "--labels", &td("sim_labels.csv"), &td("sim.npy")];
@@ -116,7 +116,7 @@ fn a_map_s_memory_over_runs_matches_the_numpy_peer() {
     let py_out = arg(dir.path(), "p.npy");
     let o = Command::new(python())
         .arg(workspace_root().join("crates/dem-sensor/tests/peers/hidden_effects.py"))
-        .args([&td("sim.npy"), &py_out, "1", "map-memory:rate=0.3,hold=1", "--labels", &td("sim_labels.csv")])
+        .args([&td("sim.npy"), &py_out, "1", "map-memory:tau=0.9,keep=0", "--labels", &td("sim_labels.csv")])
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));

@@ -186,8 +186,8 @@ pub fn input_list(model: &SensorModel) -> String {
     }
     if model.map_memory().is_some() {
         parts.push(
-            "state float32 (N,20,5,4) the last frame's state_out (zeros at a reset); motion float32 (N,3) dx, dy (m), dyaw (rad) \
-             since the last frame, in its axes; reset float32 (N) 1 at a run's first frame, else 0. Outputs also state_out"
+            "state float32 (N,20,5,4) the last frame's state_out (zeros at a reset); motion float32 (N,4) dx, dy (m), dyaw (rad) \
+             since the last frame, in its axes, and dt (s); reset float32 (N) 1 at a run's first frame, else 0. Outputs also state_out"
                 .to_string(),
         );
     }

@@ -97,9 +97,11 @@ heights relative to the robot centre; missing = mask -1, height 0):
                its height the bilinear mean of the valid cells of the
                four around it. dz = mean over cells valid in the moved
                last input and the input of (moved last input - input).
-               With m the moved last output - dz and f this frame:
-               both valid: m + rate (f - m); f only: f; m only: m with
-               probability hold, else missing
+               With m the moved last output - dz, f this frame and dt
+               the seconds since the last: both valid: m + (1 -
+               exp(-dt/tau)) (f - m); f only: f; m only: m with
+               probability exp(-dt/keep), else missing (tau or keep 0:
+               the frame's)
   drift        rows with centre x < x0 displaced: going back from the last
                such row, dx and dz are cumulative sums of normals of sd
                rate sqrt(0.1) and zrate sqrt(0.1) per row (one of each per
@@ -466,7 +468,7 @@ def drift(d, rng, rate, zrate, x0):
     _shift(d, dx, dz)
 
 
-def map_memory(d, rng, rate, hold):
+def map_memory(d, rng, tau, keep):
     """A frame alone is a run's first: the map is the frame (the step is map_memory_step)."""
 
 
@@ -485,8 +487,10 @@ def _moved(grid, fr, fc):
     return True, num / den
 
 
-def map_memory_step(last_out, last_in, d, inp, motion, rng, rate, hold):
-    dx, dy, dyaw = motion
+def map_memory_step(last_out, last_in, d, inp, motion, rng, tau, keep):
+    dx, dy, dyaw, dt = motion
+    rate = 1.0 if tau == 0 else 1.0 - np.exp(-dt / tau)
+    hold = 0.0 if keep == 0 else np.exp(-dt / keep)
     src = {}
     for r in range(20):
         for c in range(5):
@@ -512,17 +516,17 @@ def map_memory_step(last_out, last_in, d, inp, motion, rng, rate, hold):
 
 
 def runs_of(labels):
-    """Per record: (run, pose) from a labels CSV with sequence, x, y, yaw."""
+    """Per record: (run, pose) from a labels CSV with sequence, time, x, y, yaw."""
     import csv
     with open(labels) as f:
-        return [(r["sequence"], (float(r["x"]), float(r["y"]), float(r["yaw"]))) for r in csv.DictReader(f)]
+        return [(r["sequence"], (float(r["x"]), float(r["y"]), float(r["yaw"]), float(r["time"]))) for r in csv.DictReader(f)]
 
 
 def motion_between(a, b):
-    (xa, ya, wa), (xb, yb, wb) = a, b
+    (xa, ya, wa, ta), (xb, yb, wb, tb) = a, b
     ex, ey = xb - xa, yb - ya
     turn = (wb - wa + np.pi) % (2 * np.pi) - np.pi
-    return np.cos(wa) * ex + np.sin(wa) * ey, -np.sin(wa) * ex + np.cos(wa) * ey, turn
+    return np.cos(wa) * ex + np.sin(wa) * ey, -np.sin(wa) * ex + np.cos(wa) * ey, turn, tb - ta
 
 
 EFFECTS = {"noise": noise, "dropout": dropout, "row-dropout": row_dropout, "occlusion": occlusion,

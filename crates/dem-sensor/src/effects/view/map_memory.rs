@@ -13,10 +13,10 @@ params! {
     /// with the robot, and a new frame is blended in (crate::fusion).
     #[serde(expecting = "struct variant Effect::MapMemory")]
     MapMemory {
-        /// Weight of a new frame's height where the map holds the cell (1: the frame alone).
-        rate: fit Range::log(0.1, 1.0), limit Limit::new(0.02, 1.0).natural_hi();
-        /// Probability that a cell the frame misses keeps the map's estimate (0: the frame's holes).
-        hold: fit Range::lin(0.0, 1.0), limit Limit::new(0.0, 1.0).natural_lo().natural_hi();
+        /// Time constant (s) of the map's estimate: a frame dt after the last weighs 1 - e^(-dt/tau) (0: the frame alone).
+        tau: fit Range::log(0.02, 5.0), limit Limit::new(0.0, 10.0).natural_lo();
+        /// Mean time (s) the map keeps a cell no frame shows: kept with probability e^(-dt/keep) (0: the frame's holes).
+        keep: fit Range::log(0.02, 10.0), limit Limit::new(0.0, 10.0).natural_lo().natural_hi();
     }
 }
 
@@ -25,9 +25,9 @@ impl EffectKind for MapMemory {
         name: "map-memory",
         family: Family::View,
         emulator: &[],
-        formula: "with the last frame's map moved by the motion (labels' poses) and the climb taken out: \
-            h = m + rate (f - m) where both hold the cell, the frame's where the map misses it, \
-            the map's with probability hold where the frame misses it; a run's first frame is the frame",
+        formula: "with the last frame's map moved by the motion (labels' poses) and the climb taken out, dt after it: \
+            h = m + (1 - e^(-dt/tau)) (f - m) where both hold the cell, the frame's where the map misses it, \
+            the map's with probability e^(-dt/keep) where the frame misses it; a run's first frame is the frame",
         params: Self::PARAMS,
         whole_record: false,
         run_draws: 0,
@@ -55,7 +55,7 @@ impl EffectKind for MapMemory {
     }
 
     fn examples() -> Vec<Self> {
-        vec![MapMemory { rate: 0.4, hold: 0.8 }]
+        vec![MapMemory { tau: 0.5, keep: 2.0 }]
     }
 }
 
