@@ -2,8 +2,8 @@
 # The virtual sensor through PyTorch: every graph dem-sensor export and
 # dem-train export write (each effect of testdata/effects.json alone, a model
 # of several, a generator with testdata/residual.json) converted with
-# onnx2torch and run on the uniforms dem-sensor / dem-apply drew; their
-# outputs must match (validity on >= 99.99 % of cells, heights within 1e-5 m,
+# onnx2torch and run on the uniforms dem-sensor / dem-apply drew (a graph
+# with a map's memory stepped through the labels' runs); their outputs must match (validity on >= 99.99 % of cells, heights within 1e-5 m,
 # row 20 untouched). Needs torch and onnx2torch (make venv-torch).
 #   TORCH_PY=.venv-torch/bin/python BIN=target/release OUT=.bench scripts/torch_sensor_check.sh
 set -euo pipefail
@@ -36,7 +36,41 @@ from onnx2torch import convert
 warnings.filterwarnings("ignore")
 sim, labels, rest = sys.argv[1], sys.argv[2], sys.argv[3:]
 dem = torch.from_numpy(np.load(sim))
-t = torch.from_numpy(np.array([float(r["time"]) for r in csv.DictReader(open(labels))], dtype=np.float32))
+rows = list(csv.DictReader(open(labels)))
+t = torch.from_numpy(np.array([float(r["time"]) for r in rows], dtype=np.float32))
+run = np.array([int(r["sequence"]) for r in rows])
+pose = np.array([[float(r[k]) for k in ("x", "y", "yaw")] for r in rows])
+
+
+def motion(a, b, dt):
+    """(dx, dy, dyaw, dt) from poses a to b, in a's axes (docs/virtual-sensor.md)."""
+    ex, ey = b[:, 0] - a[:, 0], b[:, 1] - a[:, 1]
+    c, s = np.cos(a[:, 2]), np.sin(a[:, 2])
+    turn = np.remainder(b[:, 2] - a[:, 2], 2 * np.pi)
+    turn = np.where(turn > np.pi, turn - 2 * np.pi, turn)
+    return torch.from_numpy(np.stack([c * ex + s * ey, -s * ex + c * ey, turn, dt], axis=1).astype(np.float32))
+
+
+def stepped(net, names, feeds):
+    """A graph with a map's memory stepped through the labels' runs side by side, as dem-sensor and dem-apply step them."""
+    order = [np.flatnonzero(run == r) for r in dict.fromkeys(run.tolist())]
+    out = np.empty(tuple(dem.shape), np.float32)
+    state, last = torch.zeros((len(order), 20, 5, 4)), None
+    for k in range(max(len(o) for o in order)):
+        idx = np.array([o[min(k, len(o) - 1)] for o in order])
+        step = {n: v[idx] for n, v in feeds.items()}
+        tt = t.numpy()
+        step["motion"] = torch.zeros((len(idx), 4)) if last is None else motion(pose[last], pose[idx], np.maximum(tt[idx] - tt[last], 1e-3))
+        step["reset"] = torch.full((len(idx),), 1.0 if last is None else 0.0)
+        step["state"] = state
+        with torch.no_grad():
+            got, state = net(*[step[n] for n in names])
+        live = np.array([k < len(o) for o in order])
+        out[idx[live]] = got.numpy()[live]
+        last = idx
+    return out
+
+
 bad = 0
 print(f"{'model':<28} {'validity differs':>17} {'max height diff':>16}  row 20")
 for model, u, out in zip(rest[0::3], rest[1::3], rest[2::3]):
@@ -44,8 +78,11 @@ for model, u, out in zip(rest[0::3], rest[1::3], rest[2::3]):
     net = convert(m)
     names = [i.name for i in m.graph.input]
     feeds = {"dem": dem, "uniform": torch.from_numpy(np.load(u)), "time": t}
-    with torch.no_grad():
-        got = net(*[feeds[n] for n in names]).numpy()
+    if "state" in names:
+        got = stepped(net, names, feeds)
+    else:
+        with torch.no_grad():
+            got = net(*[feeds[n] for n in names]).numpy()
     want = np.load(out)
     va, vb = want[:, :20, :, 1] > 0, got[:, :20, :, 1] > 0
     differ = (va != vb).mean()

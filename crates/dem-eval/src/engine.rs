@@ -279,6 +279,8 @@ struct Acc {
     attitude: AttitudeCheck,
     frames: PredFrames,
     real_frames: Option<RealFrames>,
+    /// A residual's map memory, stepped over the scored records in stream order.
+    memory: Option<dem_sensor::fusion::Runs>,
 }
 
 /// Run the evaluation.
@@ -304,6 +306,15 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
     let row_sizes = row_sizes(q, scored, &labels);
     let network = Network::load(q, labels.moments.as_deref())?;
     let mut acc = Acc::default();
+    if let (Some(m), true) = (network.residual.as_ref().and_then(|r| r.map_memory()), dem_sensor::any_in_run(labels.moments.as_deref())) {
+        if scored.len() as u64 != labels.moments.as_ref().map_or(0, |m| m.len() as u64) {
+            cli::log(
+                "note: the model's residual has map-memory: it steps the runs over the scored records only (dem-apply --labels \
+                 steps every record; dem-eval --pred scores its output)",
+            );
+        }
+        acc.memory = Some(dem_sensor::fusion::Runs::new(m, labels.first_index));
+    }
     // The whole labels only until the runs are made: the stream keeps a
     // terrain byte and a time per record, and the steps.
     let runs = match (labels.labels.take(), &q.labels_sim) {
@@ -528,6 +539,15 @@ fn evaluate_block(
             // Keyed by the record's index in the whole sim set, as dem-apply
             // keys it: the same draws as `dem-apply | dem-eval --pred`.
             block.par_iter_mut().for_each(|b| r.apply_at(&mut b.2, ctx.q.seed, b.0, ctx.labels.moment(b.0)));
+            if let (Some(runs), Some(path)) = (&mut acc.memory, &ctx.q.labels_sim) {
+                let records: Vec<u64> = block.iter().map(|b| b.0).collect();
+                let moments: Vec<dem_sensor::Moment> = records.iter().map(|&i| ctx.labels.moment(i)).collect();
+                let mut outs: Vec<Dem> = block.iter().map(|b| b.2).collect();
+                let rel = |i: u64| i - ctx.labels.first_index;
+                let u = |i: usize| r.memory_uniforms(ctx.q.seed, records[i]);
+                runs.step_records(path, &records.iter().map(|&i| rel(i)).collect::<Vec<_>>(), &mut outs, &inputs, &moments, u)?;
+                block.iter_mut().zip(outs).for_each(|(b, o)| b.2 = o);
+            }
         }
     }
     for b in &block {

@@ -233,9 +233,25 @@ impl Runs {
         moments: &[Moment],
         u: impl Fn(usize) -> Vec<f32>,
     ) -> Result<()> {
+        let records: Vec<u64> = (first..first + outs.len() as u64).collect();
+        self.step_records(path, &records, outs, inputs, moments, u)
+    }
+
+    /// [`Runs::step_chunk`] for records of the stream that need not be
+    /// consecutive (`records[i]` the index of `outs[i]`, ascending): those
+    /// a tool scores, stepped as a run of their own.
+    pub fn step_records(
+        &mut self,
+        path: &str,
+        records: &[u64],
+        outs: &mut [Dem],
+        inputs: &[Dem],
+        moments: &[Moment],
+        u: impl Fn(usize) -> Vec<f32>,
+    ) -> Result<()> {
         for (i, out) in outs.iter_mut().enumerate() {
             let Some((run, time, pose)) = moments[i].in_run() else { continue };
-            let record = first + i as u64;
+            let record = records[i];
             match self.last.get(&run) {
                 Some(last) if time <= last.time => {
                     return Err(DemError::input(
