@@ -121,6 +121,7 @@ bench: build venv
 	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench/gap.sh
 	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench/apply.sh
 	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench/sensor.sh
+	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench/state.sh
 	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench/memory.sh
 	PY=$(PY) BIN=$(BIN) OUT=.bench bash scripts/bench/import.sh
 	$(MAKE) venv-torch
@@ -129,7 +130,7 @@ bench: build venv
 	$(CARGO) build --release -p dem-nn --example step_speed
 	TORCH_PY=$(TORCH_VENV)/bin/python BIN=$(BIN) OUT=.bench bash scripts/bench/train.sh
 	TORCH_PY=$(TORCH_VENV)/bin/python BIN=$(BIN) OUT=.bench bash scripts/torch_sensor_check.sh > .bench/torch_sensor.txt
-	@echo "Reports: .bench/npy.txt .bench/synth.txt .bench/prep.txt .bench/gap.txt .bench/apply.txt .bench/sensor.txt .bench/torch_sensor.txt .bench/apply_torch.txt .bench/import.txt .bench/train.txt"
+	@echo "Reports: .bench/npy.txt .bench/synth.txt .bench/prep.txt .bench/gap.txt .bench/apply.txt .bench/sensor.txt .bench/state.txt .bench/torch_sensor.txt .bench/apply_torch.txt .bench/import.txt .bench/train.txt"
 
 TD := testdata
 # Epochs of the demo's G_Y; empty: dem-train's default (30 on testdata, ~3 s
