@@ -41,8 +41,15 @@ fn compare(model: &SensorModel) -> (f64, f32) {
     }
     let proto = graph::sensor_model(model, "test", &[]);
     let got = graph::run_tract(&proto, model, &input, &uniform, &t).unwrap();
+    agreement(&native, &got)
+}
+
+/// Native against graph outputs: the share of cells whose validity
+/// differs and the largest height difference where both are valid; row 20
+/// and the contract's missing cells (height 0, mask -1) are asserted.
+fn agreement(native: &[Dem], got: &[Dem]) -> (f64, f32) {
     let (mut differ, mut worst) = (0usize, 0.0f32);
-    for (a, b) in native.iter().zip(&got) {
+    for (a, b) in native.iter().zip(got) {
         assert_eq!(a[200..], b[200..], "row 20 passes through");
         for r in 0..GRID_ROWS {
             for c in 0..COLS {
@@ -57,7 +64,7 @@ fn compare(model: &SensorModel) -> (f64, f32) {
             }
         }
     }
-    (differ as f64 / (n * GRID_ROWS * COLS) as f64, worst)
+    (differ as f64 / (native.len() * GRID_ROWS * COLS) as f64, worst)
 }
 
 fn check(model: &SensorModel) {
@@ -108,20 +115,7 @@ fn check_steps(model: &SensorModel, memory: dem_sensor::effects::MapMemory) {
         })
         .collect();
     assert!(native != frames, "{}: the memory acts on a run's later frames", model.summary());
-    let (mut differ, mut worst) = (0usize, 0.0f32);
-    for (a, b) in native.iter().zip(&got) {
-        assert_eq!(a[200..], b[200..], "row 20 passes through");
-        for r in 0..GRID_ROWS {
-            for c in 0..COLS {
-                if a.is_valid(r, c) != b.is_valid(r, c) {
-                    differ += 1;
-                } else if a.is_valid(r, c) {
-                    worst = worst.max((a.height(r, c) - b.height(r, c)).abs());
-                }
-            }
-        }
-    }
-    let share = differ as f64 / (native.len() * GRID_ROWS * COLS) as f64;
+    let (share, worst) = agreement(&native, &got);
     assert!(share <= 1e-4 && worst <= 1e-5, "{}: stepped, {share} of validity and {worst:e} m differ", model.summary());
 }
 
