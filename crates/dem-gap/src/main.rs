@@ -14,7 +14,7 @@ use dem_sensor::SensorModel;
 /// closes most of it (noise, dropout, row-dropout, occlusion, fov,
 /// view-top, smoothing, bias, quantization, startup, patch-dropout,
 /// edge-holes, rim-holes, pit-fill, mixed-cells, hole-growth, drop-blend, riser-blend, floor-lift, drop-holes,
-/// tilt, shake, step-jitter, lag, drift), fit it, add it, repeat while an effect still
+/// tilt, shake, step-jitter, lag, drift, map-memory), fit it, add it, repeat while an effect still
 /// helps and the gap left is not negligible. What no effect explains is
 /// reported with where it lives (statistic, rows, side, terrain), and a
 /// gap below the sampling floor with the records (runs) that would show it. A fit at the edge of its

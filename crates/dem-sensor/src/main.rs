@@ -9,7 +9,8 @@ use dem_sensor::{apply_shard_emit, SensorModel};
 /// Sensor models of named effects (noise, dropout, row-dropout, occlusion,
 /// fov, view-top, smoothing, bias, quantization, startup, patch-dropout,
 /// edge-holes, rim-holes, pit-fill, mixed-cells, hole-growth, drop-blend, riser-blend, floor-lift, drop-holes,
-/// tilt, shake, step-jitter, lag, drift) as JSON, applied to NPY streams.
+/// tilt, shake, step-jitter, lag, drift, and map-memory, the fused map across
+/// frames) as JSON, applied to NPY streams.
 #[derive(Parser)]
 #[command(
     version,
