@@ -28,7 +28,7 @@ use dem_core::{table, DemError};
 use dem_onnx::apply::{apply, After, ApplyStats, MaskSampling};
 use dem_onnx::sensor::Stored;
 use dem_onnx::{Heights, OnnxModel};
-use dem_sensor::fusion::{Runs, CELLS};
+use dem_sensor::fusion::{memory_draws, Runs};
 use rayon::prelude::*;
 
 pub use dem_onnx::generator::RESIDUAL_KEY;
@@ -136,7 +136,7 @@ pub fn run(c: &Config, model: &OnnxModel, progress: impl FnMut(u64)) -> Result<R
             tail.finish(x, y, &u[i * k..(i + 1) * k], dem_sensor::moment_at(m, i).known_time());
         });
         if let (Some((runs, path)), Some(m)) = (&runs, m) {
-            let memory = |i: usize| u[(i + 1) * k - CELLS..(i + 1) * k].to_vec();
+            let memory = |i: usize| memory_draws(&u[i * k..(i + 1) * k]).to_vec();
             runs.lock().expect("one stream").step_chunk(path, first, out, inp, m, memory)?;
         }
         if let Some(w) = &emit {

@@ -307,7 +307,9 @@ pub fn run(q: &Request) -> anyhow::Result<Evaluation> {
     let network = Network::load(q, labels.moments.as_deref())?;
     let mut acc = Acc::default();
     if let (Some(m), true) = (network.residual.as_ref().and_then(|r| r.map_memory()), dem_sensor::any_in_run(labels.moments.as_deref())) {
-        if scored.len() as u64 != labels.moments.as_ref().map_or(0, |m| m.len() as u64) {
+        // Pairs of one sim record are scored on one prediction of it.
+        let scored_records = scored.chunk_by(|a, b| a.0 == b.0).count() as u64;
+        if scored_records != labels.moments.as_ref().map_or(0, |m| m.len() as u64) {
             cli::log(
                 "note: the model's residual has map-memory: it steps the runs over the scored records only (dem-apply --labels \
                  steps every record; dem-eval --pred scores its output)",
@@ -543,9 +545,9 @@ fn evaluate_block(
                 let records: Vec<u64> = block.iter().map(|b| b.0).collect();
                 let moments: Vec<dem_sensor::Moment> = records.iter().map(|&i| ctx.labels.moment(i)).collect();
                 let mut outs: Vec<Dem> = block.iter().map(|b| b.2).collect();
-                let rel = |i: u64| i - ctx.labels.first_index;
+                let in_stream: Vec<u64> = records.iter().map(|&i| i - ctx.labels.first_index).collect();
                 let u = |i: usize| r.memory_uniforms(ctx.q.seed, records[i]);
-                runs.step_records(path, &records.iter().map(|&i| rel(i)).collect::<Vec<_>>(), &mut outs, &inputs, &moments, u)?;
+                runs.step_records(path, &in_stream, &mut outs, &inputs, &moments, u)?;
                 block.iter_mut().zip(outs).for_each(|(b, o)| b.2 = o);
             }
         }

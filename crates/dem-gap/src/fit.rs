@@ -94,7 +94,7 @@ impl Target<'_> {
             (0..from.len().div_ceil(CHUNK)).into_par_iter().flat_map_iter(|c| make(c * CHUNK..((c + 1) * CHUNK).min(from.len()))).collect();
         if let Some((memory, moments)) = memory {
             let uniforms = |i: usize| match drawn {
-                Some(all) => all[(i + 1) * k - dem_sensor::fusion::CELLS..(i + 1) * k].to_vec(),
+                Some(all) => dem_sensor::fusion::memory_draws(&all[i * k..(i + 1) * k]).to_vec(),
                 None => model.memory_uniforms(self.seed, i as u64),
             };
             dem_sensor::fusion::step_set(memory, &mut out, self.sim, moments, uniforms);

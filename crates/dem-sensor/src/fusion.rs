@@ -40,6 +40,12 @@ use crate::Moment;
 pub const CHANNELS: usize = 4;
 /// Cells of the grid (rows 0..20), one uniform each for the memory.
 pub const CELLS: usize = GRID_ROWS * COLS;
+/// The memory's uniforms among a record's (`SensorModel::uniforms`, the
+/// memory last): their last [`CELLS`].
+pub fn memory_draws(record: &[f32]) -> &[f32] {
+    &record[record.len() - CELLS..]
+}
+
 /// Floats of one record's state: `(20, 5, 4)`, row-major.
 pub const STATE_LEN: usize = GRID_ROWS * COLS * CHANNELS;
 /// One record's state ([`CHANNELS`] per cell).

@@ -530,7 +530,7 @@ pub fn apply_shard_emit(
             if let (Some((runs, path)), Some(inputs)) = (&mut runs, inputs) {
                 let m = chunk_moments(moments, first, chunk.len())?.expect("a map's memory steps runs from labels");
                 let memory_uniforms = |i: usize| match &drawn {
-                    Some(u) => u[(i + 1) * k - fusion::CELLS..(i + 1) * k].to_vec(),
+                    Some(u) => fusion::memory_draws(&u[i * k..(i + 1) * k]).to_vec(),
                     None => model.memory_uniforms(seed, first_index + first + i as u64),
                 };
                 runs.step_chunk(path, first, chunk, &inputs, m, memory_uniforms)?;
