@@ -707,6 +707,39 @@ fn the_motion_stages_are_named_paired() {
     }
 }
 
+/// The emulator's map memory switched off on the sim side only (`dem-synth
+/// --no-memory`: each DEM its own frame's points), runs in time in both
+/// label files: `map-memory` is named first, paired and unpaired, keeps what
+/// the map saw for seconds (the emulator's map forgets a cell only when it
+/// leaves its window), and the model removes at least half of the gap.
+#[test]
+fn the_map_s_memory_is_named_paired_and_unpaired() {
+    let dir = tempdir();
+    let synth = |name: &str, extra: &[&str]| -> String {
+        let out = arg(dir.path(), name);
+        let mut a = vec!["--out", &out, "--runs", "10", "--real-runs", "10", "--seed", "4"];
+        a.extend_from_slice(extra);
+        ok(&run("dem-synth", &a, None));
+        out
+    };
+    let (all, forgetful) = (synth("all", &[]), synth("no-memory", &["--no-memory"]));
+    let f = |d: &str, n: &str| format!("{d}/{n}");
+    let pairs = f(&all, "pairs.csv");
+    let extra = ["--sim-labels", &f(&forgetful, "real_labels.csv"), "--real-labels", &f(&all, "real_labels.csv"), "--max-steps", "3"];
+    for paired in [true, false] {
+        let name = format!("gap-memory-{paired}");
+        let r = gap(dir.path(), &f(&forgetful, "real.npy"), &f(&all, "real.npy"), paired.then_some(pairs.as_str()), &extra, &name);
+        let n = names(&r);
+        let what = format!("--no-memory, paired {paired}: named {n:?}");
+        assert_eq!(n.first().map(String::as_str), Some("map-memory"), "{what}");
+        assert!(param(&r, 0, "keep") >= 2.0, "{what}: keep {}", param(&r, 0, "keep"));
+        let evidence = r["steps"][0]["evidence"].as_str().unwrap();
+        assert!(evidence.contains("consecutive frames"), "{what}: {evidence}");
+        let (g0, g1) = (r["gap_initial"].as_f64().unwrap(), r["gap_final"].as_f64().unwrap());
+        assert!(g1 <= 0.5 * g0, "{what}: gap {g0} -> {g1}");
+    }
+}
+
 /// With both label files the sim side is drawn to real's terrain mix (by
 /// default, and with `--match-terrain-mix`): real holds only the
 /// stairs-up records of sim, so the sim side is drawn to stairs up alone,

@@ -60,6 +60,9 @@ pub struct Stages {
     pub extrinsic: bool,
     /// The body's true pitch and roll differ from the estimate every frame.
     pub vibration: bool,
+    /// The map keeps its cells from one frame to the next (off: each DEM
+    /// is the fusion of its own frame's points alone).
+    pub memory: bool,
 }
 
 impl Default for Stages {
@@ -75,6 +78,7 @@ impl Default for Stages {
             latency: true,
             extrinsic: true,
             vibration: true,
+            memory: true,
         }
     }
 }

@@ -152,6 +152,12 @@ impl ElevationMap {
         }
     }
 
+    /// Forget every cell: the next frame's DEM is its own points alone (a
+    /// map without memory).
+    pub fn forget(&mut self) {
+        self.cells.fill(EMPTY);
+    }
+
     /// Fuse one measured point.
     pub fn fuse(&mut self, hit: &Hit) {
         let Some(k) = self.index(hit.x, hit.y) else { return };

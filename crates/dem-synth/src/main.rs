@@ -26,6 +26,7 @@ use dem_synth::{self as synth, CameraConfig, DatasetConfig, DriftConfig, MapConf
   dem-synth --out run/ --runs 400 --real-runs 20 --seed 1
   dem-synth --out shadowless/ --no-occlusion --seed 1      # same worlds, one effect hidden
   dem-synth --out still/ --no-drift --no-latency --no-extrinsic --no-vibration --seed 1   # sensor stages only
+  dem-synth --out forgetful/ --no-memory --seed 1      # each DEM one frame's points alone
   dem-synth --out slow/ --latency 0.4 --drift 0.05 --seed 1    # a laggier map, a worse odometry
   dem-synth --out high/ --camera-height 0.7 --camera-tilt 25 --seed 2   # another camera mount
   dem-synth --out maps/ --runs 4 --real-runs 2 --seed 1 --emit-maps     # + the 5 cm maps behind real.npy
@@ -135,6 +136,11 @@ struct Args {
     /// (degrees/m, 0..=100; 4: +0.7 degree on a 0.17 m stair edge).
     #[arg(long, default_value_t = 4.0, value_name = "DEG", value_parser = |s: &str| value::within(s, 0.0, 100.0))]
     vibration_edge: f64,
+    /// Switch off the map's memory: each DEM is the fusion of its own
+    /// frame's points alone (the cells no ray of the frame reaches are
+    /// missing).
+    #[arg(long)]
+    no_memory: bool,
     /// Also write DIR/maps.npy ((M, 2, 80, 80) float32: elevation and
     /// variance of the 4 m elevation map window after each measured frame,
     /// grid_map's unwrapped index order, NaN where invalid) and DIR/maps.csv
@@ -166,6 +172,7 @@ fn main() -> ExitCode {
             latency: !a.no_latency,
             extrinsic: !a.no_extrinsic,
             vibration: !a.no_vibration,
+            memory: !a.no_memory,
         };
         let drift = DriftConfig {
             horizontal: a.drift,

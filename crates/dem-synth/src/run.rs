@@ -215,6 +215,9 @@ impl<'a> Sensor<'a> {
         }
         let believed = self.drift.believed(frame);
         let hits = observe_tilted(world, frame, &err, &self.cfg.camera, stages, &mut self.rng, &mut self.aux);
+        if !stages.memory {
+            self.map.forget();
+        }
         self.map.begin_frame(&believed);
         if err.is_zero() && believed == *frame {
             for hit in &hits {

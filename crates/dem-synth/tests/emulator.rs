@@ -54,6 +54,27 @@ fn a_pallet_leaves_a_shadow_behind_it() {
     assert!(valid_in_rows(&seen, row_of(1.25)..GRID_ROWS) * 2 >= (GRID_ROWS - row_of(1.25)) * COLS);
 }
 
+/// The map's memory: driving 1.5 m over flat ground, the rows the robot has
+/// passed keep what the camera saw of them; with `memory` off each DEM is
+/// its own frame's points, so the rows behind the camera's near view (its
+/// lowest ray meets the ground about 0.4 m ahead of C) are missing; in a
+/// run's first frame the two are the same.
+#[test]
+fn the_map_s_memory_keeps_the_rows_behind_the_view() {
+    let w = world(Terrain::Flat, Shape::Flat);
+    let forgetful = cfg(Stages { memory: false, ..Stages::default() });
+    let behind = 0..row_of(0.3);
+    let kept = drive(&cfg(Stages::default()), &w, -1.5, 61);
+    let alone = drive(&forgetful, &w, -1.5, 61);
+    let cells = behind.len() * COLS;
+    assert!(valid_in_rows(&kept, behind.clone()) * 4 >= cells * 3, "the passed rows are kept:\n{kept:?}");
+    assert_eq!(valid_in_rows(&alone, behind), 0, "without memory the rows behind are seen:\n{alone:?}");
+    // A run's first frame has no past: the memory changes nothing there.
+    let first = drive(&forgetful, &w, -0.5, 1);
+    assert_eq!(drive(&cfg(Stages::default()), &w, -0.5, 1), first);
+    assert_eq!(valid_in_rows(&first, 0..row_of(0.3)), 0, "the near view:\n{first:?}");
+}
+
 #[test]
 fn stairs_down_leave_a_blind_band_past_the_edge() {
     let w = world(Terrain::StairsDown, Shape::Stairs { x0: 0.6, rise: -0.17, run: 0.3, steps: 6 });

@@ -64,6 +64,7 @@ fn hiding_one_stage_keeps_the_sim_and_changes_the_measured() {
         "--no-latency",
         "--no-extrinsic",
         "--no-vibration",
+        "--no-memory",
     ] {
         let hidden = synth(dir.path(), flag.trim_start_matches('-'), &[flag]);
         assert_eq!(bytes(&full, "sim.npy"), bytes(&hidden, "sim.npy"), "{flag} changed the sim");

@@ -177,8 +177,8 @@ impl Stage {
 }
 
 /// The stages dem-synth's emulator switches off with `--no-<stage>`.
-pub const EMULATOR_STAGES: [&str; 10] =
-    ["fov", "occlusion", "smoothing", "noise", "dropout", "holes", "drift", "latency", "extrinsic", "vibration"];
+pub const EMULATOR_STAGES: [&str; 11] =
+    ["fov", "occlusion", "smoothing", "noise", "dropout", "holes", "drift", "latency", "extrinsic", "vibration", "memory"];
 
 /// The effects that model emulator stage `stage`, in the vocabulary's order.
 pub fn modelling(stage: &str) -> Vec<&'static str> {

@@ -24,7 +24,7 @@ impl EffectKind for MapMemory {
     const SPEC: EffectSpec = EffectSpec {
         name: "map-memory",
         family: Family::View,
-        emulator: &[],
+        emulator: &["memory"],
         formula: "with the last frame's map moved by the motion (labels' poses) and the climb taken out, dt after it: \
             h = m + (1 - e^(-dt/tau)) (f - m) where both hold the cell, the frame's where the map misses it, \
             the map's with probability e^(-dt/keep) where the frame misses it; a run's first frame is the frame",
