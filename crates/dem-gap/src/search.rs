@@ -34,9 +34,6 @@ pub(crate) struct Confirmation {
     /// Candidates whose model hides far more cells than real misses, or
     /// moves level records as a whole more than real's move, with the reason.
     pub refused: Vec<(Effect, String)>,
-    /// The candidates refused for moving level records: fitted to the
-    /// gap of the same sets, they are not fitted again in later steps.
-    pub moves_level: Vec<&'static str>,
 }
 
 /// The start model as measured, said in the log's first line, and the
@@ -73,9 +70,12 @@ pub(crate) fn name_effects(c: &Comparison, mut state: State, log: &dyn Fn(String
     let mut stop = format!("stopped after --max-steps {}", c.cfg.max_steps);
     let mut short = Vec::new();
     let mut refits = Vec::new();
-    let mut moves_level: Vec<&'static str> = Vec::new();
     for number in 1..=c.cfg.max_steps {
-        let candidates: Vec<_> = not_in(c, &state.model).into_iter().filter(|s| !moves_level.contains(&s.name)).collect();
+        // A candidate refused for moving level records is fitted again
+        // in the next step: on top of the effect added meanwhile it fits
+        // what that effect left (a tilt fitted before `noise` takes the
+        // across-robot spread for a roll).
+        let candidates = not_in(c, &state.model);
         if candidates.is_empty() {
             stop = "every effect of the vocabulary is in the model".into();
             break;
@@ -102,9 +102,8 @@ pub(crate) fn name_effects(c: &Comparison, mut state: State, log: &dyn Fn(String
             }
         }
         let ranking = rank_candidates(c, &state, &candidates, &step_log, tick);
-        let trials = ranking.iter().map(|r| (r.fit.effect, state.model.with(r.fit.effect)));
-        let Confirmation { added, refused, moves_level: more } = confirm_best(c, &state, trials, &step_log);
-        moves_level.extend(more);
+        let trials = ranking.iter().map(|r| (r.fit.effect, state.model.with(r.fit.effect), r.share));
+        let Confirmation { added, refused } = confirm_best(c, &state, trials, &step_log);
         let Some(added) = added else {
             stop = nothing_holds(c.cfg.min_gain, c.paired, &ranking, state.gap, &refused);
             log(stop.clone());
@@ -151,23 +150,26 @@ pub(crate) fn rank_candidates(c: &Comparison, state: &State, candidates: &[&Effe
     ranking
 }
 
-/// The first of `trials` (a candidate and the model with it, best first)
-/// that holds up on all data; the runner-up gets a chance when the best
-/// does not (a candidate refused for moving level records as a whole
-/// does not count: the next one gets its chance). A gain must exceed `min_gain` of the gap with the model's
+/// The first of `trials` (a candidate, the model with it and the share of
+/// the gap it removed on the fitting subsample, best first) that holds up
+/// on all data. The best two always get their chance; after them, every
+/// candidate whose share on the fitting subsample exceeds `min_gain`
+/// does too, so a third effect the data shows is not lost behind two
+/// that fit the sampling (a candidate refused for moving level records
+/// as a whole does not count among the two). A gain must exceed `min_gain` of the gap with the model's
 /// draws and again with other draws, where the halves decide, hold on
 /// both halves, and below the sampling floor, re-fitted on either half,
 /// on the other ([`crate::held_out`]).
 pub(crate) fn confirm_best(
     c: &Comparison,
     state: &State,
-    trials: impl Iterator<Item = (Effect, SensorModel)>,
+    trials: impl Iterator<Item = (Effect, SensorModel, f64)>,
     log: &StepLog,
 ) -> Confirmation {
     let seed = c.cfg.seed;
     let mut refused = Vec::new();
     let threshold = c.cfg.min_gain * state.gap;
-    // The model's own gap with other draws, measured once for both
+    // The model's own gap with other draws, measured once for all
     // candidates that may need it.
     let mut model_redrawn: Option<f64> = None;
     // Paired, the halves decide only below the model's sampling floor
@@ -177,13 +179,12 @@ pub(crate) fn confirm_best(
     // also hold out.
     let mut below_floor_now: Option<bool> = None;
     // The model's statistics on each half for the held-out check, measured
-    // once for both candidates.
+    // once for all candidates.
     let mut held_out_base: Option<Vec<Stats>> = None;
     let mut tried = 0;
-    let mut moves_level = Vec::new();
-    for (e, trial) in trials {
-        if tried == 2 {
-            break;
+    for (e, trial, share) in trials {
+        if tried >= 2 && share <= c.cfg.min_gain {
+            continue;
         }
         let (out, s) = c.measure(&trial, seed);
         // A record-wide move shows, paired, in the planes of the pairs'
@@ -196,7 +197,6 @@ pub(crate) fn confirm_best(
         if let Some(why) = e.spec().whole_record.then(|| planes(c)).flatten().and_then(|l| l.too_wide()) {
             log.line(format!("{e} refused: {why}"));
             refused.push((e, why));
-            moves_level.push(e.name());
             continue;
         }
         tried += 1;
@@ -256,9 +256,9 @@ pub(crate) fn confirm_best(
             }
         }
         let added = Added { effect: e, state: State { model: trial, gap: g, stats: s, halves } };
-        return Confirmation { added: Some(added), refused, moves_level };
+        return Confirmation { added: Some(added), refused };
     }
-    Confirmation { added: None, refused, moves_level }
+    Confirmation { added: None, refused }
 }
 
 /// Two gains, as the log gives them.
