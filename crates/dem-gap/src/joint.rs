@@ -76,7 +76,8 @@ pub(crate) fn extend(c: &Comparison, found: &mut Found, refits: &mut Vec<Refit>,
     while !short.is_empty() && found.steps.len() < c.cfg.max_steps && found.gap >= NEGLIGIBLE_GAP {
         let step_log = StepLog { number: found.steps.len() + 1, log };
         let confirmed = trials(c, found, &short, &step_log, tick).and_then(|(base, base_refits, trials)| {
-            let Confirmation { added, refused } = confirm_best(c, &base, trials.iter().map(|t| (t.effect, t.model.clone(), t.alone)), &step_log);
+            let Confirmation { added, refused } =
+                confirm_best(c, &base, trials.iter().map(|t| (t.effect, t.model.clone(), t.alone)), &step_log);
             added.map(|added| (base, base_refits, trials, added, refused))
         });
         let Some((base, base_refits, trials, added, refused)) = confirmed else {
