@@ -668,6 +668,16 @@ fn leave_one_stage_out_on_other_camera_mounts() {
     }
 }
 
+/// A world of 10 runs, every one measured, of seed 4, with `extra`
+/// dem-synth options, in `dir/name`; its path.
+fn small_world(dir: &Path, name: &str, extra: &[&str]) -> String {
+    let out = arg(dir, name);
+    let mut a = vec!["--out", &out, "--runs", "10", "--real-runs", "10", "--seed", "4"];
+    a.extend_from_slice(extra);
+    ok(&run("dem-synth", &a, None));
+    out
+}
+
 /// Leave one motion stage out, paired, on the default mount with all ten
 /// stages on: latency is named `lag` and the miscalibrated mount `tilt`,
 /// first, and pose drift a pose or step effect; each removes at least half
@@ -681,13 +691,7 @@ fn leave_one_stage_out_on_other_camera_mounts() {
 #[test]
 fn the_motion_stages_are_named_paired() {
     let dir = tempdir();
-    let synth = |name: &str, extra: &[&str]| -> String {
-        let out = arg(dir.path(), name);
-        let mut a = vec!["--out", &out, "--runs", "10", "--real-runs", "10", "--seed", "4"];
-        a.extend_from_slice(extra);
-        ok(&run("dem-synth", &a, None));
-        out
-    };
+    let synth = |name: &str, extra: &[&str]| small_world(dir.path(), name, extra);
     let all = synth("all", &[]);
     for (stage, effects) in [("drift", &["drift", "lag", "step-jitter"][..]), ("latency", &["lag"]), ("extrinsic", &["tilt"])] {
         let hidden = synth(&format!("no-{stage}"), &[&format!("--no-{stage}")]);
@@ -715,13 +719,7 @@ fn the_motion_stages_are_named_paired() {
 #[test]
 fn the_map_s_memory_is_named_paired_and_unpaired() {
     let dir = tempdir();
-    let synth = |name: &str, extra: &[&str]| -> String {
-        let out = arg(dir.path(), name);
-        let mut a = vec!["--out", &out, "--runs", "10", "--real-runs", "10", "--seed", "4"];
-        a.extend_from_slice(extra);
-        ok(&run("dem-synth", &a, None));
-        out
-    };
+    let synth = |name: &str, extra: &[&str]| small_world(dir.path(), name, extra);
     let (all, forgetful) = (synth("all", &[]), synth("no-memory", &["--no-memory"]));
     let f = |d: &str, n: &str| format!("{d}/{n}");
     let pairs = f(&all, "pairs.csv");
